@@ -1,0 +1,1 @@
+//! Layered micro-facet BRDFs.

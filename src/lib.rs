@@ -1,0 +1,9 @@
+//! lapidary: procedural gemstones rendered with layered micro-facet BRDFs.
+//!
+//! Data flows one way (see `../shared/design.md`): RON recipes are parsed and
+//! validated in [`recipe`], compiled into plain data ([`brdf::LayeredBrdf`]),
+//! and evaluated in the local shading frame (z is the surface normal).
+
+pub mod brdf;
+pub mod recipe;
+pub mod texture;
