@@ -6,4 +6,5 @@
 
 pub mod brdf;
 pub mod recipe;
+pub mod sampling;
 pub mod texture;

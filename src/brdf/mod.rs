@@ -1,1 +1,30 @@
-//! Layered micro-facet BRDFs.
+//! Layered micro-facet BRDFs (Weidlich & Wilkie; course notes sections 2.3,
+//! 3.1, 4.1–4.2 and the appendix shader), in the local shading frame where z
+//! is the surface normal and both directions point away from the surface.
+//!
+//! * [`fresnel`]: dielectric and conductor Fresnel terms;
+//! * [`microfacet`]: Blinn (V-cavity), Beckmann and GGX (Smith) lobes;
+//! * [`diffuse`]: Lambert and Oren-Nayar;
+//! * [`layer`]: compiled interfaces (with Beer absorption) and bases;
+//! * [`stack`]: the layered BRDF with eval, sample and pdf;
+//! * [`compensation`]: the multiple-scattering lobe restoring lost energy;
+//! * [`reference`]: the Monte Carlo random walk the model is measured against;
+//! * [`albedo`]: directional albedo estimators.
+
+pub mod albedo;
+pub mod classify;
+pub mod compensation;
+pub mod diffuse;
+pub mod fresnel;
+pub mod layer;
+pub mod microfacet;
+pub mod reference;
+pub mod stack;
+
+/// Linear RGB, one value per channel (R, G, B at 680, 525, 450 nm for the
+/// conductor tables of section 4.2.3).
+pub type Rgb = glam::DVec3;
+
+pub use layer::{Base, Interface};
+pub use microfacet::{Microfacet, MicrofacetModel};
+pub use stack::{BrdfSample, LayeredBrdf};

@@ -1,1 +1,13 @@
-//! RON recipes.
+//! RON recipes and materials: serde types with units as written, validation
+//! with `file:line:col` errors, the embedded library, and compilation into
+//! the plain data the renderer evaluates.
+
+pub mod compile;
+pub mod error;
+pub mod library;
+pub mod material;
+pub mod ranges;
+
+pub use compile::{load_material, locate_material, parse_material};
+pub use error::RecipeError;
+pub use material::Material;

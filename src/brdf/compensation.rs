@@ -1,0 +1,167 @@
+//! Energy between layers: the multiple-scattering compensation lobe.
+//!
+//! The model of the notes lets light cross each layer once ("light travels
+//! only once between layers", table 2.1), so a white Lambert base under a
+//! clear IOR 1.5 coat reflects ≈ 0.43 of the light instead of ≈ 1: the
+//! light reflected back down by the inside of the coat is lost. For a
+//! diffuse base the missing series is ρ/(1 − ρ·F_dr); for rough and metallic
+//! stacks it has no closed form.
+//!
+//! In the manner of Kulla & Conty (2017) we tabulate albedos when the
+//! material is compiled: E_single(μ), the directional albedo of the
+//! single-crossing model, and E_stack(μ), the albedo of the physical stack
+//! from the random walk of [`crate::brdf::reference`] (the way Kulla & Conty's
+//! tables are themselves Monte Carlo integrals). The deficit
+//! D(μ) = E_stack − E_single is split into its positive part P (energy the
+//! single crossing loses) and negative part X (energy it invents, e.g. at
+//! grazing angles through rough coats, where the appendix's t term lets
+//! shadowed light pass), each returned by a reciprocal lobe
+//!
+//! f_ms(ωᵢ, ωₒ) = P(μᵢ)·P(μₒ)/(π·P̄) − X(μᵢ)·X(μₒ)/(π·X̄),   P̄ = 2∫P(μ)μ dμ,
+//!
+//! whose albedo at every angle is exactly P(μ) − X(μ) = D(μ) (Kulla & Conty,
+//! eq. 3, with 1 − E replaced by the deficit), per colour channel. The sum
+//! with the single-crossing BRDF is clamped at zero by the caller.
+
+use crate::brdf::reference::reference_albedo;
+use crate::brdf::stack::LayeredBrdf;
+use crate::brdf::Rgb;
+use glam::DVec3;
+use rayon::prelude::*;
+use std::f64::consts::FRAC_1_PI;
+
+/// Number of cosine nodes of the albedo tables (μ = (k + ½)/N).
+pub const TABLE_NODES: usize = 16;
+/// Random walks per node for E_stack (standard error ≲ 0.003 for the library).
+const WALKS_PER_NODE: usize = 4096;
+/// Stratified samples per node for E_single (a 64 × 64 grid).
+const SINGLE_SAMPLES_SIDE: usize = 64;
+
+/// The tabulated deficit of a material and its cosine-weighted average.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Compensation {
+    /// D(μ_k) = E_stack − E_single per channel at μ_k = (k + ½)/N (signed).
+    pub deficit: Vec<Rgb>,
+    /// P̄ = 2∫P(μ)μ dμ of the interpolated positive part, per channel.
+    pub positive_average: Rgb,
+    /// X̄ = 2∫X(μ)μ dμ of the interpolated negative part, per channel.
+    pub negative_average: Rgb,
+    /// E_single(μ_k), kept for diagnostics (`lapidary brdf --albedo`).
+    pub single_albedo: Vec<Rgb>,
+    /// E_stack(μ_k) from the random walk, kept for diagnostics.
+    pub stack_albedo: Vec<Rgb>,
+}
+
+/// The direction at cosine `mu` in the x–z plane.
+fn direction_at_cosine(mu: f64) -> DVec3 {
+    DVec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu)
+}
+
+/// Directional albedo ∫ f(ωᵢ, ωₒ) cosθᵢ dωᵢ of the single-crossing model at
+/// outgoing cosine `mu`, by stratified importance sampling.
+pub fn single_crossing_albedo(brdf: &LayeredBrdf, mu: f64, seed: u64) -> Rgb {
+    let wo = direction_at_cosine(mu);
+    let mut rng = crate::sampling::Rng::new(seed, mu.to_bits());
+    let n = SINGLE_SAMPLES_SIDE;
+    let mut sum = Rgb::ZERO;
+    for a in 0..n {
+        for b in 0..n {
+            let u = [
+                rng.next_f64(),
+                (a as f64 + rng.next_f64()) / n as f64,
+                (b as f64 + rng.next_f64()) / n as f64,
+            ];
+            if let Some((_, weight)) = brdf.sample_single_crossing(wo, u) {
+                sum += weight;
+            }
+        }
+    }
+    sum / (n * n) as f64
+}
+
+impl Compensation {
+    /// Tabulate the deficit of `brdf`; None when light scatters only once
+    /// (a bare base, a varnish over black) or the deficit is < 10⁻³ everywhere.
+    pub fn compute(brdf: &LayeredBrdf, seed: u64) -> Option<Self> {
+        // A bare base, or one varnish over nothing, scatters once in the walk
+        // too: the model is then exact and the tables would only hold noise.
+        let single_event = brdf.interfaces.is_empty()
+            || (brdf.interfaces.len() == 1 && brdf.base == crate::brdf::Base::Black);
+        if single_event {
+            return None;
+        }
+        let rows: Vec<(Rgb, Rgb)> = (0..TABLE_NODES)
+            .into_par_iter()
+            .map(|k| {
+                let mu = (k as f64 + 0.5) / TABLE_NODES as f64;
+                let single = single_crossing_albedo(brdf, mu, seed ^ 0xa1b2);
+                let (stack, _) = reference_albedo(
+                    brdf,
+                    direction_at_cosine(mu),
+                    WALKS_PER_NODE,
+                    seed ^ k as u64,
+                );
+                (single, stack.min(Rgb::ONE))
+            })
+            .collect();
+        let single_albedo: Vec<Rgb> = rows.iter().map(|r| r.0).collect();
+        let stack_albedo: Vec<Rgb> = rows.iter().map(|r| r.1).collect();
+        let deficit: Vec<Rgb> = rows.iter().map(|(s, t)| *t - *s).collect();
+        if deficit.iter().all(|d| d.abs().max_element() < 1e-3) {
+            return None;
+        }
+        let mut table = Compensation {
+            deficit,
+            positive_average: Rgb::ZERO,
+            negative_average: Rgb::ZERO,
+            single_albedo,
+            stack_albedo,
+        };
+        // P̄, X̄ = 2∫₀¹ P(μ) μ dμ, 2∫₀¹ X(μ) μ dμ of the interpolant (midpoint rule).
+        let steps = 4096;
+        for s in 0..steps {
+            let mu = (s as f64 + 0.5) / steps as f64;
+            let d = table.albedo(mu);
+            table.positive_average += d.max(Rgb::ZERO) * (2.0 * mu / steps as f64);
+            table.negative_average += (-d).max(Rgb::ZERO) * (2.0 * mu / steps as f64);
+        }
+        Some(table)
+    }
+
+    /// D(μ): the (signed) albedo of the compensation lobe at cosine `mu`
+    /// (piecewise linear between nodes, constant beyond the end nodes).
+    pub fn albedo(&self, mu: f64) -> Rgb {
+        let n = self.deficit.len();
+        let x = (mu.clamp(0.0, 1.0) * n as f64 - 0.5).clamp(0.0, (n - 1) as f64);
+        let k = (x.floor() as usize).min(n - 2);
+        let t = x - k as f64;
+        self.deficit[k] * (1.0 - t) + self.deficit[k + 1] * t
+    }
+
+    /// P(μ), the positive part of the deficit: the albedo the lobe adds.
+    pub fn added_albedo(&self, mu: f64) -> Rgb {
+        self.albedo(mu).max(Rgb::ZERO)
+    }
+
+    /// f_ms(ωᵢ, ωₒ) = P(μᵢ)P(μₒ)/(πP̄) − X(μᵢ)X(μₒ)/(πX̄) per channel (signed).
+    pub fn eval(&self, wi: DVec3, wo: DVec3) -> Rgb {
+        let (di, d_o) = (self.albedo(wi.z), self.albedo(wo.z));
+        let positive = di.max(Rgb::ZERO) * d_o.max(Rgb::ZERO);
+        let negative = (-di).max(Rgb::ZERO) * (-d_o).max(Rgb::ZERO);
+        (per_channel_div(positive, self.positive_average)
+            - per_channel_div(negative, self.negative_average))
+            * FRAC_1_PI
+    }
+}
+
+fn per_channel_div(a: Rgb, b: Rgb) -> Rgb {
+    Rgb::new(safe_div(a.x, b.x), safe_div(a.y, b.y), safe_div(a.z, b.z))
+}
+
+fn safe_div(a: f64, b: f64) -> f64 {
+    if b > 1e-12 {
+        a / b
+    } else {
+        0.0
+    }
+}

@@ -1,0 +1,268 @@
+//! Parse, validate and compile a material: RON text → [`Material`] →
+//! [`LayeredBrdf`] (IORs resolved, roughness accumulated, compensation
+//! tabulated).
+
+use crate::brdf::fresnel;
+use crate::brdf::{Base, Interface, LayeredBrdf, Microfacet, Rgb};
+use crate::recipe::error::{did_you_mean, field_before, find_position, RecipeError};
+use crate::recipe::library::{builtin_material_names, builtin_material_source};
+use crate::recipe::material::{BaseSpec, Material};
+use std::path::Path;
+
+/// Seed of the compensation tables: they are part of the compiled material,
+/// so every compile of the same file gives the same numbers.
+const COMPENSATION_SEED: u64 = 0x1a9d_a41e;
+
+/// Parse RON text into a [`Material`], mapping every RON/serde error to
+/// `path:line:col: message` with the field name added where RON omits it.
+pub fn parse_material(path: &str, source: &str) -> Result<Material, RecipeError> {
+    ron::from_str::<Material>(source).map_err(|e| ron_error(path, source, e))
+}
+
+/// Turn a RON error into a [`RecipeError`] a person can act on.
+pub fn ron_error(path: &str, source: &str, e: ron::error::SpannedError) -> RecipeError {
+    use ron::error::Error as E;
+    let (line, col) = (e.span.start.line, e.span.start.col);
+    let message = match &e.code {
+        E::NoSuchStructField {
+            expected,
+            found,
+            outer,
+        } => {
+            let hint = did_you_mean(found, expected.iter().copied())
+                .map(|s| format!(" (did you mean `{s}`?)"))
+                .unwrap_or_default();
+            format!(
+                "unknown field `{found}` in {}{hint}; expected one of: {}",
+                outer.as_deref().unwrap_or("this item"),
+                expected.join(", ")
+            )
+        }
+        E::MissingStructField { field, outer } => format!(
+            "missing field `{field}` in {}",
+            outer.as_deref().unwrap_or("this item")
+        ),
+        E::Message(m) => m.clone(),
+        other => {
+            let text = other.to_string();
+            match field_before(source, line, col) {
+                Some(field) => format!("field `{field}`: {text}"),
+                None => text,
+            }
+        }
+    };
+    RecipeError::at(path, line, col, message)
+}
+
+/// Where a material comes from: the built-in library or a file.
+#[derive(Clone, Debug)]
+pub struct MaterialSource {
+    /// Display path (`builtin:gold` or the file path).
+    pub path: String,
+    /// Short name (library name or file stem).
+    pub name: String,
+    /// The RON text.
+    pub text: String,
+}
+
+/// Find MATERIAL as a file (if it names one or ends in `.ron`) or as a
+/// library name; unknown names get a did-you-mean.
+pub fn locate_material(spec: &str) -> Result<MaterialSource, RecipeError> {
+    let path = Path::new(spec);
+    if path.exists() || spec.ends_with(".ron") || spec.contains('/') {
+        if path.is_dir() {
+            return Err(RecipeError::whole_file(
+                spec,
+                "is a directory, expected a .ron material file",
+            ));
+        }
+        let bytes = std::fs::read(path)
+            .map_err(|e| RecipeError::whole_file(spec, format!("cannot read: {e}")))?;
+        let text = String::from_utf8(bytes)
+            .map_err(|e| RecipeError::whole_file(spec, format!("not UTF-8 text: {e}")))?;
+        let name = path
+            .file_stem()
+            .map_or(spec.to_string(), |s| s.to_string_lossy().into_owned());
+        return Ok(MaterialSource {
+            path: spec.to_string(),
+            name,
+            text,
+        });
+    }
+    match builtin_material_source(spec) {
+        Some(text) => Ok(MaterialSource {
+            path: format!("builtin:{spec}"),
+            name: spec.to_string(),
+            text: text.to_string(),
+        }),
+        None => {
+            let hint = did_you_mean(spec, builtin_material_names())
+                .map(|s| format!(" (did you mean `{s}`?)"))
+                .unwrap_or_default();
+            Err(RecipeError::whole_file(
+                spec,
+                format!("no such file and no built-in material of that name{hint}; `lapidary list` shows the library"),
+            ))
+        }
+    }
+}
+
+/// Load, parse and compile MATERIAL (a library name or a RON file).
+pub fn load_material(spec: &str) -> Result<LayeredBrdf, RecipeError> {
+    let source = locate_material(spec)?;
+    let material = parse_material(&source.path, &source.text)?;
+    compile_material(&source, &material)
+}
+
+/// The IOR of a built-in varnish (a library material of one layer).
+fn varnish_ior(name: &str) -> Option<f64> {
+    let text = builtin_material_source(name)?;
+    let m = ron::from_str::<Material>(text).ok()?;
+    match m.layers.as_slice() {
+        [only] => only.ior,
+        _ => None,
+    }
+}
+
+/// The (n, k) of a built-in metal (a library material with a conductor base).
+fn metal_nk(name: &str) -> Option<([f64; 3], [f64; 3])> {
+    let text = builtin_material_source(name)?;
+    let m = ron::from_str::<Material>(text).ok()?;
+    match m.base {
+        BaseSpec::Conductor {
+            n: Some(n),
+            k: Some(k),
+            ..
+        } => Some((n, k)),
+        _ => None,
+    }
+}
+
+fn names_with(pred: impl Fn(&str) -> bool) -> Vec<&'static str> {
+    builtin_material_names().filter(|n| pred(n)).collect()
+}
+
+/// Resolve names, check the rules serde cannot, and build the BRDF.
+pub fn compile_material(source: &MaterialSource, m: &Material) -> Result<LayeredBrdf, RecipeError> {
+    let path = source.path.as_str();
+    let text = source.text.as_str();
+    let layer_error = |index: usize, message: String| match find_position(text, "Layer(", index) {
+        Some((l, c)) => RecipeError::at(path, l, c, message),
+        None => RecipeError::whole_file(path, message),
+    };
+    let mut interfaces = Vec::with_capacity(m.layers.len());
+    let mut ior_above = 1.0;
+    let mut roughness_above_deg = 0.0;
+    for (index, layer) in m.layers.iter().enumerate() {
+        let given = [
+            layer.ior.is_some(),
+            layer.reflectivity.is_some(),
+            layer.varnish.is_some(),
+        ];
+        if given.iter().filter(|g| **g).count() != 1 {
+            return Err(layer_error(
+                index,
+                format!(
+                    "layer {} needs exactly one of `ior`, `reflectivity` or `varnish`",
+                    index + 1
+                ),
+            ));
+        }
+        let ior = if let Some(ior) = layer.ior {
+            ior
+        } else if let Some(p) = layer.reflectivity {
+            1.0 + 5.0 * p * p // eq. 4.1
+        } else {
+            let name = layer.varnish.as_deref().unwrap_or_default();
+            varnish_ior(name).ok_or_else(|| {
+                let known = names_with(|n| varnish_ior(n).is_some());
+                let hint = did_you_mean(name, known.iter().copied())
+                    .map(|s| format!(" (did you mean `{s}`?)"))
+                    .unwrap_or_default();
+                RecipeError::at_text(
+                    path,
+                    text,
+                    &format!("\"{name}\""),
+                    format!(
+                        "unknown varnish `{name}`{hint}; known: {}",
+                        known.join(", ")
+                    ),
+                )
+            })?
+        };
+        let accumulated = roughness_above_deg + layer.roughness_deg;
+        interfaces.push(Interface {
+            ior_below: ior,
+            eta: ior / ior_above,
+            lobe: Microfacet::new(m.distribution, accumulated),
+            own_lobe: Microfacet::new(m.distribution, layer.roughness_deg),
+            thickness: layer.thickness,
+            absorption_rgb: Rgb::from_array(layer.absorption),
+        });
+        ior_above = ior;
+        roughness_above_deg = accumulated;
+    }
+    let base = match &m.base {
+        BaseSpec::Diffuse {
+            colour,
+            oren_nayar_sigma_rad,
+        } => Base::Diffuse {
+            colour: Rgb::from_array(*colour),
+            oren_nayar_sigma_rad: *oren_nayar_sigma_rad,
+        },
+        BaseSpec::Conductor {
+            n,
+            k,
+            metal,
+            roughness_deg,
+        } => {
+            let (n, k) = match (n, k, metal) {
+                (Some(n), Some(k), None) => (*n, *k),
+                (None, None, Some(name)) => metal_nk(name).ok_or_else(|| {
+                    let known = names_with(|n| metal_nk(n).is_some());
+                    let hint = did_you_mean(name, known.iter().copied())
+                        .map(|s| format!(" (did you mean `{s}`?)"))
+                        .unwrap_or_default();
+                    RecipeError::at_text(
+                        path,
+                        text,
+                        &format!("\"{name}\""),
+                        format!("unknown metal `{name}`{hint}; known: {}", known.join(", ")),
+                    )
+                })?,
+                _ => {
+                    return Err(RecipeError::at_text(
+                        path,
+                        text,
+                        "Conductor",
+                        "a Conductor base needs either both `n` and `k`, or `metal`",
+                    ))
+                }
+            };
+            // Complex IOR relative to the varnish above (eq. 3.3).
+            Base::Conductor {
+                n_relative: Rgb::from_array(n) / ior_above,
+                k_relative: Rgb::from_array(k) / ior_above,
+                lobe: Microfacet::new(m.distribution, roughness_above_deg + roughness_deg),
+                own_lobe: Microfacet::new(m.distribution, *roughness_deg),
+            }
+        }
+        BaseSpec::Black => Base::Black,
+    };
+    let brdf = LayeredBrdf::new(&source.name, m.distribution, interfaces, base);
+    Ok(if m.multiple_scattering {
+        brdf.with_compensation(COMPENSATION_SEED)
+    } else {
+        brdf
+    })
+}
+
+/// Normal-incidence reflectance of a library metal, for the table tests.
+pub fn metal_normal_incidence(name: &str) -> Option<Rgb> {
+    let (n, k) = metal_nk(name)?;
+    Some(Rgb::new(
+        fresnel::conductor_normal_incidence(n[0], k[0]),
+        fresnel::conductor_normal_incidence(n[1], k[1]),
+        fresnel::conductor_normal_incidence(n[2], k[2]),
+    ))
+}

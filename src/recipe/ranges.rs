@@ -1,0 +1,104 @@
+//! Range-checked number fields: validation happens while RON is parsed, so
+//! every out-of-range, NaN or infinite value is reported at its own line and
+//! column with the field's name and allowed range.
+
+use serde::de::Error;
+use serde::{Deserialize, Deserializer};
+
+/// Parse a finite f64 and check `ok`, else an error naming `field` and `allowed`.
+fn checked<'de, D: Deserializer<'de>>(
+    d: D,
+    field: &str,
+    allowed: &str,
+    ok: impl Fn(f64) -> bool,
+) -> Result<f64, D::Error> {
+    let v = f64::deserialize(d)?;
+    if !v.is_finite() || !ok(v) {
+        return Err(D::Error::custom(format!(
+            "`{field}` = {v} is out of range; allowed: {allowed}"
+        )));
+    }
+    Ok(v)
+}
+
+/// Parse an RGB triple, each component checked.
+fn checked_rgb<'de, D: Deserializer<'de>>(
+    d: D,
+    field: &str,
+    allowed: &str,
+    ok: impl Fn(f64) -> bool,
+) -> Result<[f64; 3], D::Error> {
+    let v = <(f64, f64, f64)>::deserialize(d)?;
+    for c in [v.0, v.1, v.2] {
+        if !c.is_finite() || !ok(c) {
+            return Err(D::Error::custom(format!(
+                "`{field}` = ({}, {}, {}) has a component out of range; allowed: {allowed} per channel",
+                v.0, v.1, v.2
+            )));
+        }
+    }
+    Ok([v.0, v.1, v.2])
+}
+
+macro_rules! scalar_field {
+    ($name:ident, $field:literal, $allowed:literal, $ok:expr) => {
+        #[doc = concat!("Deserialize `", $field, "`, allowed: ", $allowed, ".")]
+        pub fn $name<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+            checked(d, $field, $allowed, $ok)
+        }
+    };
+}
+
+macro_rules! optional_scalar_field {
+    ($name:ident, $field:literal, $allowed:literal, $ok:expr) => {
+        #[doc = concat!("Deserialize optional `", $field, "` written as a plain number, allowed: ", $allowed, ".")]
+        pub fn $name<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+            checked(d, $field, $allowed, $ok).map(Some)
+        }
+    };
+}
+
+macro_rules! rgb_field {
+    ($name:ident, $field:literal, $allowed:literal, $ok:expr) => {
+        #[doc = concat!("Deserialize RGB `", $field, "`, allowed: ", $allowed, " per channel.")]
+        pub fn $name<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
+            checked_rgb(d, $field, $allowed, $ok)
+        }
+    };
+}
+
+macro_rules! optional_rgb_field {
+    ($name:ident, $field:literal, $allowed:literal, $ok:expr) => {
+        #[doc = concat!("Deserialize optional RGB `", $field, "`, allowed: ", $allowed, " per channel.")]
+        pub fn $name<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 3]>, D::Error> {
+            checked_rgb(d, $field, $allowed, $ok).map(Some)
+        }
+    };
+}
+
+scalar_field!(
+    roughness_deg,
+    "roughness_deg",
+    "0 <= roughness_deg < 90 (degrees)",
+    |v| (0.0..90.0).contains(&v)
+);
+scalar_field!(thickness, "thickness", "thickness >= 0", |v| v >= 0.0);
+scalar_field!(
+    sigma_rad,
+    "oren_nayar_sigma_rad",
+    "0 <= oren_nayar_sigma_rad <= 1.57 (radians)",
+    |v| (0.0..=1.57).contains(&v)
+);
+optional_scalar_field!(ior, "ior", "1 <= ior <= 5", |v| (1.0..=5.0).contains(&v));
+optional_scalar_field!(
+    reflectivity,
+    "reflectivity",
+    "0 <= reflectivity <= 1 (IOR = 1 + 5p², eq. 4.1)",
+    |v| (0.0..=1.0).contains(&v)
+);
+rgb_field!(absorption, "absorption", "absorption >= 0", |v| v >= 0.0);
+rgb_field!(colour, "colour", "0 <= colour <= 1", |v| (0.0..=1.0)
+    .contains(&v));
+optional_rgb_field!(conductor_n, "n", "0 < n <= 20", |v| v > 0.0 && v <= 20.0);
+optional_rgb_field!(conductor_k, "k", "0 <= k <= 20", |v| (0.0..=20.0)
+    .contains(&v));
