@@ -5,6 +5,7 @@
 //! and evaluated in the local shading frame (z is the surface normal).
 
 pub mod brdf;
+pub mod output;
 pub mod recipe;
 pub mod sampling;
 pub mod texture;

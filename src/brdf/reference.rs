@@ -15,6 +15,13 @@
 //! At the top interface both outcomes are followed in expectation (the
 //! escaping part is tallied, the reflected part continues), which removes
 //! the noise of the escape decision.
+//!
+//! Light that single-scattering micro-facet theory loses to shadowing is, on
+//! a real microsurface, scattered again and leaves (Heitz et al. 2016). In the
+//! manner of Kulla & Conty we keep it: each interaction's weight is divided
+//! by the tabulated average weight E(μ) of that interface and side
+//! ([`WalkTables`]), so a lossless stack keeps all its energy and the lost
+//! light leaves with the single-scattering lobe's shape.
 
 use crate::brdf::fresnel;
 use crate::brdf::layer::Base;
@@ -30,6 +37,91 @@ const MIN_THROUGHPUT: f64 = 1e-4;
 /// Paths stop after this many scattering events (never reached in practice
 /// for the library: with IOR ≤ 2 a bounce keeps at most ~0.9 of the power).
 const MAX_EVENTS: usize = 512;
+
+/// Cosine nodes of the micro-facet albedo tables.
+const WALK_TABLE_NODES: usize = 32;
+/// Micro-facet normals per node when tabulating.
+const WALK_TABLE_SAMPLES: usize = 2048;
+
+/// Average micro-facet weight E(μ) of each interaction of the walk (the
+/// single-scattering albedo of the microsurface, Fresnel split included),
+/// tabulated over incident cosine μ.
+#[derive(Clone, Debug)]
+pub struct WalkTables {
+    /// Per interface, light arriving from above.
+    from_above: Vec<Vec<f64>>,
+    /// Per interface, light arriving from below.
+    from_below: Vec<Vec<f64>>,
+    /// The conductor base (geometry only), empty for other bases.
+    base: Vec<f64>,
+}
+
+fn lookup(table: &[f64], mu: f64) -> f64 {
+    if table.is_empty() {
+        return 1.0;
+    }
+    let n = table.len();
+    let x = (mu.clamp(0.0, 1.0) * n as f64 - 0.5).clamp(0.0, (n - 1) as f64);
+    let k = (x.floor() as usize).min(n - 2);
+    let t = x - k as f64;
+    let e = table[k] * (1.0 - t) + table[k + 1] * t;
+    e.max(1e-3)
+}
+
+fn tabulate(mut weight_at: impl FnMut(DVec3, &mut Rng) -> f64) -> Vec<f64> {
+    (0..WALK_TABLE_NODES)
+        .map(|k| {
+            let mu = (k as f64 + 0.5) / WALK_TABLE_NODES as f64;
+            let w = DVec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+            let mut rng = Rng::new(0x7ab1e, k as u64);
+            let sum: f64 = (0..WALK_TABLE_SAMPLES).map(|_| weight_at(w, &mut rng)).sum();
+            sum / WALK_TABLE_SAMPLES as f64
+        })
+        .collect()
+}
+
+impl WalkTables {
+    /// Tabulate E(μ) for every interface (both sides) and a conductor base.
+    pub fn new(brdf: &LayeredBrdf) -> Self {
+        let dielectric_weight = |lobe: Microfacet, eta: f64| {
+            move |w: DVec3, rng: &mut Rng| match scatter_dielectric(&lobe, w, eta, 1.0, rng) {
+                Some(s) => {
+                    s.fresnel * s.reflected.map_or(0.0, |r| r.1)
+                        + (1.0 - s.fresnel) * s.transmitted.map_or(0.0, |t| t.1)
+                }
+                None => 0.0,
+            }
+        };
+        let from_above = brdf
+            .interfaces
+            .iter()
+            .map(|i| tabulate(dielectric_weight(i.own_lobe, i.eta)))
+            .collect();
+        let from_below = brdf
+            .interfaces
+            .iter()
+            .map(|i| tabulate(dielectric_weight(i.own_lobe, 1.0 / i.eta)))
+            .collect();
+        let base = match &brdf.base {
+            Base::Conductor { own_lobe, .. } => tabulate(|w, rng| {
+                let h = own_lobe.sample_normal(rng.next_f64(), rng.next_f64());
+                let wh = w.dot(h);
+                let r = reflect(w, h);
+                if wh <= 0.0 || r.z <= 0.0 {
+                    0.0
+                } else {
+                    own_lobe.g(w, r, h) * wh / (w.z * h.z)
+                }
+            }),
+            _ => Vec::new(),
+        };
+        WalkTables {
+            from_above,
+            from_below,
+            base,
+        }
+    }
+}
 
 /// Flip a direction between the frame of the upper and lower side.
 fn flip(w: DVec3) -> DVec3 {
@@ -48,11 +140,13 @@ struct DielectricScatter {
 
 /// Draw a micro-facet normal and compute both outcomes for light arriving
 /// from `w_away` (pointing away from the interface, z > 0); `eta` is
-/// n_other_side / n_this_side.
+/// n_other_side / n_this_side; weights are divided by `albedo`, the
+/// interface's tabulated E(μ) (1 while tabulating).
 fn scatter_dielectric(
     lobe: &Microfacet,
     w_away: DVec3,
     eta: f64,
+    albedo: f64,
     rng: &mut Rng,
 ) -> Option<DielectricScatter> {
     let h = lobe.sample_normal(rng.next_f64(), rng.next_f64());
@@ -60,7 +154,7 @@ fn scatter_dielectric(
     if wh <= 0.0 || w_away.z <= 0.0 {
         return None;
     }
-    let projected = wh / (w_away.z * h.z);
+    let projected = wh / (w_away.z * h.z) / albedo;
     let fresnel = fresnel::dielectric(wh, eta);
     let r = reflect(w_away, h);
     let reflected = (r.z > 0.0).then(|| (r, lobe.g(w_away, r, h) * projected));
@@ -76,7 +170,7 @@ fn scatter_dielectric(
 
 /// Scatter at the base: light arrives from `w_away` (z > 0, in the frame of
 /// the last layer) and leaves upward. Returns the new direction and weight.
-fn scatter_base(base: &Base, w_away: DVec3, rng: &mut Rng) -> Option<(DVec3, Rgb)> {
+fn scatter_base(base: &Base, tables: &WalkTables, w_away: DVec3, rng: &mut Rng) -> Option<(DVec3, Rgb)> {
     match base {
         Base::Diffuse { .. } => {
             let w = cosine_hemisphere(rng.next_f64(), rng.next_f64());
@@ -98,7 +192,7 @@ fn scatter_base(base: &Base, w_away: DVec3, rng: &mut Rng) -> Option<(DVec3, Rgb
             if w.z <= 0.0 {
                 return None;
             }
-            let weight = own_lobe.g(w_away, w, h) * wh / (w_away.z * h.z);
+            let weight = own_lobe.g(w_away, w, h) * wh / (w_away.z * h.z) / lookup(&tables.base, w_away.z);
             Some((w, fresnel::conductor(wh, *n_relative, *k_relative) * weight))
         }
         Base::Black => None,
@@ -107,17 +201,24 @@ fn scatter_base(base: &Base, w_away: DVec3, rng: &mut Rng) -> Option<(DVec3, Rgb
 
 /// Follow one path of light arriving from direction `wi` (z > 0) and call
 /// `tally(exit_direction, power)` for every part of it that leaves the top.
-pub fn trace_path(brdf: &LayeredBrdf, wi: DVec3, rng: &mut Rng, mut tally: impl FnMut(DVec3, Rgb)) {
+pub fn trace_path(
+    brdf: &LayeredBrdf,
+    tables: &WalkTables,
+    wi: DVec3,
+    rng: &mut Rng,
+    mut tally: impl FnMut(DVec3, Rgb),
+) {
     let layers = &brdf.interfaces;
     if layers.is_empty() {
-        if let Some((w, weight)) = scatter_base(&brdf.base, wi, rng) {
+        if let Some((w, weight)) = scatter_base(&brdf.base, tables, wi, rng) {
             tally(w, weight);
         }
         return;
     }
     // Entering the top interface from above: tally the reflection, carry on
     // with the transmitted power.
-    let Some(s) = scatter_dielectric(&layers[0].own_lobe, wi, layers[0].eta, rng) else {
+    let top_albedo = lookup(&tables.from_above[0], wi.z);
+    let Some(s) = scatter_dielectric(&layers[0].own_lobe, wi, layers[0].eta, top_albedo, rng) else {
         return;
     };
     if let Some((r, w)) = s.reflected {
@@ -137,7 +238,7 @@ pub fn trace_path(brdf: &LayeredBrdf, wi: DVec3, rng: &mut Rng, mut tally: impl 
         power *= layers[medium - 1].crossing_transmittance(dir.z);
         if dir.z < 0.0 {
             if medium == layers.len() {
-                let Some((w, weight)) = scatter_base(&brdf.base, -dir, rng) else {
+                let Some((w, weight)) = scatter_base(&brdf.base, tables, -dir, rng) else {
                     return;
                 };
                 dir = w;
@@ -145,7 +246,8 @@ pub fn trace_path(brdf: &LayeredBrdf, wi: DVec3, rng: &mut Rng, mut tally: impl 
             } else {
                 // Inner interface from above: reflect or refract at random.
                 let itf = &layers[medium];
-                let Some(s) = scatter_dielectric(&itf.own_lobe, -dir, itf.eta, rng) else {
+                let albedo = lookup(&tables.from_above[medium], -dir.z);
+                let Some(s) = scatter_dielectric(&itf.own_lobe, -dir, itf.eta, albedo, rng) else {
                     return;
                 };
                 let choice = if rng.next_f64() < s.fresnel {
@@ -161,7 +263,8 @@ pub fn trace_path(brdf: &LayeredBrdf, wi: DVec3, rng: &mut Rng, mut tally: impl 
         } else {
             // Interface above, hit from below: work in the flipped frame.
             let itf = &layers[medium - 1];
-            let Some(s) = scatter_dielectric(&itf.own_lobe, flip(-dir), 1.0 / itf.eta, rng) else {
+            let albedo = lookup(&tables.from_below[medium - 1], dir.z);
+            let Some(s) = scatter_dielectric(&itf.own_lobe, flip(-dir), 1.0 / itf.eta, albedo, rng) else {
                 return;
             };
             if medium == 1 {
@@ -190,11 +293,17 @@ pub fn trace_path(brdf: &LayeredBrdf, wi: DVec3, rng: &mut Rng, mut tally: impl 
 /// fraction of power that leaves the top, with its standard error, from
 /// `paths` random walks seeded by `seed`.
 pub fn reference_albedo(brdf: &LayeredBrdf, wi: DVec3, paths: usize, seed: u64) -> (Rgb, Rgb) {
+    let tables = WalkTables::new(brdf);
+    reference_albedo_with(brdf, &tables, wi, paths, seed)
+}
+
+/// [`reference_albedo`] with tables computed once by the caller.
+pub fn reference_albedo_with(brdf: &LayeredBrdf, tables: &WalkTables, wi: DVec3, paths: usize, seed: u64) -> (Rgb, Rgb) {
     let mut rng = Rng::new(seed, 0x5eed_a1be);
     let (mut sum, mut sum_sq) = (Rgb::ZERO, Rgb::ZERO);
     for _ in 0..paths {
         let mut path_total = Rgb::ZERO;
-        trace_path(brdf, wi, &mut rng, |_, p| path_total += p);
+        trace_path(brdf, tables, wi, &mut rng, |_, p| path_total += p);
         sum += path_total;
         sum_sq += path_total * path_total;
     }
@@ -220,8 +329,9 @@ pub fn reference_slice(
     let centres: Vec<f64> = theta_o_deg.iter().map(|t| t.to_radians().sin()).collect();
     let mut sums = vec![Rgb::ZERO; centres.len()];
     let mut rng = Rng::new(seed, theta_i_deg.to_bits());
+    let tables = WalkTables::new(brdf);
     for _ in 0..paths {
-        trace_path(brdf, wi, &mut rng, |w, p| {
+        trace_path(brdf, &tables, wi, &mut rng, |w, p| {
             if w.y.abs() >= bin / 2.0 {
                 return;
             }

@@ -14,6 +14,8 @@
 //!   medium (étendue: n² cosθ dω is invariant) is included;
 //! * the seed's exit transmission is the `tir` term t, whose (1 − F) *is*
 //!   T₂₁ with micro-facet shadowing; we do not multiply by T₂₁ a second time;
+//! * the transmission Fresnel factors are taken at the macro-normal instead of
+//!   the half vector h (at h the seed's albedo exceeds 1 at grazing angles);
 //! * the seed evaluates two layers; we recurse through any number;
 //! * an energy-compensation lobe (see [`crate::brdf::compensation`]) restores
 //!   the light that the single crossing of the model loses.
@@ -143,13 +145,18 @@ impl LayeredBrdf {
         if below == Rgb::ZERO {
             return f_top;
         }
-        let transmission_in = 1.0 - f_in; // T₁₂
-                                          // Appendix `tir`: t = (1 − G) + (1 − F)·G with G of the refracted pair
-                                          // and F the internal Fresnel factor at ω′ₒ·h. Its (1 − F) is T₂₁ (by
-                                          // the Stokes relations F(ω′ₒ·h, 1/η) = F(ωₒ·h, η)), so T₂₁ is not
-                                          // multiplied again (deviation from the formula, see module doc).
+        // T₁₂ and the exit Fresnel factor are taken at the macro-normal, not
+        // at h as in the appendix (deviation): with h the half vector of
+        // the external pair, the seed lets light that the interface reflects
+        // at grazing incidence still reach the layers below, and blue acrylic
+        // reflected 1.10 of the light at 87°. At the macro-normal the factors
+        // are exact for smooth coats and fall to 0 at grazing as they must.
+        let transmission_in = 1.0 - fresnel::dielectric(wi.z, itf.eta); // T₁₂
+        // Appendix `tir`: t = (1 − G) + (1 − F)·G with G of the refracted pair.
+        // Its (1 − F) is T₂₁ (by the Stokes relations F(ω′ₒ, 1/η) = F(ωₒ, η)),
+        // so T₂₁ is not multiplied again (deviation from the formula).
         let g_inside = itf.lobe.g(wi_in, wo_in, h);
-        let f_out = fresnel::dielectric(wo_in.dot(h), 1.0 / itf.eta);
+        let f_out = fresnel::dielectric(wo.z, itf.eta);
         let tir = (1.0 - g_inside) + (1.0 - f_out) * g_inside;
         let absorption = itf.round_trip_transmittance(wi_in, wo_in); // a, eq. 3.4
                                                                      // 1/η²: radiance compression (missing in the seed).

@@ -1,0 +1,131 @@
+//! `lapidary brdf`: albedo tables, point evaluations and polar plots.
+
+use super::BrdfArgs;
+use lapidary::brdf::albedo::{albedo_angles_deg, directional_albedo, in_plane};
+use lapidary::brdf::reference::{reference_albedo, reference_slice};
+use lapidary::brdf::LayeredBrdf;
+use lapidary::plot::{polar_plot, PolarPanel, PolarPlotStyle};
+use lapidary::recipe::compile::{compile_material, locate_material, parse_material};
+use lapidary::sampling::direction_from_degrees;
+
+/// Fixed seed of every estimate this command prints: same output each run.
+const SEED: u64 = 2011;
+/// ±0.005 at two standard errors.
+const ALBEDO_STD_ERROR: f64 = 0.0025;
+/// Incidence angles of the plots (the top row of figure 2.1).
+const PLOT_INCIDENCE_DEG: [f64; 4] = [0.0, 30.0, 60.0, 75.0];
+
+fn load(args: &BrdfArgs) -> Result<LayeredBrdf, String> {
+    let source = locate_material(&args.material).map_err(|e| e.to_string())?;
+    let mut material = parse_material(&source.path, &source.text).map_err(|e| e.to_string())?;
+    if args.single_crossing {
+        material.multiple_scattering = false;
+    }
+    compile_material(&source, &material).map_err(|e| e.to_string())
+}
+
+/// Run `lapidary brdf`.
+pub fn run(args: BrdfArgs) -> Result<(), String> {
+    if let Some(path) = &args.output {
+        lapidary::output::check_writable(path).map_err(|e| e.to_string())?;
+    }
+    let eval_angles = args.eval.as_deref().map(parse_eval_angles).transpose()?;
+    let brdf = load(&args)?;
+    if args.albedo {
+        print_albedo(&brdf, args.reference);
+    } else if let Some([ti, pi, to, po]) = eval_angles {
+        let f = brdf.eval(direction_from_degrees(ti, pi), direction_from_degrees(to, po));
+        println!("{:.6},{:.6},{:.6}", f.x, f.y, f.z);
+    } else if let Some(path) = &args.output {
+        let image = plot(&brdf, args.reference);
+        lapidary::output::write_png(path, &image).map_err(|e| e.to_string())?;
+        eprintln!("wrote {}", path.display());
+    } else {
+        return Err("say what to show: --albedo, --eval THETA_I,PHI_I,THETA_O,PHI_O, or -o PLOT.png".into());
+    }
+    Ok(())
+}
+
+/// Parse "θi,φi,θo,φo" in degrees; θ must lie in [0, 90].
+fn parse_eval_angles(text: &str) -> Result<[f64; 4], String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    if parts.len() != 4 {
+        return Err(format!(
+            "--eval {text}: expected four angles THETA_I,PHI_I,THETA_O,PHI_O in degrees"
+        ));
+    }
+    let mut out = [0.0; 4];
+    for (k, p) in parts.iter().enumerate() {
+        let v: f64 = p
+            .parse()
+            .map_err(|_| format!("--eval {text}: `{p}` is not a number"))?;
+        if !v.is_finite() || ((k == 0 || k == 2) && !(0.0..=90.0).contains(&v)) {
+            return Err(format!(
+                "--eval {text}: `{p}` is out of range; θ must be in [0, 90] degrees, φ finite"
+            ));
+        }
+        out[k] = v;
+    }
+    Ok(out)
+}
+
+fn print_albedo(brdf: &LayeredBrdf, with_reference: bool) {
+    if with_reference {
+        println!("theta_deg,r,g,b,reference_r,reference_g,reference_b");
+    } else {
+        println!("theta_deg,r,g,b");
+    }
+    for theta in albedo_angles_deg() {
+        let a = directional_albedo(brdf, theta, ALBEDO_STD_ERROR, 4_000_000, SEED);
+        let m = a.mean;
+        if with_reference {
+            let (r, _) = reference_albedo(brdf, in_plane(theta), 100_000, SEED);
+            println!(
+                "{theta},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}",
+                m.x, m.y, m.z, r.x, r.y, r.z
+            );
+        } else {
+            println!("{theta},{:.4},{:.4},{:.4}", m.x, m.y, m.z);
+        }
+    }
+}
+
+/// In-plane slice f(ωᵢ, ωₒ)·cosθₒ; light on the φ = 180° side.
+fn plot(brdf: &LayeredBrdf, with_reference: bool) -> image::RgbImage {
+    let panels: Vec<PolarPanel> = PLOT_INCIDENCE_DEG
+        .iter()
+        .map(|&theta_i| {
+            let wi = direction_from_degrees(theta_i, 180.0);
+            let mut curves: [Vec<(f64, f64)>; 3] = Default::default();
+            for step in 0..=720 {
+                let theta_o = -90.0 + step as f64 * 0.25;
+                let wo = direction_from_degrees(theta_o.abs(), if theta_o < 0.0 { 180.0 } else { 0.0 });
+                let v = brdf.eval(wi, wo) * wo.z;
+                for (c, curve) in curves.iter_mut().enumerate() {
+                    curve.push((theta_o, v[c]));
+                }
+            }
+            let reference = with_reference.then(|| {
+                let angles: Vec<f64> = (0..=58).map(|k| -87.0 + k as f64 * 3.0).collect();
+                let values = reference_slice(brdf, theta_i, &angles, 400_000, 0.05, SEED);
+                let mut r: [Vec<(f64, f64)>; 3] = Default::default();
+                for (a, v) in angles.iter().zip(values) {
+                    for (c, curve) in r.iter_mut().enumerate() {
+                        curve.push((*a, v[c]));
+                    }
+                }
+                r
+            });
+            PolarPanel {
+                incidence_deg: theta_i,
+                curves,
+                reference,
+            }
+        })
+        .collect();
+    let style = PolarPlotStyle {
+        title: format!("{}: f·cos θo in the plane of incidence", brdf.name),
+        ..PolarPlotStyle::default()
+    };
+    polar_plot(&panels, &style)
+}

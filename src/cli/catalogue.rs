@@ -1,0 +1,33 @@
+//! `lapidary list` and `lapidary classify`.
+
+use lapidary::brdf::classify::classify as classify_brdf;
+use lapidary::recipe::compile::{compile_material, locate_material, parse_material};
+use lapidary::recipe::library::builtin_material_names;
+
+/// Load a material without its compensation tables (classification and
+/// listing need only the parameters).
+fn load_parameters(spec: &str) -> Result<lapidary::brdf::LayeredBrdf, String> {
+    let source = locate_material(spec).map_err(|e| e.to_string())?;
+    let mut material = parse_material(&source.path, &source.text).map_err(|e| e.to_string())?;
+    material.multiple_scattering = false;
+    compile_material(&source, &material).map_err(|e| e.to_string())
+}
+
+/// Print the class of MATERIAL and the reason.
+pub fn classify(spec: &str) -> Result<(), String> {
+    let brdf = load_parameters(spec)?;
+    let class = classify_brdf(&brdf);
+    println!("{}: {}", brdf.name, class);
+    println!("because: {}", class.reason);
+    Ok(())
+}
+
+/// Print every built-in material with its class.
+pub fn list() -> Result<(), String> {
+    println!("Materials (gem-recipes/materials/, built in):");
+    for name in builtin_material_names() {
+        let brdf = load_parameters(name)?;
+        println!("  {name:<26} {}", classify_brdf(&brdf));
+    }
+    Ok(())
+}

@@ -1,0 +1,74 @@
+//! Argument definitions (clap) and dispatch to the subcommands.
+
+mod brdf;
+mod catalogue;
+
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+
+/// lapidary: procedural gemstones with layered micro-facet BRDFs.
+#[derive(Parser, Debug)]
+#[command(name = "lapidary", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Inspect a material's BRDF: albedo table, point values, or polar plots.
+    Brdf(BrdfArgs),
+    /// Print the section 3.4 class of a material, with the reason.
+    Classify {
+        /// A library name (see `lapidary list`) or a RON file.
+        material: String,
+    },
+    /// List the built-in materials with their classes.
+    List,
+}
+
+/// Arguments of `lapidary brdf`.
+#[derive(clap::Args, Debug)]
+struct BrdfArgs {
+    /// A library name (see `lapidary list`) or a RON material file.
+    material: String,
+    /// Print CSV `theta_deg,r,g,b`: directional albedo at 0, 5, … 85°.
+    #[arg(long, conflicts_with_all = ["eval", "output"])]
+    albedo: bool,
+    /// Print `r,g,b`, the BRDF value f (no cosine) for THETA_I,PHI_I,THETA_O,PHI_O in degrees.
+    #[arg(long, value_name = "THETA_I,PHI_I,THETA_O,PHI_O", conflicts_with = "output", allow_hyphen_values = true)]
+    eval: Option<String>,
+    /// Write polar plots of the in-plane, cosine-weighted BRDF (PNG).
+    #[arg(short = 'o', long = "output", value_name = "PLOT.png")]
+    output: Option<PathBuf>,
+    /// Overlay the Monte Carlo random-walk reference on the plot, or add its
+    /// albedo columns to --albedo.
+    #[arg(long)]
+    reference: bool,
+    /// Use the seed-faithful single-crossing model (no multiple-scattering compensation).
+    #[arg(long)]
+    single_crossing: bool,
+}
+
+/// Parse the command line and run; returns the process exit code.
+pub fn run() -> i32 {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() { 2 } else { 0 };
+        }
+    };
+    let result = match cli.command {
+        Command::Brdf(args) => brdf::run(args),
+        Command::Classify { material } => catalogue::classify(&material),
+        Command::List => catalogue::list(),
+    };
+    match result {
+        Ok(()) => 0,
+        Err(message) => {
+            eprintln!("error: {message}");
+            1
+        }
+    }
+}

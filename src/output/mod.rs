@@ -1,0 +1,70 @@
+//! Writing results to disk without ever leaving a half-written file: data
+//! goes to a temporary file beside the target, which is then renamed over it.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Why an output could not be written, naming the path.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct OutputError {
+    /// The output path as given.
+    pub path: String,
+    /// What went wrong.
+    pub message: String,
+}
+
+fn temporary_sibling(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "output".into());
+    path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
+}
+
+/// Check that `path` can be written: its directory exists and it is not a
+/// directory. Called before long work so that errors come first.
+pub fn check_writable(path: &Path) -> Result<(), OutputError> {
+    let err = |message: String| OutputError {
+        path: path.display().to_string(),
+        message,
+    };
+    if path.is_dir() {
+        return Err(err("is a directory, expected a file name".into()));
+    }
+    let parent = path.parent().filter(|p| !p.as_os_str().is_empty());
+    if let Some(dir) = parent {
+        if !dir.is_dir() {
+            return Err(err(format!("directory {} does not exist", dir.display())));
+        }
+    }
+    Ok(())
+}
+
+/// Write `bytes` to `path` atomically (temporary file, then rename).
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+    check_writable(path)?;
+    let tmp = temporary_sibling(path);
+    let result = std::fs::File::create(&tmp)
+        .and_then(|mut f| f.write_all(bytes).and_then(|_| f.sync_all()))
+        .and_then(|_| std::fs::rename(&tmp, path));
+    result.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        OutputError {
+            path: path.display().to_string(),
+            message: format!("cannot write: {e}"),
+        }
+    })
+}
+
+/// Encode an RGB image as PNG and write it atomically.
+pub fn write_png(path: &Path, image: &image::RgbImage) -> Result<(), OutputError> {
+    let mut bytes = Vec::new();
+    image
+        .write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)
+        .map_err(|e| OutputError {
+            path: path.display().to_string(),
+            message: format!("cannot encode PNG: {e}"),
+        })?;
+    write_atomically(path, &bytes)
+}

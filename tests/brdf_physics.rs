@@ -1,0 +1,185 @@
+//! Physics of the layered BRDF: Fresnel tables, energy conservation (white
+//! furnace), the random-walk reference against closed forms, and the
+//! analytic model against the reference.
+
+use glam::DVec3;
+use lapidary::brdf::albedo::{directional_albedo, in_plane};
+use lapidary::brdf::fresnel;
+use lapidary::brdf::reference::reference_albedo;
+use lapidary::brdf::{LayeredBrdf, Rgb};
+use lapidary::recipe::compile::{compile_material, parse_material, MaterialSource};
+use lapidary::recipe::library::builtin_material_names;
+use lapidary::recipe::load_material;
+
+fn material_from_ron(name: &str, text: &str) -> LayeredBrdf {
+    let source = MaterialSource {
+        path: format!("test:{name}"),
+        name: name.into(),
+        text: text.into(),
+    };
+    let m = parse_material(&source.path, text).expect("test material parses");
+    compile_material(&source, &m).expect("test material compiles")
+}
+
+/// Hemispherical (cosine-weighted) average of the external dielectric
+/// Fresnel reflectance, F̄ = 2∫F(μ)μ dμ, by the midpoint rule.
+fn hemispherical_fresnel(eta: f64) -> f64 {
+    let n = 100_000;
+    (0..n)
+        .map(|k| {
+            let mu = (k as f64 + 0.5) / n as f64;
+            2.0 * fresnel::dielectric(mu, eta) * mu / n as f64
+        })
+        .sum()
+}
+
+#[test]
+fn conductor_fresnel_at_normal_incidence_matches_table_4_2() {
+    // Table 4.2 of the notes, typed here independently of the RON files.
+    let table = [
+        ("gold", [0.1, 0.42, 1.56], [3.8, 2.5, 1.9]),
+        ("silver", [0.14, 0.13, 0.157], [4.44, 3.25, 2.40]),
+        ("aluminium", [1.94, 1.0, 0.6], [8.21, 6.69, 4.86]),
+    ];
+    for (name, n, k) in table {
+        let brdf = load_material(name).unwrap();
+        let lapidary::brdf::Base::Conductor {
+            n_relative,
+            k_relative,
+            ..
+        } = brdf.base
+        else {
+            panic!("{name} should be a bare conductor");
+        };
+        let f = fresnel::conductor(1.0, n_relative, k_relative);
+        for c in 0..3 {
+            let expected = ((n[c] - 1.0f64).powi(2) + k[c] * k[c]) / ((n[c] + 1.0f64).powi(2) + k[c] * k[c]);
+            assert!((f[c] - expected).abs() < 1e-12, "{name} channel {c}: {} vs {expected}", f[c]);
+        }
+    }
+}
+
+#[test]
+fn reference_walk_over_black_returns_the_fresnel_reflectance() {
+    let brdf = material_from_ron(
+        "coat-over-black",
+        "Material(layers: [Layer(ior: 1.5, roughness_deg: 0.0)], base: Black)",
+    );
+    for theta in [0.0f64, 45.0, 80.0] {
+        let (albedo, _) = reference_albedo(&brdf, in_plane(theta), 2000, 1);
+        let expected = fresnel::dielectric(theta.to_radians().cos(), 1.5);
+        assert!((albedo.x - expected).abs() < 1e-3, "θ={theta}: {} vs {expected}", albedo.x);
+    }
+}
+
+#[test]
+fn reference_walk_matches_the_closed_form_smooth_coat_over_lambert() {
+    // Light enters with 1 − F(μ); inside, each upward crossing escapes with
+    // (1 − F̄ₑ)/n² and is reflected back with F̄ᵢ = 1 − (1 − F̄ₑ)/n²; the
+    // base returns ρ each time: R = F + (1 − F)·ρ(1 − F̄ₑ)/n² / (1 − ρF̄ᵢ).
+    let n = 1.5;
+    let fe = hemispherical_fresnel(n);
+    let escape = (1.0 - fe) / (n * n);
+    for rho in [1.0, 0.5] {
+        let brdf = material_from_ron(
+            "coat-over-lambert",
+            &format!(
+                "Material(layers: [Layer(ior: 1.5, roughness_deg: 0.0)], base: Diffuse(colour: ({rho}, {rho}, {rho})), multiple_scattering: false)"
+            ),
+        );
+        for theta in [0.0f64, 40.0, 70.0] {
+            let f = fresnel::dielectric(theta.to_radians().cos(), n);
+            let expected = f + (1.0 - f) * rho * escape / (1.0 - rho * (1.0 - escape));
+            let (albedo, err) = reference_albedo(&brdf, in_plane(theta), 40_000, 3);
+            assert!(
+                (albedo.x - expected).abs() < 4.0 * err.x + 2e-3,
+                "ρ={rho} θ={theta}: walk {} vs closed form {expected}",
+                albedo.x
+            );
+        }
+    }
+}
+
+#[test]
+fn single_crossing_white_lambert_under_clear_coat_reflects_about_0_43() {
+    // The seed's model: F(0) + (1 − F(0))·(1 − F̄ₑ)/n² ≈ 0.43 (issue 2).
+    let brdf = material_from_ron(
+        "seed-faithful",
+        "Material(layers: [Layer(ior: 1.5, roughness_deg: 0.01)], base: Diffuse(colour: (1.0, 1.0, 1.0)), multiple_scattering: false)",
+    );
+    let expected = 0.04 + 0.96 * (1.0 - hemispherical_fresnel(1.5)) / 2.25;
+    let a = directional_albedo(&brdf, 0.0, 0.002, 1_000_000, 5);
+    // The W&W model refracts through the half vector h, so its V-cavity G of
+    // the refracted pair is below 1 even for a smooth coat and the `tir` term
+    // passes a little more light: measured 0.452, within 0.03 of the ideal.
+    assert!((a.mean.x - expected).abs() < 0.03, "{} vs {expected}", a.mean.x);
+    assert!((expected - 0.43).abs() < 0.01);
+}
+
+#[test]
+fn white_furnace_every_library_material_reflects_at_most_everything() {
+    for name in builtin_material_names() {
+        let brdf = load_material(name).unwrap();
+        for k in 0..18 {
+            let theta = k as f64 * 5.0;
+            let a = directional_albedo(&brdf, theta, 0.004, 200_000, 11);
+            let bound = Rgb::ONE + 3.0 * a.std_error;
+            assert!(
+                a.mean.cmple(bound).all(),
+                "{name} at {theta}°: albedo {:?} ± {:?}",
+                a.mean,
+                a.std_error
+            );
+        }
+    }
+}
+
+#[test]
+fn compensated_clear_coats_over_white_lambert_keep_their_energy() {
+    // Table 4.1's varnishes, smooth and rough, over a white Lambert base.
+    for ior in [1.31, 1.45, 1.53, 1.7] {
+        for roughness in [0.5, 10.0, 25.0] {
+            let brdf = material_from_ron(
+                "coat",
+                &format!("Material(layers: [Layer(ior: {ior}, roughness_deg: {roughness})], base: Diffuse(colour: (1.0, 1.0, 1.0)))"),
+            );
+            for theta in [0.0, 20.0, 40.0, 60.0] {
+                let a = directional_albedo(&brdf, theta, 0.003, 400_000, 13);
+                assert!(
+                    a.mean.min_element() >= 0.95,
+                    "IOR {ior}, m {roughness}°, θ {theta}°: albedo {:?}",
+                    a.mean
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn analytic_albedo_is_within_0_02_of_the_random_walk_for_every_library_material() {
+    let angles = [0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 85.0];
+    for name in builtin_material_names() {
+        let brdf = load_material(name).unwrap();
+        for theta in angles {
+            let analytic = directional_albedo(&brdf, theta, 0.002, 400_000, 17);
+            let (walk, walk_err) = reference_albedo(&brdf, in_plane(theta), 20_000, 19);
+            let diff = (analytic.mean - walk).abs().max_element();
+            let noise = 3.0 * (analytic.std_error + walk_err).max_element();
+            assert!(
+                diff <= 0.02 + noise,
+                "{name} at {theta}°: analytic {:?} vs walk {:?}",
+                analytic.mean,
+                walk
+            );
+        }
+    }
+}
+
+#[test]
+fn compensation_lobe_is_reciprocal() {
+    let brdf = load_material("sugar").unwrap();
+    let c = brdf.compensation.as_ref().expect("sugar is compensated");
+    let a = DVec3::new(0.3, 0.1, 0.9).normalize();
+    let b = DVec3::new(-0.7, 0.2, 0.3).normalize();
+    assert_eq!(c.eval(a, b), c.eval(b, a));
+}

@@ -1,0 +1,207 @@
+//! The command line as a user meets it: `brdf`, `classify`, `list`, and
+//! bad material files (exit 1, `file:line:col`, the field and its range,
+//! never a panic, never an output file).
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn lapidary(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lapidary"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+fn scratch_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("lapidary-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn albedo_prints_csv_for_0_to_85_degrees() {
+    let out = lapidary(&["brdf", "gold", "--albedo"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[0], "theta_deg,r,g,b");
+    assert_eq!(lines.len(), 19);
+    let first: Vec<f64> = lines[1].split(',').map(|v| v.parse().unwrap()).collect();
+    assert_eq!(first[0], 0.0);
+    // Gold reflects red more than blue (table 4.2: R ≈ 0.97, B ≈ 0.49 at 0°... independent bound).
+    assert!(first[1] > first[3] + 0.2, "{:?}", first);
+}
+
+#[test]
+fn eval_prints_three_values_and_matches_lambert_for_a_bare_diffuse_file() {
+    let dir = scratch_dir("eval");
+    let file = dir.join("matte.ron");
+    std::fs::write(&file, "Material(base: Diffuse(colour: (0.5, 0.25, 1.0)))").unwrap();
+    let out = lapidary(&["brdf", file.to_str().unwrap(), "--eval", "30,0,45,90"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: Vec<f64> = String::from_utf8(out.stdout)
+        .unwrap()
+        .trim()
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    let pi = std::f64::consts::PI;
+    for (got, albedo) in v.iter().zip([0.5, 0.25, 1.0]) {
+        assert!((got - albedo / pi).abs() < 1e-5, "{v:?}");
+    }
+}
+
+#[test]
+fn plot_writes_a_png() {
+    let dir = scratch_dir("plot");
+    let png = dir.join("gold.png");
+    let out = lapidary(&["brdf", "gold", "-o", png.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG");
+}
+
+#[test]
+fn classify_names_the_groups_of_section_3_4() {
+    for (material, expected) in [
+        ("blue-acrylic", "glossy paint"),
+        ("sugar", "frosted paint"),
+        ("brass", "metallic foil, tinted"),
+        ("blue-metallic-car-paint", "metallic paint, tinted"),
+        ("blue-metallic-paint", "frosted metal, tinted"),
+        ("silver-paint", "patina"),
+        ("light-blue-house-paint", "frosted paint, multi-layer"),
+    ] {
+        let out = lapidary(&["classify", material]);
+        assert!(out.status.success());
+        let text = String::from_utf8(out.stdout).unwrap();
+        assert!(
+            text.starts_with(&format!("{material}: {expected}\n")),
+            "{material}: {text}"
+        );
+    }
+}
+
+#[test]
+fn list_shows_every_library_material_with_its_class() {
+    let out = lapidary(&["list"]);
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    for name in lapidary::recipe::library::builtin_material_names() {
+        assert!(text.contains(name), "{name} missing");
+    }
+    assert!(text.contains("patina") && text.contains("metallic paint"));
+}
+
+#[test]
+fn every_file_in_the_materials_folder_is_built_in() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("gem-recipes/materials");
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        let stem = path.file_stem().unwrap().to_str().unwrap().to_string();
+        assert!(
+            lapidary::recipe::library::builtin_material_source(&stem).is_some(),
+            "{stem} is not embedded"
+        );
+    }
+}
+
+/// Each broken material: the RON text, then fragments the message must contain.
+const BROKEN: &[(&str, &str, &[&str])] = &[
+    (
+        "unknown-field",
+        "Material(\n  layers: [Layer(ior: 1.5, rougness_deg: 3.0)],\n  base: Black,\n)",
+        &[":2:", "rougness_deg", "did you mean `roughness_deg`"],
+    ),
+    (
+        "wrong-type",
+        "Material(\n  layers: [Layer(ior: \"high\")],\n  base: Black,\n)",
+        &[":2:", "ior"],
+    ),
+    (
+        "ior-below-one",
+        "Material(\n  layers: [Layer(ior: 0.8)],\n  base: Black,\n)",
+        &[":2:", "ior", "1 <= ior <= 5"],
+    ),
+    (
+        "negative-roughness",
+        "Material(\n  layers: [Layer(ior: 1.5, roughness_deg: -2.0)],\n  base: Black,\n)",
+        &[":2:", "roughness_deg", "0 <= roughness_deg < 90"],
+    ),
+    (
+        "roughness-90",
+        "Material(\n  layers: [Layer(ior: 1.5, roughness_deg: 90.0)],\n  base: Black,\n)",
+        &[":2:", "roughness_deg", "< 90"],
+    ),
+    (
+        "negative-thickness",
+        "Material(\n  layers: [Layer(ior: 1.5, thickness: -1.0)],\n  base: Black,\n)",
+        &[":2:", "thickness", ">= 0"],
+    ),
+    (
+        "nan-colour",
+        "Material(\n  base: Diffuse(colour: (NaN, 0.5, 0.5)),\n)",
+        &[":2:", "colour", "0 <= colour <= 1"],
+    ),
+    (
+        "infinite-absorption",
+        "Material(\n  layers: [Layer(ior: 1.5, absorption: (inf, 0.0, 0.0))],\n  base: Black,\n)",
+        &[":2:", "absorption"],
+    ),
+    (
+        "unknown-metal",
+        "Material(\n  base: Conductor(metal: \"gould\"),\n)",
+        &[":2:", "unknown metal `gould`", "did you mean `gold`"],
+    ),
+    (
+        "two-iors",
+        "Material(\n  layers: [Layer(ior: 1.5, reflectivity: 0.3)],\n  base: Black,\n)",
+        &[":2:", "exactly one of `ior`, `reflectivity` or `varnish`"],
+    ),
+    (
+        "truncated",
+        "Material(\n  layers: [Layer(ior: 1.5",
+        &[":2:"],
+    ),
+];
+
+#[test]
+fn broken_material_files_exit_1_with_file_line_column_and_field() {
+    let dir = scratch_dir("broken");
+    for (name, text, fragments) in BROKEN {
+        let file = dir.join(format!("{name}.ron"));
+        std::fs::write(&file, text).unwrap();
+        let plot = dir.join(format!("{name}.png"));
+        let out = lapidary(&["brdf", file.to_str().unwrap(), "-o", plot.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{name}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{name}: {stderr}");
+        assert!(stderr.contains(file.to_str().unwrap()), "{name} names no file: {stderr}");
+        for fragment in *fragments {
+            assert!(stderr.contains(fragment), "{name}: `{fragment}` not in: {stderr}");
+        }
+        assert!(!plot.exists(), "{name}: an output file was written");
+    }
+}
+
+#[test]
+fn unknown_library_name_suggests_the_closest() {
+    let out = lapidary(&["brdf", "sliver", "--albedo"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("did you mean `silver`"));
+}
+
+#[test]
+fn plot_into_a_missing_directory_fails_before_work_and_writes_nothing() {
+    let out = lapidary(&["brdf", "gold", "-o", "/nonexistent-dir/gold.png"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("does not exist"));
+}
+
+#[test]
+fn bad_eval_angles_are_refused() {
+    let out = lapidary(&["brdf", "gold", "--eval", "95,0,10,0"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("[0, 90]"));
+}
