@@ -5,5 +5,6 @@
 //! and evaluated in the local shading frame (z is the surface normal).
 
 pub mod brdf;
+pub mod plot;
 pub mod recipe;
 pub mod texture;
