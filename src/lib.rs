@@ -6,6 +6,7 @@
 
 pub mod brdf;
 pub mod output;
+pub mod plot;
 pub mod recipe;
 pub mod sampling;
 pub mod texture;
