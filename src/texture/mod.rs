@@ -1,1 +1,11 @@
-//! Solid procedural textures (section 4.3.1): hashing, Voronoi, noise, the pattern tree.
+//! Solid procedural textures (section 4.3.1 of the course notes, figures 4.6
+//! and 4.7): the deterministic primitives the pattern tree is built from.
+//!
+//! Every function here is pure in `(seed, object-space point)`: no global RNG,
+//! no interior state, every type `Send + Sync`, so a stone looks cut from a
+//! block and renders identically on any number of rayon threads.
+//!
+//! * [`hash`]: integer hashing of lattice cells (SplitMix64), the source of all
+//!   per-cell randomness.
+
+pub mod hash;
