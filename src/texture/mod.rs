@@ -7,5 +7,8 @@
 //!
 //! * [`hash`]: integer hashing of lattice cells (SplitMix64), the source of all
 //!   per-cell randomness.
+//! * [`voronoi`]: jittered 3-D Voronoi cells (F1, F2, cell id, true edge
+//!   distance) for the surface, glitter and crystal-facet maps.
 
 pub mod hash;
+pub mod voronoi;
