@@ -9,6 +9,8 @@
 //!   per-cell randomness.
 //! * [`voronoi`]: jittered 3-D Voronoi cells (F1, F2, cell id, true edge
 //!   distance) for the surface, glitter and crystal-facet maps.
+//! * [`noise_fns`]: Perlin, fBm, turbulence and marble, the switches between maps.
 
 pub mod hash;
+pub mod noise_fns;
 pub mod voronoi;
