@@ -351,3 +351,32 @@ fn voronoi_types_are_send_and_sync() {
     assert_send_sync::<Voronoi>();
     assert_send_sync::<VoronoiSample>();
 }
+
+/// Ray hits are finite, but a bad recipe (zero cell size) or a runaway
+/// coordinate must not panic or hang; the value is unspecified.
+#[test]
+fn extreme_input_neither_panics_nor_hangs() {
+    let v = voronoi(1.0, DVec3::ONE, 3);
+    let zero_size = Voronoi {
+        cell_size: 0.0,
+        ..v
+    };
+    let nan_jitter = Voronoi {
+        jitter: f64::NAN,
+        ..v
+    };
+    for p in [
+        DVec3::splat(f64::NAN),
+        DVec3::new(f64::INFINITY, 0.0, f64::NEG_INFINITY),
+        DVec3::new(1e300, -1e300, 0.5),
+        DVec3::splat(2.0e9),
+    ] {
+        for texture in [v, zero_size, nan_jitter] {
+            let _ = texture.query(p);
+            let _ = texture.nearest(p);
+        }
+    }
+    // Just inside the documented domain the answer is still exact.
+    let p = DVec3::new(-1.4e9, 1.4e9, 3.3) * v.cell_size;
+    assert_agree(&v, p, &v.query(p), &v.query_brute_force(p));
+}
