@@ -4,7 +4,8 @@
 
 use glam::IVec3;
 use lapidary::texture::hash::{
-    derive, hash_cell, hash_prefix, mix64, seed_key, unit_f64, unit_triple_21bit, GOLDEN_GAMMA,
+    derive_stream, hash_cell, hash_prefix, mix64, seed_key, unit_f64, unit_triple_21bit,
+    GOLDEN_GAMMA,
 };
 
 /// SplitMix64's output function, typed in from Steele, Lea & Flood (2014) /
@@ -42,17 +43,21 @@ fn splitmix64_published_vectors_for_seed_zero() {
     ];
     assert_eq!(seed_key(0), published[0]);
     for (stream, expected) in published.iter().enumerate() {
-        assert_eq!(derive(0, stream as u64), *expected, "stream {stream}");
+        assert_eq!(
+            derive_stream(0, stream as u64),
+            *expected,
+            "stream {stream}"
+        );
     }
     assert_eq!(mix64(GOLDEN_GAMMA), published[0]);
 }
 
 #[test]
-fn derive_is_the_splitmix64_sequence_seeded_with_the_hash() {
+fn derive_stream_is_the_splitmix64_sequence_seeded_with_the_hash() {
     for h in [1_u64, 42, 0xDEAD_BEEF_0123_4567, u64::MAX] {
         let mut state = h;
         for stream in 0..5 {
-            assert_eq!(derive(h, stream), splitmix64_next(&mut state));
+            assert_eq!(derive_stream(h, stream), splitmix64_next(&mut state));
         }
     }
 }

@@ -23,13 +23,15 @@
 //!   `h = seed_key(seed); h = mix64(h + x); h = mix64(h + y); h = mix64(h + z)`.
 //!   The chain lets a 3×3×3 neighbourhood search share prefixes
 //!   ([`hash_prefix`] for `x`, then `(x, y)`): 1 + 3 + 9 + 27 mixes instead of 27 × 4.
-//! * [`derive`]`(h, stream) = mix64(h + (stream + 1) · GOLDEN_GAMMA)`: output
+//! * [`derive_stream`]`(h, stream) = mix64(h + (stream + 1) · GOLDEN_GAMMA)`: output
 //!   number `stream` of a SplitMix64 generator seeded with `h`, so one cell hash
 //!   yields as many independent values as a caller needs.
 //!
-//! Two different cells collide only by chance (probability about 2⁻⁶⁴ per
-//! pair for the final value); a different seed starts the chain from an
-//! unrelated key, so it is not a shifted or permuted copy of another seed.
+//! Distinct cells share a hash only by chance (no structured collisions
+//! between nearby cells; a 48³ block is tested to be collision-free), so a
+//! cell hash is a good label but not a guaranteed-unique key. A different
+//! seed starts the chain from an unrelated key, so its pattern is not a
+//! shifted or permuted copy of another seed's.
 
 use glam::IVec3;
 
@@ -75,7 +77,7 @@ pub const fn hash_cell(cell: IVec3, seed: u64) -> u64 {
 /// seeded with `h`. Use a different stream per decision (entry choice, fill,
 /// facet tilt…) so decisions about one cell are independent.
 #[inline(always)]
-pub const fn derive(h: u64, stream: u64) -> u64 {
+pub const fn derive_stream(h: u64, stream: u64) -> u64 {
     mix64(h.wrapping_add(stream.wrapping_add(1).wrapping_mul(GOLDEN_GAMMA)))
 }
 
