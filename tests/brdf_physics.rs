@@ -53,8 +53,13 @@ fn conductor_fresnel_at_normal_incidence_matches_table_4_2() {
         };
         let f = fresnel::conductor(1.0, n_relative, k_relative);
         for c in 0..3 {
-            let expected = ((n[c] - 1.0f64).powi(2) + k[c] * k[c]) / ((n[c] + 1.0f64).powi(2) + k[c] * k[c]);
-            assert!((f[c] - expected).abs() < 1e-12, "{name} channel {c}: {} vs {expected}", f[c]);
+            let expected =
+                ((n[c] - 1.0f64).powi(2) + k[c] * k[c]) / ((n[c] + 1.0f64).powi(2) + k[c] * k[c]);
+            assert!(
+                (f[c] - expected).abs() < 1e-12,
+                "{name} channel {c}: {} vs {expected}",
+                f[c]
+            );
         }
     }
 }
@@ -68,7 +73,11 @@ fn reference_walk_over_black_returns_the_fresnel_reflectance() {
     for theta in [0.0f64, 45.0, 80.0] {
         let (albedo, _) = reference_albedo(&brdf, in_plane(theta), 2000, 1);
         let expected = fresnel::dielectric(theta.to_radians().cos(), 1.5);
-        assert!((albedo.x - expected).abs() < 1e-3, "θ={theta}: {} vs {expected}", albedo.x);
+        assert!(
+            (albedo.x - expected).abs() < 1e-3,
+            "θ={theta}: {} vs {expected}",
+            albedo.x
+        );
     }
 }
 
@@ -112,7 +121,11 @@ fn single_crossing_white_lambert_under_clear_coat_reflects_about_0_43() {
     // The W&W model refracts through the half vector h, so its V-cavity G of
     // the refracted pair is below 1 even for a smooth coat and the `tir` term
     // passes a little more light: measured 0.452, within 0.03 of the ideal.
-    assert!((a.mean.x - expected).abs() < 0.03, "{} vs {expected}", a.mean.x);
+    assert!(
+        (a.mean.x - expected).abs() < 0.03,
+        "{} vs {expected}",
+        a.mean.x
+    );
     assert!((expected - 0.43).abs() < 0.01);
 }
 

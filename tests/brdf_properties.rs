@@ -7,7 +7,11 @@ use lapidary::brdf::{Base, Interface, LayeredBrdf, Microfacet, MicrofacetModel, 
 use proptest::prelude::*;
 
 fn unit_upper(theta: f64, phi: f64) -> DVec3 {
-    DVec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+    DVec3::new(
+        theta.sin() * phi.cos(),
+        theta.sin() * phi.sin(),
+        theta.cos(),
+    )
 }
 
 fn model() -> impl Strategy<Value = MicrofacetModel> {
@@ -26,7 +30,11 @@ fn base() -> impl Strategy<Value = (u8, f64, f64, f64, f64)> {
     (0u8..3, 0.0f64..1.0, 0.0f64..1.5, 0.05f64..5.0, 0.0f64..89.0)
 }
 
-fn build(model: MicrofacetModel, layers: &[(f64, f64, f64, f64)], b: (u8, f64, f64, f64, f64)) -> LayeredBrdf {
+fn build(
+    model: MicrofacetModel,
+    layers: &[(f64, f64, f64, f64)],
+    b: (u8, f64, f64, f64, f64),
+) -> LayeredBrdf {
     let mut interfaces = Vec::new();
     let (mut ior_above, mut m_above) = (1.0, 0.0);
     for &(ior, m, d, a) in layers {
@@ -65,7 +73,7 @@ proptest! {
         model in model(),
         layers in prop::collection::vec(layer(), 0..4),
         b in base(),
-        ti in 0.0f64..1.5707, pi in 0.0f64..6.283, to in 0.0f64..1.5707, po in 0.0f64..6.283,
+        ti in 0.0f64..std::f64::consts::FRAC_PI_2, pi in 0.0f64..std::f64::consts::TAU, to in 0.0f64..std::f64::consts::FRAC_PI_2, po in 0.0f64..std::f64::consts::TAU,
         u in prop::array::uniform3(0.0f64..1.0),
     ) {
         let brdf = build(model, &layers, b);
@@ -85,7 +93,7 @@ proptest! {
     fn bare_lobes_and_diffuse_bases_are_reciprocal(
         model in model(),
         b in base(),
-        ti in 0.0f64..1.5, pi in 0.0f64..6.283, to in 0.0f64..1.5, po in 0.0f64..6.283,
+        ti in 0.0f64..1.5, pi in 0.0f64..std::f64::consts::TAU, to in 0.0f64..1.5, po in 0.0f64..std::f64::consts::TAU,
     ) {
         let brdf = build(model, &[], b);
         let (wi, wo) = (unit_upper(ti, pi), unit_upper(to, po));

@@ -21,7 +21,11 @@ fn significance() -> f64 {
 
 #[test]
 fn microfacet_reflection_sampling_matches_its_pdf() {
-    for model in [MicrofacetModel::Blinn, MicrofacetModel::Beckmann, MicrofacetModel::Ggx] {
+    for model in [
+        MicrofacetModel::Blinn,
+        MicrofacetModel::Beckmann,
+        MicrofacetModel::Ggx,
+    ] {
         for roughness in [3.0, 15.0, 40.0] {
             let lobe = Microfacet::new(model, roughness);
             for theta in [10.0, 70.0] {
@@ -70,7 +74,10 @@ fn layered_stack_sampling_matches_its_pdf_for_every_library_material() {
                 32,
                 11,
             );
-            assert!(outcome.passes(significance()), "{name} θo={theta}: {outcome}");
+            assert!(
+                outcome.passes(significance()),
+                "{name} θo={theta}: {outcome}"
+            );
         }
     }
 }

@@ -22,7 +22,11 @@ fn scratch_dir(name: &str) -> PathBuf {
 #[test]
 fn albedo_prints_csv_for_0_to_85_degrees() {
     let out = lapidary(&["brdf", "gold", "--albedo"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8(out.stdout).unwrap();
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines[0], "theta_deg,r,g,b");
@@ -39,7 +43,11 @@ fn eval_prints_three_values_and_matches_lambert_for_a_bare_diffuse_file() {
     let file = dir.join("matte.ron");
     std::fs::write(&file, "Material(base: Diffuse(colour: (0.5, 0.25, 1.0)))").unwrap();
     let out = lapidary(&["brdf", file.to_str().unwrap(), "--eval", "30,0,45,90"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: Vec<f64> = String::from_utf8(out.stdout)
         .unwrap()
         .trim()
@@ -57,7 +65,11 @@ fn plot_writes_a_png() {
     let dir = scratch_dir("plot");
     let png = dir.join("gold.png");
     let out = lapidary(&["brdf", "gold", "-o", png.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let bytes = std::fs::read(&png).unwrap();
     assert_eq!(&bytes[1..4], b"PNG");
 }
@@ -177,9 +189,15 @@ fn broken_material_files_exit_1_with_file_line_column_and_field() {
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{name}: {stderr}");
         assert!(!stderr.contains("panicked"), "{name}: {stderr}");
-        assert!(stderr.contains(file.to_str().unwrap()), "{name} names no file: {stderr}");
+        assert!(
+            stderr.contains(file.to_str().unwrap()),
+            "{name} names no file: {stderr}"
+        );
         for fragment in *fragments {
-            assert!(stderr.contains(fragment), "{name}: `{fragment}` not in: {stderr}");
+            assert!(
+                stderr.contains(fragment),
+                "{name}: `{fragment}` not in: {stderr}"
+            );
         }
         assert!(!plot.exists(), "{name}: an output file was written");
     }

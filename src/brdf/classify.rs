@@ -79,9 +79,15 @@ fn smoothness(roughness_deg: f64) -> &'static str {
 /// Classify by the decision tree of figure 3.8: metallic or not (the base),
 /// then the roughness of the top surface and, for metals, of the base.
 pub fn classify(brdf: &LayeredBrdf) -> Classification {
-    // Layers with η = 1 reflect nothing (brass's tinting layer): they tint
-    // but do not count as a surface.
-    let reflecting: Vec<_> = brdf.interfaces.iter().filter(|i| i.eta != 1.0).collect();
+    // Layers of IOR 1 reflect nothing (brass's tinting layer): they tint but
+    // do not count as a surface. Layers are counted by their own IOR, not the
+    // ratio to the layer above: the house paint's two IOR 1.3 layers are the
+    // notes' multi-layer example (section 4.2.7).
+    let reflecting: Vec<_> = brdf
+        .interfaces
+        .iter()
+        .filter(|i| i.ior_below != 1.0)
+        .collect();
     let tinted = brdf
         .interfaces
         .iter()

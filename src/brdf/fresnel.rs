@@ -115,7 +115,7 @@ mod tests {
 
     #[test]
     fn dielectric_normal_incidence_matches_closed_form() {
-        for eta in [1.0, 1.31, 1.5, 1.7, 2.0, 1.0 / 1.5] {
+        for eta in [1.0f64, 1.31, 1.5, 1.7, 2.0, 1.0 / 1.5] {
             let expected = ((eta - 1.0) / (eta + 1.0)).powi(2);
             assert!((dielectric(1.0, eta) - expected).abs() < 1e-12, "eta {eta}");
         }

@@ -231,8 +231,9 @@ mod tests {
         let w = DVec3::new(0.6, 0.0, 0.8);
         let t = refract(w, DVec3::Z, 1.5).unwrap();
         assert!((t.x.abs() * 1.5 - 0.6).abs() < 1e-12 && t.z < 0.0);
-        let back = refract(-t, -DVec3::Z, 1.0 / 1.5).unwrap();
-        assert!((back + w).length() < 1e-12);
+        // Reverse path: from below, along t reversed, light leaves along w.
+        let back = refract(t, -DVec3::Z, 1.0 / 1.5).unwrap();
+        assert!((back - w).length() < 1e-12);
     }
 
     #[test]

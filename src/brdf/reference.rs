@@ -74,7 +74,9 @@ fn tabulate(mut weight_at: impl FnMut(DVec3, &mut Rng) -> f64) -> Vec<f64> {
             let mu = (k as f64 + 0.5) / WALK_TABLE_NODES as f64;
             let w = DVec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
             let mut rng = Rng::new(0x7ab1e, k as u64);
-            let sum: f64 = (0..WALK_TABLE_SAMPLES).map(|_| weight_at(w, &mut rng)).sum();
+            let sum: f64 = (0..WALK_TABLE_SAMPLES)
+                .map(|_| weight_at(w, &mut rng))
+                .sum();
             sum / WALK_TABLE_SAMPLES as f64
         })
         .collect()
@@ -170,7 +172,12 @@ fn scatter_dielectric(
 
 /// Scatter at the base: light arrives from `w_away` (z > 0, in the frame of
 /// the last layer) and leaves upward. Returns the new direction and weight.
-fn scatter_base(base: &Base, tables: &WalkTables, w_away: DVec3, rng: &mut Rng) -> Option<(DVec3, Rgb)> {
+fn scatter_base(
+    base: &Base,
+    tables: &WalkTables,
+    w_away: DVec3,
+    rng: &mut Rng,
+) -> Option<(DVec3, Rgb)> {
     match base {
         Base::Diffuse { .. } => {
             let w = cosine_hemisphere(rng.next_f64(), rng.next_f64());
@@ -192,7 +199,8 @@ fn scatter_base(base: &Base, tables: &WalkTables, w_away: DVec3, rng: &mut Rng) 
             if w.z <= 0.0 {
                 return None;
             }
-            let weight = own_lobe.g(w_away, w, h) * wh / (w_away.z * h.z) / lookup(&tables.base, w_away.z);
+            let weight =
+                own_lobe.g(w_away, w, h) * wh / (w_away.z * h.z) / lookup(&tables.base, w_away.z);
             Some((w, fresnel::conductor(wh, *n_relative, *k_relative) * weight))
         }
         Base::Black => None,
@@ -218,7 +226,8 @@ pub fn trace_path(
     // Entering the top interface from above: tally the reflection, carry on
     // with the transmitted power.
     let top_albedo = lookup(&tables.from_above[0], wi.z);
-    let Some(s) = scatter_dielectric(&layers[0].own_lobe, wi, layers[0].eta, top_albedo, rng) else {
+    let Some(s) = scatter_dielectric(&layers[0].own_lobe, wi, layers[0].eta, top_albedo, rng)
+    else {
         return;
     };
     if let Some((r, w)) = s.reflected {
@@ -264,7 +273,8 @@ pub fn trace_path(
             // Interface above, hit from below: work in the flipped frame.
             let itf = &layers[medium - 1];
             let albedo = lookup(&tables.from_below[medium - 1], dir.z);
-            let Some(s) = scatter_dielectric(&itf.own_lobe, flip(-dir), 1.0 / itf.eta, albedo, rng) else {
+            let Some(s) = scatter_dielectric(&itf.own_lobe, flip(-dir), 1.0 / itf.eta, albedo, rng)
+            else {
                 return;
             };
             if medium == 1 {
@@ -298,7 +308,13 @@ pub fn reference_albedo(brdf: &LayeredBrdf, wi: DVec3, paths: usize, seed: u64) 
 }
 
 /// [`reference_albedo`] with tables computed once by the caller.
-pub fn reference_albedo_with(brdf: &LayeredBrdf, tables: &WalkTables, wi: DVec3, paths: usize, seed: u64) -> (Rgb, Rgb) {
+pub fn reference_albedo_with(
+    brdf: &LayeredBrdf,
+    tables: &WalkTables,
+    wi: DVec3,
+    paths: usize,
+    seed: u64,
+) -> (Rgb, Rgb) {
     let mut rng = Rng::new(seed, 0x5eed_a1be);
     let (mut sum, mut sum_sq) = (Rgb::ZERO, Rgb::ZERO);
     for _ in 0..paths {

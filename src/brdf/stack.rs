@@ -152,9 +152,9 @@ impl LayeredBrdf {
         // reflected 1.10 of the light at 87°. At the macro-normal the factors
         // are exact for smooth coats and fall to 0 at grazing as they must.
         let transmission_in = 1.0 - fresnel::dielectric(wi.z, itf.eta); // T₁₂
-        // Appendix `tir`: t = (1 − G) + (1 − F)·G with G of the refracted pair.
-        // Its (1 − F) is T₂₁ (by the Stokes relations F(ω′ₒ, 1/η) = F(ωₒ, η)),
-        // so T₂₁ is not multiplied again (deviation from the formula).
+                                                                        // Appendix `tir`: t = (1 − G) + (1 − F)·G with G of the refracted pair.
+                                                                        // Its (1 − F) is T₂₁ (by the Stokes relations F(ω′ₒ, 1/η) = F(ωₒ, η)),
+                                                                        // so T₂₁ is not multiplied again (deviation from the formula).
         let g_inside = itf.lobe.g(wi_in, wo_in, h);
         let f_out = fresnel::dielectric(wo.z, itf.eta);
         let tir = (1.0 - g_inside) + (1.0 - f_out) * g_inside;
@@ -251,7 +251,7 @@ impl LayeredBrdf {
         }
         let pdf = self.pdf(wi, wo);
         let value = self.eval(wi, wo);
-        if !(pdf > 0.0) || !pdf.is_finite() || !value.is_finite() {
+        if pdf.is_nan() || pdf <= 0.0 || !pdf.is_finite() || !value.is_finite() {
             return None;
         }
         Some(BrdfSample { wi, value, pdf })
@@ -278,7 +278,7 @@ impl LayeredBrdf {
         }
         let pdf = self.pdf_from(0, wi, wo);
         let value = self.eval_single_crossing(wi, wo);
-        if !(pdf > 0.0) || !value.is_finite() {
+        if pdf.is_nan() || pdf <= 0.0 || !value.is_finite() {
             return None;
         }
         Some((wi, value * (wi.z / pdf)))

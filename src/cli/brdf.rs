@@ -34,14 +34,19 @@ pub fn run(args: BrdfArgs) -> Result<(), String> {
     if args.albedo {
         print_albedo(&brdf, args.reference);
     } else if let Some([ti, pi, to, po]) = eval_angles {
-        let f = brdf.eval(direction_from_degrees(ti, pi), direction_from_degrees(to, po));
+        let f = brdf.eval(
+            direction_from_degrees(ti, pi),
+            direction_from_degrees(to, po),
+        );
         println!("{:.6},{:.6},{:.6}", f.x, f.y, f.z);
     } else if let Some(path) = &args.output {
         let image = plot(&brdf, args.reference);
         lapidary::output::write_png(path, &image).map_err(|e| e.to_string())?;
         eprintln!("wrote {}", path.display());
     } else {
-        return Err("say what to show: --albedo, --eval THETA_I,PHI_I,THETA_O,PHI_O, or -o PLOT.png".into());
+        return Err(
+            "say what to show: --albedo, --eval THETA_I,PHI_I,THETA_O,PHI_O, or -o PLOT.png".into(),
+        );
     }
     Ok(())
 }
@@ -99,7 +104,8 @@ fn plot(brdf: &LayeredBrdf, with_reference: bool) -> image::RgbImage {
             let mut curves: [Vec<(f64, f64)>; 3] = Default::default();
             for step in 0..=720 {
                 let theta_o = -90.0 + step as f64 * 0.25;
-                let wo = direction_from_degrees(theta_o.abs(), if theta_o < 0.0 { 180.0 } else { 0.0 });
+                let wo =
+                    direction_from_degrees(theta_o.abs(), if theta_o < 0.0 { 180.0 } else { 0.0 });
                 let v = brdf.eval(wi, wo) * wo.z;
                 for (c, curve) in curves.iter_mut().enumerate() {
                     curve.push((theta_o, v[c]));

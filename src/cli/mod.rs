@@ -36,7 +36,12 @@ struct BrdfArgs {
     #[arg(long, conflicts_with_all = ["eval", "output"])]
     albedo: bool,
     /// Print `r,g,b`, the BRDF value f (no cosine) for THETA_I,PHI_I,THETA_O,PHI_O in degrees.
-    #[arg(long, value_name = "THETA_I,PHI_I,THETA_O,PHI_O", conflicts_with = "output", allow_hyphen_values = true)]
+    #[arg(
+        long,
+        value_name = "THETA_I,PHI_I,THETA_O,PHI_O",
+        conflicts_with = "output",
+        allow_hyphen_values = true
+    )]
     eval: Option<String>,
     /// Write polar plots of the in-plane, cosine-weighted BRDF (PNG).
     #[arg(short = 'o', long = "output", value_name = "PLOT.png")]

@@ -61,7 +61,10 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
 pub fn write_png(path: &Path, image: &image::RgbImage) -> Result<(), OutputError> {
     let mut bytes = Vec::new();
     image
-        .write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)
+        .write_to(
+            &mut std::io::Cursor::new(&mut bytes),
+            image::ImageFormat::Png,
+        )
         .map_err(|e| OutputError {
             path: path.display().to_string(),
             message: format!("cannot encode PNG: {e}"),
