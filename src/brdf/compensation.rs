@@ -30,8 +30,14 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::FRAC_1_PI;
 
-/// Number of cosine nodes of the albedo tables (μ = (k + ½)/N).
+/// Number of nodes of the albedo tables, uniform in θ (θ_k = (k + ½)·90°/N)
+/// so that the steep grazing end is resolved (3.75° apart).
 pub const TABLE_NODES: usize = 24;
+
+/// Cosine of table node `k`.
+pub fn node_cosine(k: usize) -> f64 {
+    ((k as f64 + 0.5) / TABLE_NODES as f64 * std::f64::consts::FRAC_PI_2).cos()
+}
 /// Random walks per node for E_stack (standard error ≲ 0.003 for the library).
 const WALKS_PER_NODE: usize = 8192;
 /// Stratified samples per node for E_single (a 64 × 64 grid).
@@ -40,7 +46,7 @@ const SINGLE_SAMPLES_SIDE: usize = 64;
 /// The tabulated deficit of a material and its cosine-weighted average.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Compensation {
-    /// D(μ_k) = E_stack − E_single per channel at μ_k = (k + ½)/N (signed).
+    /// D(μ_k) = E_stack − E_single per channel at the nodes of [`node_cosine`] (signed).
     pub deficit: Vec<Rgb>,
     /// P̄ = 2∫P(μ)μ dμ of the interpolated positive part, per channel.
     pub positive_average: Rgb,
@@ -87,7 +93,7 @@ impl Compensation {
         let rows: Vec<(Rgb, Rgb)> = (0..TABLE_NODES)
             .into_par_iter()
             .map(|k| {
-                let mu = (k as f64 + 0.5) / TABLE_NODES as f64;
+                let mu = node_cosine(k);
                 let single = single_crossing_albedo(brdf, mu, seed ^ 0xa1b2);
                 let (stack, _) = reference_albedo_with(
                     brdf,
@@ -124,10 +130,11 @@ impl Compensation {
     }
 
     /// D(μ): the (signed) albedo of the compensation lobe at cosine `mu`
-    /// (piecewise linear between nodes, constant beyond the end nodes).
+    /// (piecewise linear in θ between nodes, constant beyond the end nodes).
     pub fn albedo(&self, mu: f64) -> Rgb {
         let n = self.deficit.len();
-        let x = (mu.clamp(0.0, 1.0) * n as f64 - 0.5).clamp(0.0, (n - 1) as f64);
+        let theta = mu.clamp(0.0, 1.0).acos();
+        let x = (theta / std::f64::consts::FRAC_PI_2 * n as f64 - 0.5).clamp(0.0, (n - 1) as f64);
         let k = (x.floor() as usize).min(n - 2);
         let t = x - k as f64;
         self.deficit[k] * (1.0 - t) + self.deficit[k + 1] * t

@@ -38,7 +38,7 @@ pub fn run(args: BrdfArgs) -> Result<(), String> {
             direction_from_degrees(ti, pi),
             direction_from_degrees(to, po),
         );
-        println!("{:.6},{:.6},{:.6}", f.x, f.y, f.z);
+        super::emit(&format!("{:.6},{:.6},{:.6}", f.x, f.y, f.z));
     } else if let Some(path) = &args.output {
         let image = plot(&brdf, args.reference);
         lapidary::output::write_png(path, &image).map_err(|e| e.to_string())?;
@@ -76,21 +76,23 @@ fn parse_eval_angles(text: &str) -> Result<[f64; 4], String> {
 
 fn print_albedo(brdf: &LayeredBrdf, with_reference: bool) {
     if with_reference {
-        println!("theta_deg,r,g,b,reference_r,reference_g,reference_b");
+        super::emit(&format!(
+            "theta_deg,r,g,b,reference_r,reference_g,reference_b"
+        ));
     } else {
-        println!("theta_deg,r,g,b");
+        super::emit(&format!("theta_deg,r,g,b"));
     }
     for theta in albedo_angles_deg() {
         let a = directional_albedo(brdf, theta, ALBEDO_STD_ERROR, 4_000_000, SEED);
         let m = a.mean;
         if with_reference {
             let (r, _) = reference_albedo(brdf, in_plane(theta), 100_000, SEED);
-            println!(
+            super::emit(&format!(
                 "{theta},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}",
                 m.x, m.y, m.z, r.x, r.y, r.z
-            );
+            ));
         } else {
-            println!("{theta},{:.4},{:.4},{:.4}", m.x, m.y, m.z);
+            super::emit(&format!("{theta},{:.4},{:.4},{:.4}", m.x, m.y, m.z));
         }
     }
 }

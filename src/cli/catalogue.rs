@@ -17,17 +17,17 @@ fn load_parameters(spec: &str) -> Result<lapidary::brdf::LayeredBrdf, String> {
 pub fn classify(spec: &str) -> Result<(), String> {
     let brdf = load_parameters(spec)?;
     let class = classify_brdf(&brdf);
-    println!("{}: {}", brdf.name, class);
-    println!("because: {}", class.reason);
+    super::emit(&format!("{}: {}", brdf.name, class));
+    super::emit(&format!("because: {}", class.reason));
     Ok(())
 }
 
 /// Print every built-in material with its class.
 pub fn list() -> Result<(), String> {
-    println!("Materials (gem-recipes/materials/, built in):");
+    super::emit(&format!("Materials (gem-recipes/materials/, built in):"));
     for name in builtin_material_names() {
         let brdf = load_parameters(name)?;
-        println!("  {name:<26} {}", classify_brdf(&brdf));
+        super::emit(&format!("  {name:<26} {}", classify_brdf(&brdf)));
     }
     Ok(())
 }

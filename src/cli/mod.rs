@@ -55,6 +55,20 @@ struct BrdfArgs {
     single_crossing: bool,
 }
 
+/// Print one line to stdout. A closed pipe (`lapidary list | head`) ends
+/// the program quietly with success instead of panicking like `println!`.
+pub fn emit(line: &str) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = writeln!(out, "{line}") {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        eprintln!("error: cannot write to standard output: {e}");
+        std::process::exit(1);
+    }
+}
+
 /// Parse the command line and run; returns the process exit code.
 pub fn run() -> i32 {
     let cli = match Cli::try_parse() {
