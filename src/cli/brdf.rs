@@ -76,11 +76,9 @@ fn parse_eval_angles(text: &str) -> Result<[f64; 4], String> {
 
 fn print_albedo(brdf: &LayeredBrdf, with_reference: bool) {
     if with_reference {
-        super::emit(&format!(
-            "theta_deg,r,g,b,reference_r,reference_g,reference_b"
-        ));
+        super::emit("theta_deg,r,g,b,reference_r,reference_g,reference_b");
     } else {
-        super::emit(&format!("theta_deg,r,g,b"));
+        super::emit("theta_deg,r,g,b");
     }
     for theta in albedo_angles_deg() {
         let a = directional_albedo(brdf, theta, ALBEDO_STD_ERROR, 4_000_000, SEED);

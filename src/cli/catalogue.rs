@@ -24,7 +24,7 @@ pub fn classify(spec: &str) -> Result<(), String> {
 
 /// Print every built-in material with its class.
 pub fn list() -> Result<(), String> {
-    super::emit(&format!("Materials (gem-recipes/materials/, built in):"));
+    super::emit("Materials (gem-recipes/materials/, built in):");
     for name in builtin_material_names() {
         let brdf = load_parameters(name)?;
         super::emit(&format!("  {name:<26} {}", classify_brdf(&brdf)));

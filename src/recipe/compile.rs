@@ -138,8 +138,25 @@ fn metal_nk(name: &str) -> Option<([f64; 3], [f64; 3])> {
     }
 }
 
-fn names_with(pred: impl Fn(&str) -> bool) -> Vec<&'static str> {
-    builtin_material_names().filter(|n| pred(n)).collect()
+/// An unknown library `kind` (varnish, metal) at the place its name is
+/// written, with a did-you-mean among the library entries that are one.
+fn unknown_name(
+    path: &str,
+    text: &str,
+    kind: &str,
+    name: &str,
+    is_kind: impl Fn(&str) -> bool,
+) -> RecipeError {
+    let known: Vec<&str> = builtin_material_names().filter(|n| is_kind(n)).collect();
+    let hint = did_you_mean(name, known.iter().copied())
+        .map(|s| format!(" (did you mean `{s}`?)"))
+        .unwrap_or_default();
+    RecipeError::at_text(
+        path,
+        text,
+        &format!("\"{name}\""),
+        format!("unknown {kind} `{name}`{hint}; known: {}", known.join(", ")),
+    )
 }
 
 /// Resolve names, check the rules serde cannot, and build the BRDF.
@@ -175,19 +192,7 @@ pub fn compile_material(source: &MaterialSource, m: &Material) -> Result<Layered
         } else {
             let name = layer.varnish.as_deref().unwrap_or_default();
             varnish_ior(name).ok_or_else(|| {
-                let known = names_with(|n| varnish_ior(n).is_some());
-                let hint = did_you_mean(name, known.iter().copied())
-                    .map(|s| format!(" (did you mean `{s}`?)"))
-                    .unwrap_or_default();
-                RecipeError::at_text(
-                    path,
-                    text,
-                    &format!("\"{name}\""),
-                    format!(
-                        "unknown varnish `{name}`{hint}; known: {}",
-                        known.join(", ")
-                    ),
-                )
+                unknown_name(path, text, "varnish", name, |n| varnish_ior(n).is_some())
             })?
         };
         let accumulated = roughness_above_deg + layer.roughness_deg;
@@ -219,16 +224,7 @@ pub fn compile_material(source: &MaterialSource, m: &Material) -> Result<Layered
             let (n, k) = match (n, k, metal) {
                 (Some(n), Some(k), None) => (*n, *k),
                 (None, None, Some(name)) => metal_nk(name).ok_or_else(|| {
-                    let known = names_with(|n| metal_nk(n).is_some());
-                    let hint = did_you_mean(name, known.iter().copied())
-                        .map(|s| format!(" (did you mean `{s}`?)"))
-                        .unwrap_or_default();
-                    RecipeError::at_text(
-                        path,
-                        text,
-                        &format!("\"{name}\""),
-                        format!("unknown metal `{name}`{hint}; known: {}", known.join(", ")),
-                    )
+                    unknown_name(path, text, "metal", name, |n| metal_nk(n).is_some())
                 })?,
                 _ => {
                     return Err(RecipeError::at_text(
