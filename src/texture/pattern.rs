@@ -46,7 +46,7 @@ use std::fmt;
 
 use super::hash::{derive_stream, unit_f64};
 use super::noise_fns::{Fbm, Marble, PerlinNoise, Turbulence};
-use super::voronoi::Voronoi;
+use super::voronoi::{Voronoi, VoronoiNearest};
 
 /// Stream of a surface-map cell's entry choice.
 pub const STREAM_ENTRY: u64 = 1;
@@ -368,7 +368,14 @@ impl Switch {
     /// The entry selected at `p`.
     #[inline]
     pub fn select(&self, p: DVec3) -> Entry {
-        let v = self.function.value(self.sample_point(p));
+        self.select_at_sample(self.sample_point(p))
+    }
+
+    /// The entry selected when the function is read at `sample` (the
+    /// result of [`Switch::sample_point`]).
+    #[inline]
+    pub fn select_at_sample(&self, sample: DVec3) -> Entry {
+        let v = self.function.value(sample);
         self.ranges[self.range_index(v)].entry
     }
 }
@@ -727,6 +734,9 @@ impl Pattern {
         let mut entry = self.root;
         let mut cell = 0;
         let mut map_index = u32::MAX;
+        // A per-cell switch and the map below it often share their cells
+        // (`per_cell_of` in a recipe): reuse the last nearest-site query.
+        let mut last: Option<(&Voronoi, VoronoiNearest)> = None;
         // Acyclic (checked in `new`), so at most nodes.len() steps.
         for _ in 0..=self.nodes.len() {
             match entry {
@@ -734,12 +744,26 @@ impl Pattern {
                 Entry::Node(n) => {
                     entry = match &self.nodes[n as usize] {
                         Node::Map(map) => {
-                            let id = map.voronoi.nearest(p).cell_id;
-                            cell = id;
+                            let near = match last {
+                                Some((v, near)) if *v == map.voronoi => near,
+                                _ => map.voronoi.nearest(p),
+                            };
+                            last = Some((&map.voronoi, near));
+                            cell = near.cell_id;
                             map_index = n;
-                            map.entry_of_cell(id)
+                            map.entry_of_cell(near.cell_id)
                         }
-                        Node::Switch(s) => s.select(p),
+                        Node::Switch(s) => match &s.per_cell {
+                            Some(v) => {
+                                let near = match last {
+                                    Some((w, near)) if w == v => near,
+                                    _ => v.nearest(p),
+                                };
+                                last = Some((v, near));
+                                s.select_at_sample(near.feature_point)
+                            }
+                            None => s.select_at_sample(p),
+                        },
                     }
                 }
             }
