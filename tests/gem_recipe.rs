@@ -202,8 +202,25 @@ fn good_recipe_compiles() {
         assert!(names.contains(&n), "{names:?}");
     }
     assert_eq!(gem.map_names, ["big", "small", "veins"]);
-    let r = gem.pattern.resolve(DVec3::new(0.1, 0.2, 0.3));
-    assert!((r.material as usize) < gem.materials.len());
+    let gold = gem.material_index("gold").unwrap();
+    let mut flakes = 0;
+    for p in points(5_000) {
+        let r = gem.pattern.resolve(p);
+        assert!((r.material as usize) < gem.materials.len());
+        if let Some(normal) = r.flake_normal {
+            // Gold glitter, flakes around the fixed direction (0, 0, 1)
+            // whatever the surface normal.
+            assert_eq!(r.material, gold);
+            let n = normal.world(DVec3::X);
+            assert!((n - normal.world(DVec3::Y)).length() < 1e-12);
+            assert!((n.z - normal.theta.cos()).abs() < 1e-12);
+            flakes += 1;
+        }
+    }
+    assert!(
+        flakes > 100 && flakes < 1_500,
+        "{flakes} of 5000 (fill 0.1)"
+    );
 }
 
 #[test]

@@ -636,3 +636,39 @@ fn resolve_agrees_with_a_naive_walk() {
     // map) is exercised.
     assert!(inclusion_points > 100, "{inclusion_points}");
 }
+
+#[test]
+fn fill_modulation_scales_the_threshold_at_the_feature_point() {
+    let fill = 0.6;
+    let m = marble(12);
+    let mut glitter = GlitterMap::new(
+        grid(0.2, 31),
+        fill,
+        vec![(1, 1.0)],
+        facets(0.05, 6, Tilt::UniformCone { max_tilt_deg: 10.0 }),
+    )
+    .unwrap();
+    glitter.fill_modulation = Some(SwitchFunction::Marble(m));
+    let pattern = Pattern::new(vec![], Entry::Material(0), Some(glitter), 2).unwrap();
+    let (mut filled, mut n) = (0, 0);
+    for c in cube_cells(20) {
+        let site = centre(c, 0.2); // jitter 0: the feature point is the centre
+        let id = hash_cell(c, 31);
+        let expected = unit(derive_stream(id, STREAM_FILL)) < fill * m.value(site).clamp(0.0, 1.0);
+        // Any point of the cell, not only the site, follows the cell's decision.
+        let r = pattern.resolve(site + DVec3::new(0.07, -0.05, 0.03));
+        assert_eq!(r.glitter_cell.is_some(), expected, "cell {c}");
+        filled += usize::from(expected);
+        n += 1;
+    }
+    // Modulation lowers the fill below the unmodulated fraction.
+    let fraction = filled as f64 / n as f64;
+    assert!(fraction > 0.1 && fraction < fill - 0.1, "{fraction}");
+}
+
+#[test]
+fn pattern_types_are_send_and_sync() {
+    fn check<T: Send + Sync>() {}
+    check::<Pattern>();
+    check::<lapidary::texture::pattern::Resolved>();
+}

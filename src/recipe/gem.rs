@@ -44,7 +44,7 @@
 //! so adding or renaming another map does not reshuffle this one.
 
 use crate::recipe::compile::{parse_material, ron_error};
-use crate::recipe::error::{did_you_mean, find_position, RecipeError};
+use crate::recipe::error::{did_you_mean, RecipeError};
 use crate::recipe::library::{builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
 use crate::recipe::ranges;
@@ -820,9 +820,4 @@ impl<'a> Compiler<'a> {
             spec,
         })
     }
-}
-
-/// 1-based position of a map's definition, for tools that annotate recipes.
-pub fn map_definition_position(text: &str, name: &str) -> Option<(usize, usize)> {
-    find_position(text, &format!("\"{name}\""), 0)
 }
