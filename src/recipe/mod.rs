@@ -4,6 +4,7 @@
 
 pub mod compile;
 pub mod error;
+pub mod gem;
 pub mod library;
 pub mod material;
 pub mod ranges;

@@ -102,3 +102,66 @@ rgb_field!(colour, "colour", "0 <= colour <= 1", |v| (0.0..=1.0)
 optional_rgb_field!(conductor_n, "n", "0 < n <= 20", |v| v > 0.0 && v <= 20.0);
 optional_rgb_field!(conductor_k, "k", "0 <= k <= 20", |v| (0.0..=20.0)
     .contains(&v));
+
+// ---- Gem recipes (section 4.3.1): textures and the pattern tree ----------
+
+scalar_field!(
+    cell_size,
+    "cell_size",
+    "cell_size > 0 (object-space units)",
+    |v| v > 0.0
+);
+optional_scalar_field!(
+    per_cell_size,
+    "per_cell_size",
+    "per_cell_size > 0 (object-space units)",
+    |v| v > 0.0
+);
+scalar_field!(jitter, "jitter", "0 <= jitter <= 1", |v| (0.0..=1.0)
+    .contains(&v));
+scalar_field!(
+    weight,
+    "weight",
+    "weight >= 0 (at least one > 0 per map)",
+    |v| v >= 0.0
+);
+scalar_field!(
+    fill_fraction,
+    "fill_fraction",
+    "0 <= fill_fraction <= 1",
+    |v| (0.0..=1.0).contains(&v)
+);
+scalar_field!(
+    max_tilt_deg,
+    "max_tilt_deg",
+    "0 <= max_tilt_deg <= 90 (degrees)",
+    |v| (0.0..=90.0).contains(&v)
+);
+scalar_field!(
+    sigma_tilt_deg,
+    "sigma_tilt_deg",
+    "0 < sigma_tilt_deg <= 90 (degrees)",
+    |v| v > 0.0 && v <= 90.0
+);
+scalar_field!(frequency, "frequency", "frequency > 0", |v| v > 0.0);
+scalar_field!(amplitude, "amplitude", "any finite amplitude", |_| true);
+scalar_field!(lacunarity, "lacunarity", "1 <= lacunarity <= 8", |v| (1.0
+    ..=8.0)
+    .contains(&v));
+scalar_field!(gain, "gain", "0 <= gain <= 1", |v| (0.0..=1.0).contains(&v));
+scalar_field!(range_end, "from/to", "a finite number", |_| true);
+optional_scalar_field!(host_ior, "host_ior", "1 <= host_ior <= 5", |v| (1.0..=5.0)
+    .contains(&v));
+rgb_field!(stretch, "stretch", "stretch > 0", |v| v > 0.0);
+rgb_field!(direction, "direction", "finite, not all zero", |_| true);
+
+/// Deserialize `octaves`, allowed: 1 to 16.
+pub fn octaves<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    let v = u32::deserialize(d)?;
+    if !(1..=16).contains(&v) {
+        return Err(D::Error::custom(format!(
+            "`octaves` = {v} is out of range; allowed: 1 <= octaves <= 16"
+        )));
+    }
+    Ok(v)
+}

@@ -13,4 +13,5 @@
 
 pub mod hash;
 pub mod noise_fns;
+pub mod pattern;
 pub mod voronoi;

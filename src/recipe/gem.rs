@@ -1,0 +1,823 @@
+//! Gem recipes: the RON schema of a procedural stone (section 4.3.1,
+//! figures 4.6 and 4.7) and its compilation into the flat
+//! [`Pattern`](crate::texture::pattern::Pattern) plus the list of layered
+//! materials the pattern's indices refer to.
+//!
+//! ```ron
+//! Gem(
+//!     name: "example",
+//!     seed: 7,
+//!     materials: {
+//!         "dark-lilac": Material(layers: [Layer(ior: 1.56)], base: Diffuse(colour: (0.35, 0.25, 0.45))),
+//!     },
+//!     maps: {
+//!         "tiles": SurfaceMap(cell_size: 0.05, entries: [
+//!             (material: "dark-lilac", weight: 2.0),
+//!             (material: "red-garnet"),            // a library material, weight 1
+//!         ]),
+//!         "veins": Switch(
+//!             function: Marble(frequency: 4.0, amplitude: 2.0),
+//!             per_cell_of: "tiles",                // whole tiles switch
+//!             ranges: [(from: 0.0, to: 0.8, map: "tiles"), (from: 0.8, to: 1.0, material: "silver")],
+//!         ),
+//!     },
+//!     surface: "veins",
+//!     glitter: Some(GlitterMap(
+//!         cell_size: 0.2, fill_fraction: 0.02,
+//!         entries: [(material: "silver")],
+//!         facets: FacetBumpMap(cell_size: 0.05, tilt: UniformCone(max_tilt_deg: 20.0)),
+//!     )),
+//! )
+//! ```
+//!
+//! Names: `materials` (inline) and the built-in library share one namespace
+//! (an inline material shadows a library one); `maps` are a second namespace,
+//! and an entry says which it means (`material:` or `map:`). `surface` names
+//! a map or a material (the opaque sunstone has no surface map).
+//!
+//! Every number is range-checked while parsing (its own `file:line:col`);
+//! the rules that involve several fields (names, cycles, weight sums, switch
+//! partitions, facet vs glitter size) are checked after parsing and
+//! reported at the map's definition or the offending name.
+//!
+//! Seeds: every map derives its own seed from the gem seed and its *name*,
+//! so adding or renaming another map does not reshuffle this one.
+
+use crate::recipe::compile::{parse_material, ron_error};
+use crate::recipe::error::{did_you_mean, RecipeError};
+use crate::recipe::library::{builtin_material_names, builtin_material_source};
+use crate::recipe::material::{BaseSpec, Material};
+use crate::recipe::ranges;
+use crate::texture::hash::{derive_stream, hash_prefix, seed_key};
+use crate::texture::noise_fns::{Fbm, Marble, PerlinNoise, PerlinSource, Turbulence};
+use crate::texture::pattern::{
+    check_partition, Around, Entry, FacetBumpMap, GlitterMap, Node, Pattern, SurfaceMap, Switch,
+    SwitchFunction, SwitchRange, Tilt,
+};
+use crate::texture::voronoi::Voronoi;
+use glam::DVec3;
+use serde::{Deserialize, Deserializer};
+use std::collections::BTreeMap;
+
+fn some_string<'de, D: Deserializer<'de>>(d: D) -> Result<Option<String>, D::Error> {
+    String::deserialize(d).map(Some)
+}
+fn one() -> f64 {
+    1.0
+}
+fn ones() -> [f64; 3] {
+    [1.0; 3]
+}
+fn x_axis() -> [f64; 3] {
+    [1.0, 0.0, 0.0]
+}
+fn four() -> u32 {
+    4
+}
+fn two() -> f64 {
+    2.0
+}
+fn half() -> f64 {
+    0.5
+}
+
+/// A whole gem recipe as written (figure 4.6: surface side, glitter side).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(rename = "Gem", deny_unknown_fields)]
+pub struct GemSpec {
+    /// Display name.
+    #[serde(default)]
+    pub name: String,
+    /// Free text.
+    #[serde(default)]
+    pub description: String,
+    /// Seed of every texture of the stone.
+    #[serde(default)]
+    pub seed: u64,
+    /// IOR of the host mineral, for a translucent stone's volume (1–5).
+    #[serde(default, deserialize_with = "ranges::host_ior")]
+    pub host_ior: Option<f64>,
+    /// Inline materials by name (library names work without this).
+    #[serde(default)]
+    pub materials: BTreeMap<String, Material>,
+    /// Surface maps and switches by name.
+    #[serde(default)]
+    pub maps: BTreeMap<String, MapSpec>,
+    /// The map (or material) at the root of the surface side.
+    pub surface: String,
+    /// The glitter map over the surface (②, ④), if any.
+    #[serde(default)]
+    pub glitter: Option<GlitterSpec>,
+}
+
+/// A named node: a Voronoi surface map or a function switch.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum MapSpec {
+    /// Figure 4.6 ①: each cell picks one entry by weight.
+    SurfaceMap {
+        /// Cell size (object units), > 0.
+        #[serde(deserialize_with = "ranges::cell_size")]
+        cell_size: f64,
+        /// Feature-point jitter, 0 (grid) to 1 (default).
+        #[serde(default = "one", deserialize_with = "ranges::jitter")]
+        jitter: f64,
+        /// Anisotropic cell stretch per axis (default 1, 1, 1).
+        #[serde(default = "ones", deserialize_with = "ranges::stretch")]
+        stretch: [f64; 3],
+        /// What cells hold.
+        entries: Vec<EntrySpec>,
+    },
+    /// Figure 4.7 (b): a function's value range picks the entry.
+    Switch {
+        /// The function read.
+        function: FunctionSpec,
+        /// Ranges partitioning the function's values.
+        ranges: Vec<RangeSpec>,
+        /// Read the function once per cell of this size (whole cells switch).
+        #[serde(default, deserialize_with = "ranges::per_cell_size")]
+        per_cell_size: Option<f64>,
+        /// Read the function once per cell of this surface map's cells.
+        #[serde(default, deserialize_with = "some_string")]
+        per_cell_of: Option<String>,
+    },
+}
+
+/// One weighted entry: exactly one of `material` or `map`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(rename = "Entry", deny_unknown_fields)]
+pub struct EntrySpec {
+    /// A material name (inline or library).
+    #[serde(default, deserialize_with = "some_string")]
+    pub material: Option<String>,
+    /// A map name.
+    #[serde(default, deserialize_with = "some_string")]
+    pub map: Option<String>,
+    /// Relative weight, ≥ 0 (default 1).
+    #[serde(default = "one", deserialize_with = "ranges::weight")]
+    pub weight: f64,
+}
+
+/// One switch range `[from, to)`: exactly one of `material` or `map`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(rename = "Range", deny_unknown_fields)]
+pub struct RangeSpec {
+    /// Lower end.
+    #[serde(deserialize_with = "ranges::range_end")]
+    pub from: f64,
+    /// Upper end.
+    #[serde(deserialize_with = "ranges::range_end")]
+    pub to: f64,
+    /// A material name.
+    #[serde(default, deserialize_with = "some_string")]
+    pub material: Option<String>,
+    /// A map name.
+    #[serde(default, deserialize_with = "some_string")]
+    pub map: Option<String>,
+}
+
+/// A switch function (section 4.3.1: marble, Perlin functions).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum FunctionSpec {
+    /// Perlin noise in `[-1, 1]`.
+    Perlin {
+        /// Lattice cells per object unit.
+        #[serde(deserialize_with = "ranges::frequency")]
+        frequency: f64,
+    },
+    /// fBm in `[-B, B]`, `B = Σ gainᵏ`.
+    Fbm {
+        /// First-octave frequency.
+        #[serde(deserialize_with = "ranges::frequency")]
+        frequency: f64,
+        /// Octaves, 1–16 (default 4).
+        #[serde(default = "four", deserialize_with = "ranges::octaves")]
+        octaves: u32,
+        /// Frequency ratio (default 2).
+        #[serde(default = "two", deserialize_with = "ranges::lacunarity")]
+        lacunarity: f64,
+        /// Amplitude ratio (default 0.5).
+        #[serde(default = "half", deserialize_with = "ranges::gain")]
+        gain: f64,
+    },
+    /// Turbulence in `[0, B]`.
+    Turbulence {
+        /// First-octave frequency.
+        #[serde(deserialize_with = "ranges::frequency")]
+        frequency: f64,
+        /// Octaves, 1–16 (default 4).
+        #[serde(default = "four", deserialize_with = "ranges::octaves")]
+        octaves: u32,
+        /// Frequency ratio (default 2).
+        #[serde(default = "two", deserialize_with = "ranges::lacunarity")]
+        lacunarity: f64,
+        /// Amplitude ratio (default 0.5).
+        #[serde(default = "half", deserialize_with = "ranges::gain")]
+        gain: f64,
+    },
+    /// Marble `0.5 + 0.5 sin(frequency · p·direction + amplitude · turbulence)`, in `[0, 1]`.
+    Marble {
+        /// Stripe phase rate (radians per unit along `direction`).
+        #[serde(deserialize_with = "ranges::frequency")]
+        frequency: f64,
+        /// Turbulence strength (radians).
+        #[serde(deserialize_with = "ranges::amplitude")]
+        amplitude: f64,
+        /// Stripe axis (default x).
+        #[serde(default = "x_axis", deserialize_with = "ranges::direction")]
+        direction: [f64; 3],
+        /// Turbulence octaves, 1–16 (default 4).
+        #[serde(default = "four", deserialize_with = "ranges::octaves")]
+        octaves: u32,
+        /// Turbulence first-octave frequency (default 1).
+        #[serde(default = "one", deserialize_with = "ranges::frequency")]
+        turbulence_frequency: f64,
+    },
+}
+
+/// The glitter map ② with its facet bump map ④.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(rename = "GlitterMap", deny_unknown_fields)]
+pub struct GlitterSpec {
+    /// Particle cell size, > 0.
+    #[serde(deserialize_with = "ranges::cell_size")]
+    pub cell_size: f64,
+    /// Feature-point jitter (default 1).
+    #[serde(default = "one", deserialize_with = "ranges::jitter")]
+    pub jitter: f64,
+    /// Fraction of filled cells, 0–1.
+    #[serde(deserialize_with = "ranges::fill_fraction")]
+    pub fill_fraction: f64,
+    /// Optional modulation of the fill by a function (patterned sunstone).
+    #[serde(default)]
+    pub fill_modulation: Option<FunctionSpec>,
+    /// Glitter materials (`material:` entries only).
+    pub entries: Vec<EntrySpec>,
+    /// The facets of filled cells.
+    pub facets: FacetSpec,
+}
+
+/// The crystal-facet bump map ④.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(rename = "FacetBumpMap", deny_unknown_fields)]
+pub struct FacetSpec {
+    /// Facet cell size, > 0 and ≤ the glitter cell size.
+    #[serde(deserialize_with = "ranges::cell_size")]
+    pub cell_size: f64,
+    /// Feature-point jitter (default 1).
+    #[serde(default = "one", deserialize_with = "ranges::jitter")]
+    pub jitter: f64,
+    /// Tilt distribution.
+    pub tilt: TiltSpec,
+    /// Tilt axis (default the surface normal).
+    #[serde(default)]
+    pub around: AroundSpec,
+}
+
+/// Tilt distribution of the facets.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum TiltSpec {
+    /// Uniform in the cone of half-angle `max_tilt_deg`.
+    UniformCone {
+        /// Half-angle, 0–90°.
+        #[serde(deserialize_with = "ranges::max_tilt_deg")]
+        max_tilt_deg: f64,
+    },
+    /// `|N(0, σ)|`.
+    Gaussian {
+        /// σ, (0, 90]°.
+        #[serde(deserialize_with = "ranges::sigma_tilt_deg")]
+        sigma_tilt_deg: f64,
+    },
+}
+
+/// Tilt axis of the facets.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+pub enum AroundSpec {
+    /// The stone's normal at the hit.
+    #[default]
+    SurfaceNormal,
+    /// A fixed object-space direction `Direction(x, y, z)`.
+    Direction(f64, f64, f64),
+}
+
+/// A compiled gem: the pattern and the materials its indices refer to.
+#[derive(Clone, Debug)]
+pub struct CompiledGem {
+    /// Display name.
+    pub name: String,
+    /// Free text.
+    pub description: String,
+    /// The recipe seed.
+    pub seed: u64,
+    /// Host IOR, if given.
+    pub host_ior: Option<f64>,
+    /// The flat pattern tree.
+    pub pattern: Pattern,
+    /// `(name, material)` per material index; build BRDFs with
+    /// [`crate::recipe::compile::compile_material`].
+    pub materials: Vec<(String, Material)>,
+    /// Map name per node index.
+    pub map_names: Vec<String>,
+    /// The parsed recipe.
+    pub spec: GemSpec,
+}
+
+impl CompiledGem {
+    /// Node index of the map called `name`.
+    pub fn map_index(&self, name: &str) -> Option<u32> {
+        self.map_names
+            .iter()
+            .position(|n| n == name)
+            .map(|i| i as u32)
+    }
+
+    /// Material index of the material called `name`.
+    pub fn material_index(&self, name: &str) -> Option<u32> {
+        self.materials
+            .iter()
+            .position(|(n, _)| n == name)
+            .map(|i| i as u32)
+    }
+}
+
+/// Whether a material has a metal base (a glitter or silver-tile entry).
+pub fn has_conductor_base(m: &Material) -> bool {
+    matches!(m.base, BaseSpec::Conductor { .. })
+}
+
+/// Read and compile a gem recipe file.
+pub fn load_gem(path: &str) -> Result<CompiledGem, RecipeError> {
+    let bytes = std::fs::read(path)
+        .map_err(|e| RecipeError::whole_file(path, format!("cannot read: {e}")))?;
+    let text = String::from_utf8(bytes)
+        .map_err(|e| RecipeError::whole_file(path, format!("not UTF-8 text: {e}")))?;
+    parse_gem(path, &text)
+}
+
+/// Parse, validate and compile gem recipe `text` (`path` is for messages).
+pub fn parse_gem(path: &str, text: &str) -> Result<CompiledGem, RecipeError> {
+    let spec = ron::from_str::<GemSpec>(text).map_err(|e| ron_error(path, text, e))?;
+    Compiler::new(path, text, &spec).compile(spec.clone())
+}
+
+/// Seed of a named texture: the gem seed and the name's bytes through the
+/// cell-hash chain, then stream `purpose`.
+fn named_seed(seed: u64, name: &str, purpose: u64) -> u64 {
+    let h = name
+        .bytes()
+        .fold(seed_key(seed), |h, b| hash_prefix(h, b as i32));
+    derive_stream(h, purpose)
+}
+
+const PURPOSE_CELLS: u64 = 0;
+const PURPOSE_NOISE: u64 = 1;
+const PURPOSE_PER_CELL: u64 = 2;
+const GLITTER_NAME: &str = "#glitter";
+const FACETS_NAME: &str = "#facets";
+
+struct Compiler<'a> {
+    path: &'a str,
+    text: &'a str,
+    spec: &'a GemSpec,
+    map_names: Vec<String>,
+    materials: Vec<(String, Material)>,
+}
+
+impl<'a> Compiler<'a> {
+    fn new(path: &'a str, text: &'a str, spec: &'a GemSpec) -> Self {
+        Compiler {
+            path,
+            text,
+            spec,
+            map_names: spec.maps.keys().cloned().collect(),
+            materials: Vec::new(),
+        }
+    }
+
+    fn error_at(&self, needle: &str, message: String) -> RecipeError {
+        RecipeError::at_text(self.path, self.text, needle, message)
+    }
+
+    /// Error at the definition `"name":` of a map (else its first mention).
+    fn error_at_map(&self, name: &str, message: String) -> RecipeError {
+        let quoted = format!("\"{name}\"");
+        let definition = self
+            .text
+            .match_indices(&quoted)
+            .find(|(i, _)| self.text[i + quoted.len()..].trim_start().starts_with(':'));
+        match definition {
+            Some((offset, _)) => {
+                let (l, c) = crate::recipe::error::line_col_of_offset(self.text, offset);
+                RecipeError::at(self.path, l, c, message)
+            }
+            None => self.error_at(&quoted, message),
+        }
+    }
+
+    fn material_index(&mut self, name: &str) -> Result<u32, RecipeError> {
+        if let Some(i) = self.materials.iter().position(|(n, _)| n == name) {
+            return Ok(i as u32);
+        }
+        let material = if let Some(m) = self.spec.materials.get(name) {
+            m.clone()
+        } else if let Some(source) = builtin_material_source(name) {
+            parse_material(&format!("builtin:{name}"), source)?
+        } else {
+            let spec: &'a GemSpec = self.spec;
+            let inline: Vec<&'a str> = spec.materials.keys().map(String::as_str).collect();
+            let mut candidates: Vec<String> = inline.iter().map(|s| s.to_string()).collect();
+            candidates.extend(builtin_material_names().map(String::from));
+            let hint = did_you_mean(name, candidates.iter().map(String::as_str))
+                .map(|s| format!(" (did you mean `{s}`?)"))
+                .unwrap_or_default();
+            let also_map = if self.spec.maps.contains_key(name) {
+                format!(" (`{name}` is a map: write `map: \"{name}\"`)")
+            } else {
+                String::new()
+            };
+            return Err(self.error_at(
+                &format!("\"{name}\""),
+                format!(
+                    "unknown material `{name}`{hint}{also_map}; allowed: a name from `materials` ({}) or a library material ({})",
+                    if inline.is_empty() { "none".to_string() } else { inline.join(", ") },
+                    builtin_material_names().collect::<Vec<_>>().join(", ")
+                ),
+            ));
+        };
+        self.materials.push((name.to_string(), material));
+        Ok(self.materials.len() as u32 - 1)
+    }
+
+    fn map_index(&self, name: &str) -> Result<u32, RecipeError> {
+        match self.map_names.iter().position(|n| n == name) {
+            Some(i) => Ok(i as u32),
+            None => {
+                let hint = did_you_mean(name, self.map_names.iter().map(String::as_str))
+                    .map(|s| format!(" (did you mean `{s}`?)"))
+                    .unwrap_or_default();
+                Err(self.error_at(
+                    &format!("\"{name}\""),
+                    format!(
+                        "unknown map `{name}`{hint}; allowed: a name from `maps` ({})",
+                        if self.map_names.is_empty() {
+                            "none".to_string()
+                        } else {
+                            self.map_names.join(", ")
+                        }
+                    ),
+                ))
+            }
+        }
+    }
+
+    /// Resolve `material:` / `map:` (exactly one) of an entry of map `owner`.
+    fn entry(
+        &mut self,
+        owner: &str,
+        material: &Option<String>,
+        map: &Option<String>,
+    ) -> Result<Entry, RecipeError> {
+        match (material, map) {
+            (Some(m), None) => Ok(Entry::Material(self.material_index(m)?)),
+            (None, Some(m)) => Ok(Entry::Node(self.map_index(m)?)),
+            _ => Err(self.error_at_map(
+                owner,
+                format!("an entry of `{owner}` needs exactly one of `material` or `map`"),
+            )),
+        }
+    }
+
+    /// Names of the maps `spec` refers to.
+    fn children(spec: &MapSpec) -> Vec<&str> {
+        match spec {
+            MapSpec::SurfaceMap { entries, .. } => {
+                entries.iter().filter_map(|e| e.map.as_deref()).collect()
+            }
+            MapSpec::Switch {
+                ranges,
+                per_cell_of: _,
+                ..
+            } => ranges.iter().filter_map(|r| r.map.as_deref()).collect(),
+        }
+    }
+
+    /// Cycle detection over the name graph, with the cycle in the message.
+    fn check_cycles(&self) -> Result<(), RecipeError> {
+        fn visit<'s>(
+            name: &'s str,
+            maps: &'s BTreeMap<String, MapSpec>,
+            path: &mut Vec<&'s str>,
+            done: &mut Vec<&'s str>,
+        ) -> Option<Vec<&'s str>> {
+            if let Some(k) = path.iter().position(|n| *n == name) {
+                let mut cycle = path[k..].to_vec();
+                cycle.push(name);
+                return Some(cycle);
+            }
+            if done.contains(&name) {
+                return None;
+            }
+            let spec = maps.get(name)?; // unknown names are reported later
+            path.push(name);
+            for child in Compiler::children(spec) {
+                if let Some(c) = visit(child, maps, path, done) {
+                    return Some(c);
+                }
+            }
+            path.pop();
+            done.push(name);
+            None
+        }
+        let mut done = Vec::new();
+        for name in self.spec.maps.keys() {
+            if let Some(cycle) = visit(name, &self.spec.maps, &mut Vec::new(), &mut done) {
+                let first = cycle[0];
+                let how = if cycle.len() == 2 {
+                    "directly".to_string()
+                } else {
+                    format!("through {}", cycle[1..cycle.len() - 1].join(" → "))
+                };
+                return Err(self.error_at_map(
+                    first,
+                    format!(
+                        "map `{first}` contains itself {how} ({}); allowed: maps that nest without cycles",
+                        cycle.join(" → ")
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn voronoi(&self, name: &str, cell_size: f64, jitter: f64, stretch: [f64; 3]) -> Voronoi {
+        Voronoi {
+            cell_size,
+            jitter,
+            stretch: DVec3::from_array(stretch),
+            seed: named_seed(self.spec.seed, name, PURPOSE_CELLS),
+        }
+    }
+
+    fn function(&self, owner: &str, f: &FunctionSpec) -> Result<SwitchFunction, RecipeError> {
+        let source = PerlinSource::new(named_seed(self.spec.seed, owner, PURPOSE_NOISE));
+        Ok(match *f {
+            FunctionSpec::Perlin { frequency } => {
+                SwitchFunction::Perlin(PerlinNoise { source, frequency })
+            }
+            FunctionSpec::Fbm {
+                frequency,
+                octaves,
+                lacunarity,
+                gain,
+            } => SwitchFunction::Fbm(Fbm {
+                source,
+                frequency,
+                octaves,
+                lacunarity,
+                gain,
+            }),
+            FunctionSpec::Turbulence {
+                frequency,
+                octaves,
+                lacunarity,
+                gain,
+            } => SwitchFunction::Turbulence(Turbulence {
+                source,
+                frequency,
+                octaves,
+                lacunarity,
+                gain,
+            }),
+            FunctionSpec::Marble {
+                frequency,
+                amplitude,
+                direction,
+                octaves,
+                turbulence_frequency,
+            } => {
+                let d = DVec3::from_array(direction);
+                if d.length() == 0.0 {
+                    return Err(self.error_at_map(
+                        owner,
+                        format!("marble `direction` of `{owner}` is (0, 0, 0); allowed: any non-zero vector"),
+                    ));
+                }
+                SwitchFunction::Marble(Marble {
+                    direction: d.normalize(),
+                    frequency,
+                    amplitude,
+                    turbulence: Turbulence {
+                        source,
+                        frequency: turbulence_frequency,
+                        octaves,
+                        lacunarity: 2.0,
+                        gain: 0.5,
+                    },
+                })
+            }
+        })
+    }
+
+    fn weights_error(&self, owner: &str, entries: &[EntrySpec]) -> Option<RecipeError> {
+        if entries.is_empty() {
+            return Some(self.error_at_map(
+                owner,
+                format!("`{owner}` has no entries; allowed: at least one entry with weight > 0"),
+            ));
+        }
+        let total: f64 = entries.iter().map(|e| e.weight).sum();
+        (total <= 0.0).then(|| {
+            self.error_at_map(
+                owner,
+                format!("the `weight`s of `{owner}` sum to {total}; allowed: each weight >= 0 and at least one > 0"),
+            )
+        })
+    }
+
+    fn node(&mut self, name: &str, spec: &MapSpec) -> Result<Node, RecipeError> {
+        match spec {
+            MapSpec::SurfaceMap {
+                cell_size,
+                jitter,
+                stretch,
+                entries,
+            } => {
+                if let Some(e) = self.weights_error(name, entries) {
+                    return Err(e);
+                }
+                let mut list = Vec::with_capacity(entries.len());
+                for e in entries {
+                    list.push((self.entry(name, &e.material, &e.map)?, e.weight));
+                }
+                let v = self.voronoi(name, *cell_size, *jitter, *stretch);
+                SurfaceMap::new(v, list)
+                    .map(Node::Map)
+                    .map_err(|e| self.error_at_map(name, format!("map `{name}`: {e}")))
+            }
+            MapSpec::Switch {
+                function,
+                ranges,
+                per_cell_size,
+                per_cell_of,
+            } => {
+                let f = self.function(name, function)?;
+                let (lo, hi) = f.range();
+                let pairs: Vec<(f64, f64)> = ranges.iter().map(|r| (r.from, r.to)).collect();
+                check_partition(&pairs, lo, hi).map_err(|e| {
+                    self.error_at_map(
+                        name,
+                        format!(
+                            "switch `{name}`: {e}; allowed: ranges (from, to) in increasing order covering [{lo}, {hi}], the values of its function"
+                        ),
+                    )
+                })?;
+                let mut list = Vec::with_capacity(ranges.len());
+                for r in ranges {
+                    list.push(SwitchRange {
+                        from: r.from,
+                        to: r.to,
+                        entry: self.entry(name, &r.material, &r.map)?,
+                    });
+                }
+                let per_cell = match (per_cell_size, per_cell_of) {
+                    (None, None) => None,
+                    (Some(size), None) => Some(Voronoi {
+                        seed: named_seed(self.spec.seed, name, PURPOSE_PER_CELL),
+                        ..Voronoi::new(*size, 0)
+                    }),
+                    (None, Some(of)) => match self.spec.maps.get(of) {
+                        Some(MapSpec::SurfaceMap {
+                            cell_size,
+                            jitter,
+                            stretch,
+                            ..
+                        }) => Some(self.voronoi(of, *cell_size, *jitter, *stretch)),
+                        Some(_) => {
+                            return Err(self.error_at(
+                                &format!("\"{of}\""),
+                                format!("`per_cell_of` of `{name}` names `{of}`, a switch; allowed: a SurfaceMap"),
+                            ))
+                        }
+                        None => {
+                            self.map_index(of)?;
+                            unreachable!("map_index fails for unknown names")
+                        }
+                    },
+                    (Some(_), Some(_)) => {
+                        return Err(self.error_at_map(
+                            name,
+                            format!("switch `{name}` has both `per_cell_size` and `per_cell_of`; allowed: at most one"),
+                        ))
+                    }
+                };
+                Switch::new(f, list, per_cell)
+                    .map(Node::Switch)
+                    .map_err(|e| self.error_at_map(name, format!("switch `{name}`: {e}")))
+            }
+        }
+    }
+
+    fn glitter(&mut self, g: &GlitterSpec) -> Result<GlitterMap, RecipeError> {
+        if g.facets.cell_size > g.cell_size {
+            return Err(self.error_at(
+                "FacetBumpMap",
+                format!(
+                    "facet `cell_size` {} is larger than the glitter `cell_size` {}; allowed: facet cell_size <= glitter cell_size (facets subdivide a particle)",
+                    g.facets.cell_size, g.cell_size
+                ),
+            ));
+        }
+        if let Some(e) = self.weights_error("glitter", &g.entries) {
+            return Err(match e.position {
+                Some(_) if self.text.contains("\"glitter\"") => e,
+                _ => self.error_at("GlitterMap", e.message),
+            });
+        }
+        let mut entries = Vec::with_capacity(g.entries.len());
+        for e in &g.entries {
+            match (&e.material, &e.map) {
+                (Some(m), None) => entries.push((self.material_index(m)?, e.weight)),
+                _ => return Err(self.error_at(
+                    "GlitterMap",
+                    "a glitter entry needs `material` (and no `map`): glitter cells hold materials"
+                        .to_string(),
+                )),
+            }
+        }
+        let tilt = match g.facets.tilt {
+            TiltSpec::UniformCone { max_tilt_deg } => Tilt::UniformCone { max_tilt_deg },
+            TiltSpec::Gaussian { sigma_tilt_deg } => Tilt::Gaussian { sigma_tilt_deg },
+        };
+        let around = match g.facets.around {
+            AroundSpec::SurfaceNormal => Around::SurfaceNormal,
+            AroundSpec::Direction(x, y, z) => Around::Direction(DVec3::new(x, y, z)),
+        };
+        let facet_cells = self.voronoi(FACETS_NAME, g.facets.cell_size, g.facets.jitter, [1.0; 3]);
+        let facets = FacetBumpMap::new(facet_cells, tilt, around)
+            .map_err(|e| self.error_at("FacetBumpMap", e.to_string()))?;
+        let cells = self.voronoi(GLITTER_NAME, g.cell_size, g.jitter, [1.0; 3]);
+        let mut map = GlitterMap::new(cells, g.fill_fraction, entries, facets)
+            .map_err(|e| self.error_at("GlitterMap", e.to_string()))?;
+        if let Some(f) = &g.fill_modulation {
+            map.fill_modulation = Some(self.function(GLITTER_NAME, f)?);
+        }
+        Ok(map)
+    }
+
+    fn compile(mut self, spec: GemSpec) -> Result<CompiledGem, RecipeError> {
+        // Inline materials first, in name order, so their indices are stable.
+        for name in self.spec.materials.keys() {
+            self.materials
+                .push((name.clone(), self.spec.materials[name].clone()));
+        }
+        self.check_cycles()?;
+        let mut nodes = Vec::with_capacity(self.spec.maps.len());
+        for (name, map) in &self.spec.maps {
+            nodes.push(self.node(name, map)?);
+        }
+        let surface = &self.spec.surface;
+        let root = if self.spec.maps.contains_key(surface) {
+            Entry::Node(self.map_index(surface)?)
+        } else if self.spec.materials.contains_key(surface)
+            || builtin_material_source(surface).is_some()
+        {
+            Entry::Material(self.material_index(surface)?)
+        } else {
+            let hint = did_you_mean(
+                surface,
+                self.map_names
+                    .iter()
+                    .map(String::as_str)
+                    .chain(self.spec.materials.keys().map(String::as_str)),
+            )
+            .map(|s| format!(" (did you mean `{s}`?)"))
+            .unwrap_or_default();
+            return Err(self.error_at(
+                "surface",
+                format!(
+                    "`surface` names `{surface}`, which is neither a map nor a material{hint}; allowed: a name from `maps` ({}) or a material",
+                    self.map_names.join(", ")
+                ),
+            ));
+        };
+        let glitter = match &self.spec.glitter {
+            Some(g) => Some(self.glitter(g)?),
+            None => None,
+        };
+        let pattern = Pattern::new(nodes, root, glitter, self.materials.len() as u32)
+            .map_err(|e| RecipeError::whole_file(self.path, e.to_string()))?;
+        Ok(CompiledGem {
+            name: spec.name.clone(),
+            description: spec.description.clone(),
+            seed: spec.seed,
+            host_ior: spec.host_ior,
+            pattern,
+            materials: self.materials,
+            map_names: self.map_names,
+            spec,
+        })
+    }
+}

@@ -1,0 +1,800 @@
+//! The compiled pattern tree of section 4.3.1 (figures 4.6 and 4.7): which
+//! layered material, and which facet normal, a point of the stone has.
+//!
+//! # Layout
+//!
+//! The tree is stored flat, in the style of yocto-gl: [`Pattern::nodes`] is a
+//! `Vec<Node>` and every reference is a `u32` index ([`Entry::Node`]) or a
+//! material index ([`Entry::Material`]). There is no `Box<dyn>`, no
+//! allocation and no recursion per query: [`Pattern::resolve`] walks from
+//! [`Pattern::root`] down to a material in a loop. [`Pattern::new`] checks
+//! that every index is in bounds and that no node reaches itself, so the walk
+//! always ends (after at most `nodes.len()` steps).
+//!
+//! * [`SurfaceMap`] (figure 4.6 ①): Voronoi cells, each picking one entry
+//!   (a material or a nested node) by a weighted hash of its cell id. The
+//!   lepidolite puts maps of dark and bright tiles inside a map of bigger tiles.
+//! * [`Switch`]: a Perlin / fBm / turbulence / marble function whose value
+//!   range is partitioned into entries; evaluated per point or per Voronoi
+//!   cell (the function sampled at the cell's feature point, so whole facets
+//!   switch and stay polygonal), figure 4.7 (b).
+//! * [`GlitterMap`] (②) with its [`FacetBumpMap`] (④): bigger cells, most
+//!   transparent; filled cells hold a glitter material and tilted facets.
+//! * [`Pattern::resolve`] combines them as ⑤: the glitter material with its
+//!   facet normal where a glitter cell is filled, the surface map elsewhere.
+//!
+//! # Hash definition (a contract: tests re-implement it literally)
+//!
+//! With `u(h, s) = unit_f64(derive_stream(h, s))` (see [`crate::texture::hash`]):
+//!
+//! * a surface-map cell with id `h` (its [`Voronoi::nearest`] `cell_id`) takes
+//!   entry `i`, the first index with `u(h, STREAM_ENTRY) < C[i]`, where
+//!   `C[i] = (w₀ + … + wᵢ) / (w₀ + … + w_{n−1})` (the last `C` is exactly 1);
+//! * a glitter cell `h` is filled iff `u(h, STREAM_FILL) < fill_fraction`, and
+//!   then takes glitter entry `i` as above with `u(h, STREAM_GLITTER_ENTRY)`;
+//! * a facet cell `h` has azimuth `φ = 2π · u(h, STREAM_AZIMUTH)` and tilt
+//!   `θ = acos(1 − u(h, STREAM_TILT) · (1 − cos θmax))` (uniform cone: `cos θ`
+//!   uniform in `[cos θmax, 1]`) or `θ = min(σ · |√(−2 ln(1 − u₁)) · cos(2π u₂)|, 90°)`
+//!   with `u₁ = u(h, STREAM_TILT)`, `u₂ = u(h, STREAM_GAUSS)` (Box–Muller:
+//!   `|N(0, σ)|`, clamped below the horizon).
+//!
+//! Everything is pure in `(seeds, point)` and every type is `Send + Sync`.
+
+use glam::DVec3;
+use std::f64::consts::TAU;
+use std::fmt;
+
+use super::hash::{derive_stream, unit_f64};
+use super::noise_fns::{Fbm, Marble, PerlinNoise, Turbulence};
+use super::voronoi::{Voronoi, VoronoiNearest};
+
+/// Stream of a surface-map cell's entry choice.
+pub const STREAM_ENTRY: u64 = 1;
+/// Stream of a glitter cell's fill decision.
+pub const STREAM_FILL: u64 = 2;
+/// Stream of a filled glitter cell's entry choice.
+pub const STREAM_GLITTER_ENTRY: u64 = 3;
+/// Stream of a facet cell's tilt (`cos θ` or the Box–Muller radius).
+pub const STREAM_TILT: u64 = 4;
+/// Stream of a facet cell's azimuth.
+pub const STREAM_AZIMUTH: u64 = 5;
+/// Stream of the Box–Muller angle of a Gaussian tilt.
+pub const STREAM_GAUSS: u64 = 6;
+
+/// A reference inside the tree: a material (index into the gem's material
+/// list) or another node (index into [`Pattern::nodes`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Entry {
+    /// Leaf: material number `u32` of the gem.
+    Material(u32),
+    /// A nested surface map or switch, [`Pattern::nodes`]`[u32]`.
+    Node(u32),
+}
+
+/// Why a pattern could not be built (bad indices, cycles, weights, ranges).
+/// The recipe layer turns these into `file:line:col` errors before they can
+/// happen; this type guards hand-built patterns.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PatternError(pub String);
+
+impl fmt::Display for PatternError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for PatternError {}
+
+/// Entries with weights, stored as a cumulative table so that a pick is a
+/// short search, not a sum, per query.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WeightedEntries<T> {
+    items: Vec<T>,
+    weights: Vec<f64>,
+    cumulative: Vec<f64>,
+}
+
+impl<T: Copy> WeightedEntries<T> {
+    /// Builds the table; weights must be finite and ≥ 0 with a positive sum.
+    pub fn new(entries: Vec<(T, f64)>) -> Result<Self, PatternError> {
+        if entries.is_empty() {
+            return Err(PatternError(
+                "a weighted list needs at least one entry".into(),
+            ));
+        }
+        if let Some((_, w)) = entries.iter().find(|(_, w)| !w.is_finite() || *w < 0.0) {
+            return Err(PatternError(format!(
+                "weight {w} is not allowed; allowed: finite and >= 0"
+            )));
+        }
+        let total: f64 = entries.iter().map(|(_, w)| w).sum();
+        if total <= 0.0 || !total.is_finite() {
+            return Err(PatternError(format!(
+                "weights sum to {total}; allowed: at least one weight > 0"
+            )));
+        }
+        let mut running = 0.0;
+        let mut cumulative: Vec<f64> = entries
+            .iter()
+            .map(|(_, w)| {
+                running += w;
+                running / total
+            })
+            .collect();
+        *cumulative.last_mut().expect("non-empty") = 1.0;
+        Ok(WeightedEntries {
+            items: entries.iter().map(|(t, _)| *t).collect(),
+            weights: entries.iter().map(|(_, w)| *w).collect(),
+            cumulative,
+        })
+    }
+
+    /// The entry for a uniform `u ∈ [0, 1)`: the first `i` with `u < C[i]`.
+    #[inline]
+    pub fn pick(&self, u: f64) -> T {
+        let i = self.cumulative.partition_point(|c| *c <= u);
+        self.items[i.min(self.items.len() - 1)]
+    }
+
+    /// Index form of [`WeightedEntries::pick`].
+    #[inline]
+    pub fn pick_index(&self, u: f64) -> usize {
+        self.cumulative
+            .partition_point(|c| *c <= u)
+            .min(self.items.len() - 1)
+    }
+
+    /// The entries in declaration order.
+    pub fn items(&self) -> &[T] {
+        &self.items
+    }
+
+    /// The weights as given.
+    pub fn weights(&self) -> &[f64] {
+        &self.weights
+    }
+
+    /// Number of entries.
+    pub fn len(&self) -> usize {
+        self.items.len()
+    }
+
+    /// Never true for a built table (kept for clippy's `len_without_is_empty`).
+    pub fn is_empty(&self) -> bool {
+        self.items.is_empty()
+    }
+}
+
+/// Figure 4.6 ①: each Voronoi cell picks one entry by a weighted hash of
+/// its cell id (module documentation), so a facet is one material throughout.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SurfaceMap {
+    /// The cells (their size sets the facet size).
+    pub voronoi: Voronoi,
+    /// What a cell may hold, with weights.
+    pub entries: WeightedEntries<Entry>,
+}
+
+impl SurfaceMap {
+    /// Builds a map; see [`WeightedEntries::new`] for the weight rules.
+    pub fn new(voronoi: Voronoi, entries: Vec<(Entry, f64)>) -> Result<Self, PatternError> {
+        check_cell_size(voronoi.cell_size, "surface map")?;
+        Ok(SurfaceMap {
+            voronoi,
+            entries: WeightedEntries::new(entries)?,
+        })
+    }
+
+    /// The entry chosen by the cell with id `cell_id`.
+    #[inline]
+    pub fn entry_of_cell(&self, cell_id: u64) -> Entry {
+        self.entries
+            .pick(unit_f64(derive_stream(cell_id, STREAM_ENTRY)))
+    }
+}
+
+fn check_cell_size(cell_size: f64, what: &str) -> Result<(), PatternError> {
+    if cell_size.is_finite() && cell_size > 0.0 {
+        Ok(())
+    } else {
+        Err(PatternError(format!(
+            "{what} cell size {cell_size} is not allowed; allowed: finite and > 0"
+        )))
+    }
+}
+
+/// The function a [`Switch`] reads (section 4.3.1: marble for the
+/// lepidolite, Perlin functions for the patterned sunstone).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SwitchFunction {
+    /// Plain Perlin noise, values in `[-1, 1]`.
+    Perlin(PerlinNoise),
+    /// fBm, values in `[-B, B]` with `B` its amplitude bound.
+    Fbm(Fbm),
+    /// Turbulence, values in `[0, B]`.
+    Turbulence(Turbulence),
+    /// Marble, values in `[0, 1]`.
+    Marble(Marble),
+}
+
+impl SwitchFunction {
+    /// The function's value at `p`.
+    #[inline]
+    pub fn value(&self, p: DVec3) -> f64 {
+        match self {
+            SwitchFunction::Perlin(f) => f.value(p),
+            SwitchFunction::Fbm(f) => f.value(p),
+            SwitchFunction::Turbulence(f) => f.value(p),
+            SwitchFunction::Marble(f) => f.value(p),
+        }
+    }
+
+    /// `[min, max]` of the values: the interval a switch's ranges must
+    /// partition.
+    pub fn range(&self) -> (f64, f64) {
+        match self {
+            SwitchFunction::Perlin(_) => (-1.0, 1.0),
+            SwitchFunction::Fbm(f) => (-f.amplitude_bound(), f.amplitude_bound()),
+            SwitchFunction::Turbulence(f) => (0.0, f.amplitude_bound()),
+            SwitchFunction::Marble(_) => (0.0, 1.0),
+        }
+    }
+}
+
+/// One value range `[from, to)` of a switch and the entry it selects (the
+/// last range also takes `to` itself, the function's maximum).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SwitchRange {
+    /// Lower end (inclusive).
+    pub from: f64,
+    /// Upper end (exclusive, except for the last range).
+    pub to: f64,
+    /// What this range selects.
+    pub entry: Entry,
+}
+
+/// Figure 4.7 (b): a function whose value picks the next node or material.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Switch {
+    /// The function read.
+    pub function: SwitchFunction,
+    /// Ranges in increasing order, partitioning `function.range()` exactly.
+    ranges: Vec<SwitchRange>,
+    /// If set, the function is read at the feature point of the cell of
+    /// this Voronoi that contains the point, so whole cells switch together.
+    pub per_cell: Option<Voronoi>,
+}
+
+/// Relative tolerance for ranges meeting the function's ends and each other.
+const RANGE_TOLERANCE: f64 = 1e-9;
+
+/// Checks that `ranges` partition `[lo, hi]` (contiguous, increasing, no
+/// gaps or overlaps, covering both ends); the error names the problem.
+pub fn check_partition(ranges: &[(f64, f64)], lo: f64, hi: f64) -> Result<(), PatternError> {
+    let tol = RANGE_TOLERANCE * (hi - lo).abs().max(1.0);
+    let close = |a: f64, b: f64| (a - b).abs() <= tol;
+    let Some(first) = ranges.first() else {
+        return Err(PatternError("a switch needs at least one range".into()));
+    };
+    if !close(first.0, lo) {
+        return Err(PatternError(format!(
+            "the first range starts at {} but the function's values start at {lo}; \
+             the ranges must cover [{lo}, {hi}] without gaps or overlaps",
+            first.0
+        )));
+    }
+    for (k, (from, to)) in ranges.iter().enumerate() {
+        if !(from.is_finite() && to.is_finite() && from < to) {
+            return Err(PatternError(format!(
+                "range {} is [{from}, {to}); allowed: finite with from < to",
+                k + 1
+            )));
+        }
+        if k > 0 {
+            let previous_to = ranges[k - 1].1;
+            if !close(*from, previous_to) {
+                let what = if *from > previous_to {
+                    "gap"
+                } else {
+                    "overlap"
+                };
+                return Err(PatternError(format!(
+                    "{what} between range {} (ends at {previous_to}) and range {} (starts at {from}); \
+                     each range must start where the previous one ends",
+                    k,
+                    k + 1
+                )));
+            }
+        }
+    }
+    let last = ranges.last().expect("non-empty").1;
+    if !close(last, hi) {
+        return Err(PatternError(format!(
+            "the last range ends at {last} but the function's values reach {hi}; \
+             the ranges must cover [{lo}, {hi}] without gaps or overlaps"
+        )));
+    }
+    Ok(())
+}
+
+impl Switch {
+    /// Builds a switch; the ranges must partition `function.range()`
+    /// ([`check_partition`]). The outer ends are snapped to the exact range.
+    pub fn new(
+        function: SwitchFunction,
+        mut ranges: Vec<SwitchRange>,
+        per_cell: Option<Voronoi>,
+    ) -> Result<Self, PatternError> {
+        let (lo, hi) = function.range();
+        let pairs: Vec<(f64, f64)> = ranges.iter().map(|r| (r.from, r.to)).collect();
+        check_partition(&pairs, lo, hi)?;
+        if let Some(v) = &per_cell {
+            check_cell_size(v.cell_size, "switch per-cell")?;
+        }
+        ranges[0].from = lo;
+        ranges.last_mut().expect("non-empty").to = hi;
+        for k in 1..ranges.len() {
+            ranges[k].from = ranges[k - 1].to;
+        }
+        Ok(Switch {
+            function,
+            ranges,
+            per_cell,
+        })
+    }
+
+    /// The ranges in increasing order.
+    pub fn ranges(&self) -> &[SwitchRange] {
+        &self.ranges
+    }
+
+    /// Index of the range holding value `v` (clamped into the function's range).
+    #[inline]
+    pub fn range_index(&self, v: f64) -> usize {
+        let i = self.ranges.partition_point(|r| r.to <= v);
+        i.min(self.ranges.len() - 1)
+    }
+
+    /// Where the function is read for point `p`: `p` itself, or the feature
+    /// point of its cell when switching per cell.
+    #[inline]
+    pub fn sample_point(&self, p: DVec3) -> DVec3 {
+        match &self.per_cell {
+            Some(v) => v.nearest(p).feature_point,
+            None => p,
+        }
+    }
+
+    /// The entry selected at `p`.
+    #[inline]
+    pub fn select(&self, p: DVec3) -> Entry {
+        self.select_at_sample(self.sample_point(p))
+    }
+
+    /// The entry selected when the function is read at `sample` (the
+    /// result of [`Switch::sample_point`]).
+    #[inline]
+    pub fn select_at_sample(&self, sample: DVec3) -> Entry {
+        let v = self.function.value(sample);
+        self.ranges[self.range_index(v)].entry
+    }
+}
+
+/// Distribution of a facet's tilt angle θ away from its axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Tilt {
+    /// Normals uniform over the cone of half-angle `max_tilt_deg`
+    /// (`cos θ` uniform in `[cos max, 1]`).
+    UniformCone {
+        /// Half-angle of the cone in degrees, `[0, 90]`.
+        max_tilt_deg: f64,
+    },
+    /// `θ = |N(0, σ)|` (clamped at 90°): most flakes nearly aligned, a few
+    /// strongly tilted.
+    Gaussian {
+        /// σ of the tilt in degrees, > 0.
+        sigma_tilt_deg: f64,
+    },
+}
+
+/// The axis facets are tilted around.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Around {
+    /// The stone's (shading) normal at the hit: flakes lie roughly parallel
+    /// to the surface.
+    SurfaceNormal,
+    /// A fixed object-space direction (unit): sunstone platelets parallel to
+    /// one cleavage plane, whatever the cut.
+    Direction(DVec3),
+}
+
+/// Figure 4.6 ④: the crystal-facet bump map of the filled glitter cells.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FacetBumpMap {
+    /// The facet cells (cell size ≤ the glitter cells').
+    pub voronoi: Voronoi,
+    /// Tilt distribution.
+    pub tilt: Tilt,
+    /// Axis of the tilt.
+    pub around: Around,
+}
+
+/// A facet's tilted normal: angles relative to an axis, and the axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FlakeNormal {
+    /// Tilt from the axis, radians, `[0, π/2]`.
+    pub theta: f64,
+    /// Azimuth around the axis, radians, `[0, 2π)`.
+    pub phi: f64,
+    /// Which axis the tilt is relative to.
+    pub around: Around,
+}
+
+impl FlakeNormal {
+    /// The normal in the local frame whose z axis is the tilt axis.
+    #[inline]
+    pub fn local(&self) -> DVec3 {
+        let (s, c) = self.theta.sin_cos();
+        let (sp, cp) = self.phi.sin_cos();
+        DVec3::new(s * cp, s * sp, c)
+    }
+
+    /// The normal in object space, given the stone's normal at the hit
+    /// (used when `around` is [`Around::SurfaceNormal`]; ignored otherwise).
+    pub fn world(&self, surface_normal: DVec3) -> DVec3 {
+        let axis = match self.around {
+            Around::SurfaceNormal => surface_normal,
+            Around::Direction(d) => d,
+        }
+        .normalize();
+        let (t, b) = axis.any_orthonormal_pair();
+        let l = self.local();
+        t * l.x + b * l.y + axis * l.z
+    }
+}
+
+impl FacetBumpMap {
+    /// Builds a facet map; checks the cell size and the tilt parameters.
+    pub fn new(voronoi: Voronoi, tilt: Tilt, around: Around) -> Result<Self, PatternError> {
+        check_cell_size(voronoi.cell_size, "facet")?;
+        match tilt {
+            Tilt::UniformCone { max_tilt_deg } if !(0.0..=90.0).contains(&max_tilt_deg) => {
+                return Err(PatternError(format!(
+                    "max_tilt_deg = {max_tilt_deg}; allowed: 0 <= max_tilt_deg <= 90"
+                )))
+            }
+            Tilt::Gaussian { sigma_tilt_deg }
+                if !(sigma_tilt_deg > 0.0 && sigma_tilt_deg <= 90.0) =>
+            {
+                return Err(PatternError(format!(
+                    "sigma_tilt_deg = {sigma_tilt_deg}; allowed: 0 < sigma_tilt_deg <= 90"
+                )))
+            }
+            _ => {}
+        }
+        let around = match around {
+            Around::Direction(d) => {
+                if !(d.is_finite() && d.length() > 0.0) {
+                    return Err(PatternError(format!(
+                        "facet direction {d} must be finite and non-zero"
+                    )));
+                }
+                Around::Direction(d.normalize())
+            }
+            a => a,
+        };
+        Ok(FacetBumpMap {
+            voronoi,
+            tilt,
+            around,
+        })
+    }
+
+    /// The tilted normal of the facet cell with id `cell_id` (module
+    /// documentation for the exact formulas).
+    #[inline]
+    pub fn normal_of_cell(&self, cell_id: u64) -> FlakeNormal {
+        let u1 = unit_f64(derive_stream(cell_id, STREAM_TILT));
+        let phi = TAU * unit_f64(derive_stream(cell_id, STREAM_AZIMUTH));
+        let theta = match self.tilt {
+            Tilt::UniformCone { max_tilt_deg } => {
+                let cos_max = max_tilt_deg.to_radians().cos();
+                (1.0 - u1 * (1.0 - cos_max)).clamp(-1.0, 1.0).acos()
+            }
+            Tilt::Gaussian { sigma_tilt_deg } => {
+                let u2 = unit_f64(derive_stream(cell_id, STREAM_GAUSS));
+                let normal = (-2.0 * (1.0 - u1).ln()).sqrt() * (TAU * u2).cos();
+                (sigma_tilt_deg.to_radians() * normal.abs()).min(std::f64::consts::FRAC_PI_2)
+            }
+        };
+        FlakeNormal {
+            theta,
+            phi,
+            around: self.around,
+        }
+    }
+
+    /// The facet normal at `p` and the facet cell's id.
+    #[inline]
+    pub fn normal_at(&self, p: DVec3) -> (FlakeNormal, u64) {
+        let id = self.voronoi.nearest(p).cell_id;
+        (self.normal_of_cell(id), id)
+    }
+}
+
+/// Figure 4.6 ②: big cells standing for whole particles; a cell is filled
+/// iff `u(h, STREAM_FILL) < fill_fraction`, the rest are transparent.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GlitterMap {
+    /// The particle cells.
+    pub voronoi: Voronoi,
+    /// Expected fraction of filled cells, `[0, 1]` ("only very few" for
+    /// the lepidolite).
+    pub fill_fraction: f64,
+    /// Optional modulation: the fill threshold becomes
+    /// `fill_fraction · clamp(f(feature point), 0, 1)` (the patterned sunstone).
+    pub fill_modulation: Option<SwitchFunction>,
+    /// Glitter materials (metal base under the varnish) with weights.
+    pub entries: WeightedEntries<u32>,
+    /// The facets of the filled cells (④).
+    pub facets: FacetBumpMap,
+}
+
+impl GlitterMap {
+    /// Builds a glitter map; checks fill fraction, weights and that facets
+    /// are no bigger than particles.
+    pub fn new(
+        voronoi: Voronoi,
+        fill_fraction: f64,
+        entries: Vec<(u32, f64)>,
+        facets: FacetBumpMap,
+    ) -> Result<Self, PatternError> {
+        check_cell_size(voronoi.cell_size, "glitter")?;
+        if !(0.0..=1.0).contains(&fill_fraction) {
+            return Err(PatternError(format!(
+                "fill_fraction = {fill_fraction}; allowed: 0 <= fill_fraction <= 1"
+            )));
+        }
+        if facets.voronoi.cell_size > voronoi.cell_size {
+            return Err(PatternError(format!(
+                "facet cell size {} is larger than the glitter cell size {}; allowed: facet cell size <= glitter cell size",
+                facets.voronoi.cell_size, voronoi.cell_size
+            )));
+        }
+        Ok(GlitterMap {
+            voronoi,
+            fill_fraction,
+            fill_modulation: None,
+            entries: WeightedEntries::new(entries)?,
+            facets,
+        })
+    }
+
+    /// Whether the glitter cell with id `cell_id` (feature point `site`) is filled.
+    #[inline]
+    pub fn is_filled(&self, cell_id: u64, site: DVec3) -> bool {
+        let threshold = match &self.fill_modulation {
+            None => self.fill_fraction,
+            Some(f) => self.fill_fraction * f.value(site).clamp(0.0, 1.0),
+        };
+        unit_f64(derive_stream(cell_id, STREAM_FILL)) < threshold
+    }
+
+    /// The glitter material of a filled cell.
+    #[inline]
+    pub fn material_of_cell(&self, cell_id: u64) -> u32 {
+        self.entries
+            .pick(unit_f64(derive_stream(cell_id, STREAM_GLITTER_ENTRY)))
+    }
+}
+
+/// A node of the flat tree.
+///
+/// A switch holds its Perlin table inline (~300 bytes): nodes are few and
+/// stored contiguously, and boxing would add a pointer chase per query.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq)]
+pub enum Node {
+    /// A Voronoi surface map (①).
+    Map(SurfaceMap),
+    /// A function switch (figure 4.7 b).
+    Switch(Switch),
+}
+
+impl Node {
+    fn children(&self) -> Vec<Entry> {
+        match self {
+            Node::Map(m) => m.entries.items().to_vec(),
+            Node::Switch(s) => s.ranges().iter().map(|r| r.entry).collect(),
+        }
+    }
+}
+
+/// What a point of the stone is made of (figure 4.6 ⑤).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Resolved {
+    /// Index of the material in the gem's material list.
+    pub material: u32,
+    /// The facet normal, for points in a filled glitter cell.
+    pub flake_normal: Option<FlakeNormal>,
+    /// Cell id of the deepest surface-map cell on the way (0 when the
+    /// surface is a bare material).
+    pub surface_cell: u64,
+    /// Cell id of the filled glitter cell, if the point is glitter.
+    pub glitter_cell: Option<u64>,
+    /// Node index of the surface map that chose the surface material
+    /// (`u32::MAX` when none did).
+    pub map_index: u32,
+}
+
+/// The compiled pattern: flat nodes, the surface root and the optional
+/// glitter layer. Plain data, `Send + Sync`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pattern {
+    nodes: Vec<Node>,
+    root: Entry,
+    glitter: Option<GlitterMap>,
+    material_count: u32,
+}
+
+impl Pattern {
+    /// Builds a pattern over `material_count` materials; checks every index
+    /// and that no node contains itself (directly or through others).
+    pub fn new(
+        nodes: Vec<Node>,
+        root: Entry,
+        glitter: Option<GlitterMap>,
+        material_count: u32,
+    ) -> Result<Self, PatternError> {
+        let check = |e: Entry| match e {
+            Entry::Material(m) if m >= material_count => Err(PatternError(format!(
+                "material index {m} out of bounds ({material_count} materials)"
+            ))),
+            Entry::Node(n) if n as usize >= nodes.len() => Err(PatternError(format!(
+                "node index {n} out of bounds ({} nodes)",
+                nodes.len()
+            ))),
+            _ => Ok(()),
+        };
+        check(root)?;
+        for node in &nodes {
+            for child in node.children() {
+                check(child)?;
+            }
+        }
+        if let Some(g) = &glitter {
+            for m in g.entries.items() {
+                check(Entry::Material(*m))?;
+            }
+        }
+        // Cycle check: depth-first colouring.
+        let mut state = vec![0u8; nodes.len()]; // 0 new, 1 on stack, 2 done
+        for start in 0..nodes.len() {
+            if state[start] != 0 {
+                continue;
+            }
+            let mut stack = vec![(start, 0usize)];
+            state[start] = 1;
+            while let Some((n, k)) = stack.pop() {
+                let children = nodes[n].children();
+                if k < children.len() {
+                    stack.push((n, k + 1));
+                    if let Entry::Node(c) = children[k] {
+                        let c = c as usize;
+                        match state[c] {
+                            1 => {
+                                return Err(PatternError(format!(
+                                    "node {c} contains itself (through node {n})"
+                                )))
+                            }
+                            0 => {
+                                state[c] = 1;
+                                stack.push((c, 0));
+                            }
+                            _ => {}
+                        }
+                    }
+                } else {
+                    state[n] = 2;
+                }
+            }
+        }
+        Ok(Pattern {
+            nodes,
+            root,
+            glitter,
+            material_count,
+        })
+    }
+
+    /// The nodes.
+    pub fn nodes(&self) -> &[Node] {
+        &self.nodes
+    }
+
+    /// The surface root.
+    pub fn root(&self) -> Entry {
+        self.root
+    }
+
+    /// The glitter layer, if any.
+    pub fn glitter(&self) -> Option<&GlitterMap> {
+        self.glitter.as_ref()
+    }
+
+    /// Number of materials the indices refer to.
+    pub fn material_count(&self) -> u32 {
+        self.material_count
+    }
+
+    /// The surface side alone (figure 4.6 ①, through switches): material,
+    /// deepest surface cell id and the map that chose it.
+    #[inline]
+    pub fn resolve_surface(&self, p: DVec3) -> (u32, u64, u32) {
+        let mut entry = self.root;
+        let mut cell = 0;
+        let mut map_index = u32::MAX;
+        // A per-cell switch and the map below it often share their cells
+        // (`per_cell_of` in a recipe): reuse the last nearest-site query.
+        let mut last: Option<(&Voronoi, VoronoiNearest)> = None;
+        // Acyclic (checked in `new`), so at most nodes.len() steps.
+        for _ in 0..=self.nodes.len() {
+            match entry {
+                Entry::Material(m) => return (m, cell, map_index),
+                Entry::Node(n) => {
+                    entry = match &self.nodes[n as usize] {
+                        Node::Map(map) => {
+                            let near = match last {
+                                Some((v, near)) if *v == map.voronoi => near,
+                                _ => map.voronoi.nearest(p),
+                            };
+                            last = Some((&map.voronoi, near));
+                            cell = near.cell_id;
+                            map_index = n;
+                            map.entry_of_cell(near.cell_id)
+                        }
+                        Node::Switch(s) => match &s.per_cell {
+                            Some(v) => {
+                                let near = match last {
+                                    Some((w, near)) if w == v => near,
+                                    _ => v.nearest(p),
+                                };
+                                last = Some((v, near));
+                                s.select_at_sample(near.feature_point)
+                            }
+                            None => s.select_at_sample(p),
+                        },
+                    }
+                }
+            }
+        }
+        unreachable!("pattern tree is acyclic by construction")
+    }
+
+    /// Figure 4.6 ⑤: glitter (with its facet normal) where the glitter cell
+    /// is filled, the surface map's material elsewhere.
+    #[inline]
+    pub fn resolve(&self, p: DVec3) -> Resolved {
+        let (surface_material, surface_cell, map_index) = self.resolve_surface(p);
+        if let Some(g) = &self.glitter {
+            let near = g.voronoi.nearest(p);
+            if g.is_filled(near.cell_id, near.feature_point) {
+                let (normal, _) = g.facets.normal_at(p);
+                return Resolved {
+                    material: g.material_of_cell(near.cell_id),
+                    flake_normal: Some(normal),
+                    surface_cell,
+                    glitter_cell: Some(near.cell_id),
+                    map_index,
+                };
+            }
+        }
+        Resolved {
+            material: surface_material,
+            flake_normal: None,
+            surface_cell,
+            glitter_cell: None,
+            map_index,
+        }
+    }
+}

@@ -1,0 +1,385 @@
+//! Gem recipes (section 4.3.1): the lepidolite recipe as the notes describe
+//! it, and bad recipes rejected with `file:line:col`, the field or name, and
+//! the allowed values.
+
+use glam::DVec3;
+use lapidary::recipe::compile::{compile_material, MaterialSource};
+use lapidary::recipe::gem::{has_conductor_base, load_gem, parse_gem};
+use lapidary::recipe::material::BaseSpec;
+use lapidary::texture::pattern::{Entry, Node};
+
+const LEPIDOLITE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/gem-recipes/lavender-lepidolite.ron"
+);
+
+fn points(n: usize) -> Vec<DVec3> {
+    let mut s = 0x2545_f491_4f6c_dd1d_u64;
+    let mut next = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    (0..n)
+        .map(|_| DVec3::new(next(), next(), next()) * 6.0 - DVec3::splat(3.0))
+        .collect()
+}
+
+#[test]
+fn lepidolite_matches_section_4_3_1() {
+    let gem = load_gem(LEPIDOLITE).unwrap_or_else(|e| panic!("{e}"));
+    let map = |name: &str| match &gem.pattern.nodes()[gem.map_index(name).unwrap() as usize] {
+        Node::Map(m) => m.clone(),
+        Node::Switch(_) => panic!("{name} is a switch"),
+    };
+    let material_of = |e: &Entry| match e {
+        Entry::Material(m) => &gem.materials[*m as usize],
+        Entry::Node(_) => panic!("expected a material entry"),
+    };
+    // Dark tiles: 9 entries, exactly one with a (silver) conductor base,
+    // the other 8 Lambertian under a smooth IOR 1.56 layer in 6 colours.
+    let dark = map("dark-tiles");
+    assert_eq!(dark.entries.len(), 9);
+    let conductors: Vec<_> = dark
+        .entries
+        .items()
+        .iter()
+        .map(material_of)
+        .filter(|(_, m)| has_conductor_base(m))
+        .collect();
+    assert_eq!(conductors.len(), 1);
+    match &conductors[0].1.base {
+        BaseSpec::Conductor {
+            metal,
+            roughness_deg,
+            ..
+        } => {
+            assert_eq!(metal.as_deref(), Some("silver"));
+            assert_eq!(*roughness_deg, 1.0);
+        }
+        _ => unreachable!(),
+    }
+    let mut colours = Vec::new();
+    for (_, m) in dark.entries.items().iter().map(material_of) {
+        assert_eq!(m.layers.len(), 1);
+        assert_eq!(m.layers[0].ior, Some(1.56));
+        assert_eq!(m.layers[0].roughness_deg, 0.0, "smooth layer");
+        if let BaseSpec::Diffuse { colour, .. } = m.base {
+            if !colours.contains(&colour) {
+                colours.push(colour);
+            }
+        }
+    }
+    assert_eq!(colours.len(), 6, "6 different dark colours");
+    // Bright tiles: 5 colours, all brighter than every dark colour.
+    let bright = map("bright-tiles");
+    assert_eq!(bright.entries.len(), 5);
+    let luminance = |c: [f64; 3]| c[0] + c[1] + c[2];
+    let darkest_bright = bright
+        .entries
+        .items()
+        .iter()
+        .map(|e| match material_of(e).1.base {
+            BaseSpec::Diffuse { colour, .. } => luminance(colour),
+            _ => panic!("bright tiles are Lambertian"),
+        })
+        .fold(f64::INFINITY, f64::min);
+    assert!(colours.iter().all(|c| luminance(*c) < darkest_bright));
+    // Same size, inside a map of bigger tiles; inclusions much smaller.
+    let tiles = map("tiles");
+    assert_eq!(dark.voronoi.cell_size, bright.voronoi.cell_size);
+    assert!(tiles.voronoi.cell_size > 2.0 * dark.voronoi.cell_size);
+    assert_eq!(
+        tiles.entries.items(),
+        &[
+            Entry::Node(gem.map_index("dark-tiles").unwrap()),
+            Entry::Node(gem.map_index("bright-tiles").unwrap())
+        ]
+    );
+    let inclusions = map("inclusions");
+    assert!(inclusions.voronoi.cell_size * 4.0 < dark.voronoi.cell_size);
+    // Glitter: 4 silver-base entries.
+    let glitter = gem.pattern.glitter().expect("a glitter map");
+    assert_eq!(glitter.entries.len(), 4);
+    for m in glitter.entries.items() {
+        assert!(matches!(
+            &gem.materials[*m as usize].1.base,
+            BaseSpec::Conductor { metal: Some(s), .. } if s == "silver"
+        ));
+    }
+    // Very few glitter cells are filled: measured over 10⁵ points.
+    let pts = points(100_000);
+    let resolved: Vec<_> = pts.iter().map(|p| gem.pattern.resolve(*p)).collect();
+    let fraction = resolved.iter().filter(|r| r.glitter_cell.is_some()).count() as f64 / 1e5;
+    eprintln!("lepidolite glitter fraction over 10^5 points: {fraction}");
+    assert!(fraction > 0.005 && fraction < 0.04, "{fraction}");
+    // Every map that holds materials is reached, inclusions included.
+    for name in ["dark-tiles", "bright-tiles", "inclusions"] {
+        let index = gem.map_index(name).unwrap();
+        assert!(resolved.iter().any(|r| r.map_index == index), "{name}");
+    }
+    // The distinct kinds of material compile to BRDFs (one of each: building
+    // the compensation tables of all 19 takes seconds).
+    let text = std::fs::read_to_string(LEPIDOLITE).unwrap();
+    let kinds = ["dark-lilac", "pink-silver", "glitter-4"];
+    for (name, m) in gem
+        .materials
+        .iter()
+        .filter(|(n, _)| kinds.contains(&n.as_str()))
+    {
+        let source = MaterialSource {
+            path: LEPIDOLITE.to_string(),
+            name: name.clone(),
+            text: text.clone(),
+        };
+        compile_material(&source, m).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+}
+
+/// A small valid recipe; the bad ones below change one thing.
+const GOOD: &str = r#"Gem(
+    seed: 3,
+    materials: {
+        "lilac": Material(layers: [Layer(ior: 1.56)], base: Diffuse(colour: (0.5, 0.4, 0.6))),
+    },
+    maps: {
+        "small": SurfaceMap(cell_size: 0.05, entries: [(material: "lilac", weight: 2.0), (material: "red-garnet")]),
+        "big": SurfaceMap(cell_size: 0.3, entries: [(map: "small"), (material: "silver")]),
+        "veins": Switch(
+            function: Marble(frequency: 4.0, amplitude: 2.0),
+            per_cell_size: 0.02,
+            ranges: [(from: 0.0, to: 0.7, map: "big"), (from: 0.7, to: 1.0, material: "lilac")],
+        ),
+    },
+    surface: "veins",
+    glitter: Some(GlitterMap(
+        cell_size: 0.2,
+        fill_fraction: 0.1,
+        entries: [(material: "gold")],
+        facets: FacetBumpMap(cell_size: 0.05, tilt: Gaussian(sigma_tilt_deg: 8.0), around: Direction(0.0, 0.0, 1.0)),
+    )),
+)
+"#;
+
+/// 1-based line of the first line containing `marker`.
+fn line_of(text: &str, marker: &str) -> usize {
+    text.lines()
+        .position(|l| l.contains(marker))
+        .unwrap_or_else(|| panic!("marker {marker} not in recipe"))
+        + 1
+}
+
+/// Parses `text` (GOOD with `from` replaced by `to`), expects an error on
+/// the line holding `marker`, whose message contains every `needle`.
+fn expect_error(from: &str, to: &str, marker: &str, needles: &[&str]) {
+    assert!(GOOD.contains(from), "{from}");
+    let text = GOOD.replacen(from, to, 1);
+    let err = parse_gem("bad.ron", &text).expect_err("should be rejected");
+    let message = err.to_string();
+    let line = line_of(&text, marker);
+    let prefix = format!("bad.ron:{line}:");
+    assert!(
+        message.starts_with(&prefix),
+        "expected {prefix}… got {message}"
+    );
+    let col = message[prefix.len()..].split(':').next().unwrap();
+    assert!(col.parse::<usize>().is_ok(), "no column: {message}");
+    for needle in needles {
+        assert!(
+            message.contains(needle),
+            "`{needle}` missing from: {message}"
+        );
+    }
+}
+
+#[test]
+fn good_recipe_compiles() {
+    let gem = parse_gem("good.ron", GOOD).unwrap_or_else(|e| panic!("{e}"));
+    // lilac inline, then library red-garnet, silver, gold on first use.
+    let names: Vec<_> = gem.materials.iter().map(|(n, _)| n.as_str()).collect();
+    for n in ["lilac", "red-garnet", "silver", "gold"] {
+        assert!(names.contains(&n), "{names:?}");
+    }
+    assert_eq!(gem.map_names, ["big", "small", "veins"]);
+    let gold = gem.material_index("gold").unwrap();
+    let mut flakes = 0;
+    for p in points(5_000) {
+        let r = gem.pattern.resolve(p);
+        assert!((r.material as usize) < gem.materials.len());
+        if let Some(normal) = r.flake_normal {
+            // Gold glitter, flakes around the fixed direction (0, 0, 1)
+            // whatever the surface normal.
+            assert_eq!(r.material, gold);
+            let n = normal.world(DVec3::X);
+            assert!((n - normal.world(DVec3::Y)).length() < 1e-12);
+            assert!((n.z - normal.theta.cos()).abs() < 1e-12);
+            flakes += 1;
+        }
+    }
+    assert!(
+        flakes > 100 && flakes < 1_500,
+        "{flakes} of 5000 (fill 0.1)"
+    );
+}
+
+#[test]
+fn unknown_material_name() {
+    expect_error(
+        r#"(material: "red-garnet")"#,
+        r#"(material: "red-granet")"#,
+        "red-granet",
+        &[
+            "unknown material `red-granet`",
+            "did you mean `red-garnet`",
+            "allowed:",
+            "lilac",
+        ],
+    );
+}
+
+#[test]
+fn unknown_map_name() {
+    expect_error(
+        r#"(map: "small")"#,
+        r#"(map: "smal")"#,
+        r#""smal""#,
+        &[
+            "unknown map `smal`",
+            "did you mean `small`",
+            "allowed: a name from `maps` (big, small, veins)",
+        ],
+    );
+}
+
+#[test]
+fn map_containing_itself_directly() {
+    expect_error(
+        r#"(map: "small")"#,
+        r#"(map: "big")"#,
+        r#""big": SurfaceMap"#,
+        &[
+            "map `big` contains itself directly",
+            "big → big",
+            "allowed:",
+        ],
+    );
+}
+
+#[test]
+fn map_containing_itself_through_another() {
+    expect_error(
+        r#"(material: "lilac", weight: 2.0)"#,
+        r#"(map: "big", weight: 2.0)"#,
+        r#""big": SurfaceMap"#,
+        &[
+            "map `big` contains itself through small",
+            "big → small → big",
+        ],
+    );
+}
+
+#[test]
+fn all_weights_zero() {
+    expect_error(
+        r#"(material: "lilac", weight: 2.0), (material: "red-garnet")"#,
+        r#"(material: "lilac", weight: 0.0), (material: "red-garnet", weight: 0.0)"#,
+        r#""small":"#,
+        &[
+            "`weight`s of `small` sum to 0",
+            "allowed: each weight >= 0 and at least one > 0",
+        ],
+    );
+}
+
+#[test]
+fn negative_weight() {
+    expect_error(
+        "weight: 2.0",
+        "weight: -2.0",
+        "weight: -2.0",
+        &["`weight` = -2 is out of range", "allowed: weight >= 0"],
+    );
+}
+
+#[test]
+fn fill_fraction_out_of_range() {
+    expect_error(
+        "fill_fraction: 0.1",
+        "fill_fraction: 1.5",
+        "fill_fraction",
+        &[
+            "`fill_fraction` = 1.5 is out of range",
+            "allowed: 0 <= fill_fraction <= 1",
+        ],
+    );
+}
+
+#[test]
+fn cell_size_zero_and_nan() {
+    for bad in ["0.0", "NaN"] {
+        expect_error(
+            "cell_size: 0.3",
+            &format!("cell_size: {bad}"),
+            r#""big""#,
+            &["`cell_size` =", "out of range", "allowed: cell_size > 0"],
+        );
+    }
+}
+
+#[test]
+fn switch_ranges_with_gap_or_overlap() {
+    for (to, what) in [
+        ("(from: 0.75, to: 1.0", "gap"),
+        ("(from: 0.6, to: 1.0", "overlap"),
+    ] {
+        expect_error(
+            "(from: 0.7, to: 1.0",
+            to,
+            r#""veins""#,
+            &[what, "switch `veins`", "allowed: ranges", "covering [0, 1]"],
+        );
+    }
+    expect_error(
+        "(from: 0.7, to: 1.0",
+        "(from: 0.7, to: 0.9",
+        r#""veins""#,
+        &["the last range ends at 0.9", "covering [0, 1]"],
+    );
+}
+
+#[test]
+fn facets_bigger_than_glitter_cells() {
+    expect_error(
+        "FacetBumpMap(cell_size: 0.05",
+        "FacetBumpMap(cell_size: 0.5",
+        "FacetBumpMap",
+        &[
+            "facet `cell_size` 0.5 is larger than the glitter `cell_size` 0.2",
+            "allowed: facet cell_size <= glitter cell_size",
+        ],
+    );
+}
+
+#[test]
+fn unknown_field_is_named() {
+    expect_error(
+        "per_cell_size: 0.02",
+        "per_cel_size: 0.02",
+        "per_cel_size",
+        &[
+            "unknown field `per_cel_size`",
+            "did you mean `per_cell_size`",
+        ],
+    );
+}
+
+#[test]
+fn unknown_surface() {
+    expect_error(
+        r#"surface: "veins""#,
+        r#"surface: "vein""#,
+        "surface:",
+        &["`surface` names `vein`", "did you mean `veins`", "allowed:"],
+    );
+}
