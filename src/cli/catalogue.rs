@@ -2,7 +2,7 @@
 
 use lapidary::brdf::classify::classify as classify_brdf;
 use lapidary::recipe::compile::{compile_material, locate_material, parse_material};
-use lapidary::recipe::library::builtin_material_names;
+use lapidary::recipe::library::{builtin_gem_names, builtin_gem_source, builtin_material_names};
 
 /// Load a material without its compensation tables (classification and
 /// listing need only the parameters).
@@ -28,6 +28,20 @@ pub fn list() -> Result<(), String> {
     for name in builtin_material_names() {
         let brdf = load_parameters(name)?;
         super::emit(&format!("  {name:<26} {}", classify_brdf(&brdf)));
+    }
+    super::emit("Gems (gem-recipes/, built in):");
+    for name in builtin_gem_names() {
+        let text = builtin_gem_source(name).unwrap_or_default();
+        let gem = lapidary::recipe::gem::parse_gem(&format!("builtin:{name}"), text)
+            .map_err(|e| e.to_string())?;
+        let line = gem
+            .description
+            .lines()
+            .next()
+            .unwrap_or("")
+            .trim()
+            .to_string();
+        super::emit(&format!("  {name:<26} {line}"));
     }
     Ok(())
 }

@@ -2,6 +2,7 @@
 
 mod brdf;
 mod catalogue;
+mod maps;
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -25,6 +26,25 @@ enum Command {
     },
     /// List the built-in materials with their classes.
     List,
+    /// Draw the figure 4.6 sheet of a gem: surface map, glitter map, facet
+    /// normals and the combination, over the slice z = 0.
+    Maps(MapsArgs),
+}
+
+/// Arguments of `lapidary maps`.
+#[derive(clap::Args, Debug)]
+struct MapsArgs {
+    /// A built-in gem name (e.g. lavender-lepidolite) or a RON gem recipe.
+    recipe: String,
+    /// The PNG to write.
+    #[arg(short = 'o', long = "output", value_name = "OUT.png")]
+    output: PathBuf,
+    /// Side of each of the four panels in pixels.
+    #[arg(long, default_value_t = 256)]
+    size: u32,
+    /// Half-width of the slice in object-space units (x, y ∈ [−E, E]).
+    #[arg(long, value_name = "E", default_value_t = 1.0)]
+    extent: f64,
 }
 
 /// Arguments of `lapidary brdf`.
@@ -82,6 +102,7 @@ pub fn run() -> i32 {
         Command::Brdf(args) => brdf::run(args),
         Command::Classify { material } => catalogue::classify(&material),
         Command::List => catalogue::list(),
+        Command::Maps(args) => maps::run(args),
     };
     match result {
         Ok(()) => 0,

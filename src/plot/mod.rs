@@ -17,6 +17,7 @@
 //! yellow, cyan, magenta or white, so overlaps stay readable and a neutral
 //! material simply reads as white.
 
+pub mod maps;
 mod raster;
 mod scale;
 pub mod text;

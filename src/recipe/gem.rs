@@ -821,3 +821,39 @@ impl<'a> Compiler<'a> {
         })
     }
 }
+
+/// Find RECIPE as a file (if it names one, ends in `.ron` or has a `/`) or
+/// as a built-in gem; returns the display path and the text.
+pub fn load_gem_source(spec: &str) -> Result<(String, String), RecipeError> {
+    use crate::recipe::error::did_you_mean;
+    use crate::recipe::library::{builtin_gem_names, builtin_gem_source};
+    let path = std::path::Path::new(spec);
+    if path.exists() || spec.ends_with(".ron") || spec.contains('/') {
+        if path.is_dir() {
+            return Err(RecipeError::whole_file(
+                spec,
+                "is a directory, expected a .ron gem recipe",
+            ));
+        }
+        let bytes = std::fs::read(path)
+            .map_err(|e| RecipeError::whole_file(spec, format!("cannot read: {e}")))?;
+        let text = String::from_utf8(bytes)
+            .map_err(|e| RecipeError::whole_file(spec, format!("not UTF-8 text: {e}")))?;
+        return Ok((spec.to_string(), text));
+    }
+    match builtin_gem_source(spec) {
+        Some(text) => Ok((format!("builtin:{spec}"), text.to_string())),
+        None => {
+            let hint = did_you_mean(spec, builtin_gem_names())
+                .map(|s| format!(" (did you mean `{s}`?)"))
+                .unwrap_or_default();
+            Err(RecipeError::whole_file(
+                spec,
+                format!(
+                    "no such file and no built-in gem of that name{hint}; built-in gems: {}",
+                    builtin_gem_names().collect::<Vec<_>>().join(", ")
+                ),
+            ))
+        }
+    }
+}

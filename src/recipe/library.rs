@@ -107,3 +107,22 @@ pub fn builtin_material_source(name: &str) -> Option<&'static str> {
 pub fn builtin_material_names() -> impl Iterator<Item = &'static str> {
     BUILTIN_MATERIALS.iter().map(|(n, _)| *n)
 }
+
+/// (name, RON source) of every gem recipe in `gem-recipes/`.
+pub const BUILTIN_GEMS: &[(&str, &str)] = &[(
+    "lavender-lepidolite",
+    include_str!("../../gem-recipes/lavender-lepidolite.ron"),
+)];
+
+/// The RON source of a built-in gem.
+pub fn builtin_gem_source(name: &str) -> Option<&'static str> {
+    BUILTIN_GEMS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, s)| *s)
+}
+
+/// Names of all built-in gems.
+pub fn builtin_gem_names() -> impl Iterator<Item = &'static str> {
+    BUILTIN_GEMS.iter().map(|(n, _)| *n)
+}

@@ -1,0 +1,59 @@
+//! `lapidary maps`: the figure 4.6 decomposition of a gem recipe.
+
+use super::MapsArgs;
+use lapidary::brdf::compensation::single_crossing_albedo;
+use lapidary::brdf::Rgb;
+use lapidary::plot::maps::{maps_sheet, MapsSheetStyle};
+use lapidary::recipe::compile::{compile_material, MaterialSource};
+use lapidary::recipe::gem::{load_gem_source, CompiledGem};
+
+/// Panel sizes beyond this would make a sheet of more than ~200 MB.
+const MAX_PANEL_PX: u32 = 4096;
+
+/// Each material's normal-incidence albedo (single-crossing model), the
+/// colour it gets in the surface and glitter panels.
+fn material_colours(gem: &CompiledGem, path: &str, text: &str) -> Result<Vec<Rgb>, String> {
+    gem.materials
+        .iter()
+        .map(|(name, material)| {
+            let mut m = material.clone();
+            m.multiple_scattering = false;
+            let source = MaterialSource {
+                path: path.to_string(),
+                name: name.clone(),
+                text: text.to_string(),
+            };
+            let brdf = compile_material(&source, &m).map_err(|e| e.to_string())?;
+            Ok(single_crossing_albedo(&brdf, 1.0, gem.seed))
+        })
+        .collect()
+}
+
+/// Run `lapidary maps`.
+pub fn run(args: MapsArgs) -> Result<(), String> {
+    lapidary::output::check_writable(&args.output).map_err(|e| e.to_string())?;
+    if args.size == 0 || args.size > MAX_PANEL_PX {
+        return Err(format!(
+            "--size {}: allowed 1 to {MAX_PANEL_PX} pixels per panel",
+            args.size
+        ));
+    }
+    if !(args.extent.is_finite() && args.extent > 0.0) {
+        return Err(format!(
+            "--extent {}: must be a positive number of object-space units",
+            args.extent
+        ));
+    }
+    let (path, text) = load_gem_source(&args.recipe).map_err(|e| e.to_string())?;
+    let gem = lapidary::recipe::gem::parse_gem(&path, &text).map_err(|e| e.to_string())?;
+    let colours = material_colours(&gem, &path, &text)?;
+    let style = MapsSheetStyle {
+        panel_px: args.size,
+        extent: args.extent,
+        title: format!("{}: figure 4.6 maps, slice z = 0", gem.name),
+    };
+    let image = maps_sheet(&gem.pattern, &colours, &style);
+    lapidary::output::write_png(&args.output, &image).map_err(|e| e.to_string())?;
+    eprintln!("wrote {}", args.output.display());
+    Ok(())
+}

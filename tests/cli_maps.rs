@@ -1,0 +1,136 @@
+//! `lapidary maps`: the figure 4.6 sheet of a gem, and its bad input.
+
+use std::process::{Command, Output};
+
+fn lapidary(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lapidary"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+fn scratch(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("lapidary-maps-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn maps_sheet_has_four_panels_and_a_sparse_glitter_panel() {
+    let dir = scratch("sheet");
+    let png = dir.join("lepidolite.png");
+    let out = lapidary(&[
+        "maps",
+        "lavender-lepidolite",
+        "-o",
+        png.to_str().unwrap(),
+        "--size",
+        "96",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let img = image::open(&png).unwrap().to_rgb8();
+    // Four 96-px panels with 12-px margins.
+    assert_eq!(img.width(), 12 + 4 * (96 + 12));
+    // Panel ② (glitter map): the recipe fills 2 % of its glitter cells, so
+    // most of the panel is dark and a little of it bright.
+    let bottom = img.height() - 12;
+    let x0 = 12 + 96 + 12;
+    let (mut bright, mut total) = (0u32, 0u32);
+    for y in bottom - 96..bottom {
+        for x in x0..x0 + 96 {
+            total += 1;
+            if img.get_pixel(x, y).0[0] > 100 {
+                bright += 1;
+            }
+        }
+    }
+    let fraction = bright as f64 / total as f64;
+    assert!(
+        fraction > 0.001 && fraction < 0.2,
+        "bright fraction {fraction}"
+    );
+}
+
+#[test]
+fn every_gem_file_is_built_in() {
+    let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("gem-recipes");
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "ron") {
+            let stem = path.file_stem().unwrap().to_str().unwrap().to_string();
+            assert!(
+                lapidary::recipe::library::builtin_gem_source(&stem).is_some(),
+                "{stem} is not embedded"
+            );
+        }
+    }
+}
+
+#[test]
+fn maps_refuses_bad_input_with_exit_1_and_writes_nothing() {
+    let dir = scratch("bad");
+    let png = dir.join("out.png");
+    let broken = dir.join("broken.ron");
+    std::fs::write(
+        &broken,
+        "Gem(\n  seed: 1,\n  surface: \"nothing\",\n  colour: 3,\n)",
+    )
+    .unwrap();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["maps", "lavender-lepidolit", "-o", png.to_str().unwrap()],
+            "did you mean `lavender-lepidolite`",
+        ),
+        (
+            vec![
+                "maps",
+                "lavender-lepidolite",
+                "-o",
+                png.to_str().unwrap(),
+                "--size",
+                "0",
+            ],
+            "--size 0",
+        ),
+        (
+            vec![
+                "maps",
+                "lavender-lepidolite",
+                "-o",
+                png.to_str().unwrap(),
+                "--extent",
+                "NaN",
+            ],
+            "--extent",
+        ),
+        (
+            vec!["maps", "lavender-lepidolite", "-o", "/no/such/dir/x.png"],
+            "does not exist",
+        ),
+        (
+            vec![
+                "maps",
+                broken.to_str().unwrap(),
+                "-o",
+                png.to_str().unwrap(),
+            ],
+            "broken.ron:",
+        ),
+    ];
+    for (args, fragment) in cases {
+        let out = lapidary(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains(fragment),
+            "{args:?}: `{fragment}` not in {stderr}"
+        );
+        assert!(!stderr.contains("panicked"));
+        assert!(!png.exists());
+    }
+}
