@@ -47,7 +47,7 @@
 use glam::{DVec2, DVec3};
 
 use super::error::{check_positive, GeometryError};
-use super::outline::{Footprint, Outline};
+use super::outline::{pow, Footprint, Outline};
 
 /// The base of the stone, below the girdle band.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -277,7 +277,7 @@ impl Cabochon {
             return (n, (grad_s * (s / n)).extend(dzeta * zeta / n));
         }
         // (s/N)^(p−1) = s^(p−1) · N / Σ with Σ = sᵖ + ζᵖ = Nᵖ.
-        let (sp1, zp1) = (s.powf(p - 1.0), zeta.powf(p - 1.0));
+        let (sp1, zp1) = (pow(s, p - 1.0), pow(zeta, p - 1.0));
         let sum = sp1 * s + zp1 * zeta;
         let n = sum.powf(1.0 / p);
         let k = n / sum;

@@ -205,7 +205,7 @@ impl Footprint {
                 }
                 // Scale by the larger coordinate so powf never underflows.
                 let (ur, vr) = (u / m, v / m);
-                let (un1, vn1) = (ur.powf(n - 1.0), vr.powf(n - 1.0));
+                let (un1, vn1) = (pow(ur, n - 1.0), pow(vr, n - 1.0));
                 let sum = un1 * ur + vn1 * vr;
                 let s_over_m = sum.powf(1.0 / n);
                 let s = m * s_over_m;
@@ -248,5 +248,17 @@ impl Footprint {
         let dx = x / q;
         let dy = (c.copysign(y) + (c * c + la2) * y / q) / la2;
         (s, DVec2::new(dx, dy))
+    }
+}
+
+/// `x^e` for `x ≥ 0`, by repeated multiplication when `e` is a whole number
+/// (the usual cushion and profile exponents), which is several times faster
+/// than `powf` in the Newton loop.
+#[inline]
+pub(crate) fn pow(x: f64, e: f64) -> f64 {
+    if e == e.trunc() && e.abs() <= 32.0 {
+        x.powi(e as i32)
+    } else {
+        x.powf(e)
     }
 }
