@@ -7,6 +7,8 @@
 //! dome through the BVH is too slow, see `../shared/crates.md`), so the BVH
 //! only has to hold one box per stone ([`Cabochon::bounds`]).
 
+#![deny(missing_docs)]
+
 pub mod cabochon;
 pub mod error;
 pub mod outline;
