@@ -47,7 +47,7 @@
 use glam::{DVec2, DVec3};
 
 use super::error::{check_positive, GeometryError};
-use super::outline::{pow, Footprint, Outline};
+use super::outline::{pow, root, Footprint, Outline};
 
 /// The base of the stone, below the girdle band.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -274,12 +274,13 @@ impl Cabochon {
         let p = self.p;
         if p == 2.0 {
             let n = (s * s + zeta * zeta).sqrt();
-            return (n, (grad_s * (s / n)).extend(dzeta * zeta / n));
+            let inv_n = 1.0 / n;
+            return (n, (grad_s * (s * inv_n)).extend(dzeta * zeta * inv_n));
         }
         // (s/N)^(p−1) = s^(p−1) · N / Σ with Σ = sᵖ + ζᵖ = Nᵖ.
         let (sp1, zp1) = (pow(s, p - 1.0), pow(zeta, p - 1.0));
         let sum = sp1 * s + zp1 * zeta;
-        let n = sum.powf(1.0 / p);
+        let n = root(sum, p);
         let k = n / sum;
         (n, (grad_s * (sp1 * k)).extend(dzeta * zp1 * k))
     }

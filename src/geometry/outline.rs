@@ -60,6 +60,8 @@ pub struct Footprint {
     outline: Outline,
     /// Half length `a` (x) and half width `b` (y).
     half: DVec2,
+    /// `1/a`, `1/b`: multiplications instead of divisions in the hot path.
+    inv_half: DVec2,
     /// Gauge centre (the dome's apex); the origin except for a pear.
     centre: DVec2,
     /// Lens constants: half-length of the (half) marquise and circle offset c.
@@ -82,6 +84,7 @@ impl Footprint {
         let mut fp = Footprint {
             outline,
             half: DVec2::new(a, b),
+            inv_half: DVec2::new(1.0 / a, 1.0 / b),
             centre: DVec2::ZERO,
             lens_a: a,
             lens_c: 0.0,
@@ -187,18 +190,19 @@ impl Footprint {
     /// one-sided value is returned. Callers multiply it by `p·s^(p−1)`, which
     /// vanishes at the centre.
     pub fn gauge_and_gradient(&self, x: f64, y: f64) -> (f64, DVec2) {
-        let (a, b) = (self.half.x, self.half.y);
+        let (ia, ib) = (self.inv_half.x, self.inv_half.y);
         match self.outline {
             Outline::Round | Outline::Oval => {
-                let (u, v) = (x / a, y / b);
+                let (u, v) = (x * ia, y * ib);
                 let s = (u * u + v * v).sqrt();
                 if s == 0.0 {
                     return (0.0, DVec2::ZERO);
                 }
-                (s, DVec2::new(u / (a * s), v / (b * s)))
+                let inv_s = 1.0 / s;
+                (s, DVec2::new(u * ia * inv_s, v * ib * inv_s))
             }
             Outline::Cushion { exponent: n } => {
-                let (u, v) = ((x / a).abs(), (y / b).abs());
+                let (u, v) = ((x * ia).abs(), (y * ib).abs());
                 let m = u.max(v);
                 if m == 0.0 {
                     return (0.0, DVec2::ZERO);
@@ -207,13 +211,13 @@ impl Footprint {
                 let (ur, vr) = (u / m, v / m);
                 let (un1, vn1) = (pow(ur, n - 1.0), pow(vr, n - 1.0));
                 let sum = un1 * ur + vn1 * vr;
-                let s_over_m = sum.powf(1.0 / n);
+                let s_over_m = root(sum, n);
                 let s = m * s_over_m;
                 // ∂s/∂u = (u/s)^(n−1) = ur^(n−1) · S / Σ with S = s/m, Σ = S^n.
                 let k = s_over_m / sum;
                 (
                     s,
-                    DVec2::new((un1 * k).copysign(x) / a, (vn1 * k).copysign(y) / b),
+                    DVec2::new((un1 * k).copysign(x) * ia, (vn1 * k).copysign(y) * ib),
                 )
             }
             Outline::Marquise => self.lens_gauge(x, y),
@@ -224,7 +228,7 @@ impl Footprint {
                     if r == 0.0 {
                         return (0.0, DVec2::ZERO);
                     }
-                    (r / b, DVec2::new(xr, y) / (b * r))
+                    (r * ib, DVec2::new(xr, y) * (ib / r))
                 } else {
                     self.lens_gauge(xr, y)
                 }
@@ -260,5 +264,20 @@ pub(crate) fn pow(x: f64, e: f64) -> f64 {
         x.powi(e as i32)
     } else {
         x.powf(e)
+    }
+}
+
+/// `x^(1/e)` for `x ≥ 0`, by `sqrt`/`cbrt` for e = 2, 3, 4 (the common
+/// exponents), else `powf`.
+#[inline]
+pub(crate) fn root(x: f64, e: f64) -> f64 {
+    if e == 2.0 {
+        x.sqrt()
+    } else if e == 3.0 {
+        x.cbrt()
+    } else if e == 4.0 {
+        x.sqrt().sqrt()
+    } else {
+        x.powf(1.0 / e)
     }
 }
