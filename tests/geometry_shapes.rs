@@ -687,3 +687,74 @@ fn exact_and_iterative_solvers_agree_with_girdle_domed_base_and_buff_top() {
         );
     }
 }
+
+#[test]
+fn extreme_stones_and_axis_aligned_rays_stay_watertight() {
+    let extremes = [
+        CabochonParams {
+            profile_exponent: 16.0,
+            ..stone(Outline::Cushion { exponent: 16.0 }, 10.0, 10.0)
+        },
+        CabochonParams {
+            profile_exponent: 1.05,
+            dome_height: 6.0,
+            ..stone(Outline::Marquise, 10.0, 3.0)
+        },
+        CabochonParams {
+            dome_height: 0.05,
+            girdle_height: 0.0,
+            base: Base::Domed { height: 0.02 },
+            ..stone(Outline::Pear, 10.0, 6.0)
+        },
+        CabochonParams {
+            profile_exponent: 2.5,
+            buff_top: Some(0.95),
+            ..stone(Outline::Cushion { exponent: 2.01 }, 1e-3, 0.9e-3)
+        },
+    ];
+    let mut rng = Rng(77);
+    for params in extremes {
+        let stone = Cabochon::new(params).unwrap();
+        let size = stone.size();
+        let (lo, hi) = stone.bounds();
+        let centre = 0.5 * (lo + hi);
+        for i in 0..4000 {
+            let target = rng.in_box(lo, hi);
+            // Far cameras, axis-aligned rays and rays through the apex.
+            let dir = match i % 4 {
+                0 => rng.direction(),
+                1 => [DVec3::X, DVec3::Y, DVec3::Z, DVec3::NEG_Z][i / 4 % 4],
+                2 => DVec3::new(0.0, 0.0, -1.0) + 1e-9 * rng.direction(),
+                _ => target - (centre + 1e4 * size * rng.direction()),
+            };
+            let target = if i % 4 == 2 {
+                DVec3::new(stone.footprint().centre().x, 0.0, 0.0)
+            } else {
+                target
+            };
+            // Case 3 starts 10⁴ sizes away: dir reaches the target at t = 1.
+            let origin = if i % 4 == 3 {
+                target - dir
+            } else {
+                target - 3.0 * size * dir / dir.length()
+            };
+            let step = 1e-9 * size / dir.length();
+            let (mut t, mut crossings) = (0.0, 0);
+            while let Some(hit) = stone.intersect(origin, dir, t, f64::INFINITY) {
+                assert!(stone.implicit(hit.point).abs() < 1e-7 * size, "{params:?}");
+                assert!((hit.normal.length() - 1.0).abs() < 1e-12);
+                assert_eq!(hit.entering, hit.normal.dot(dir) < 0.0, "{params:?}");
+                crossings += 1;
+                t = hit.t + step;
+                assert!(crossings <= 2, "{params:?}: {origin} {dir}");
+            }
+            assert!(
+                crossings % 2 == 0,
+                "{params:?}: {origin} {dir} crossed {crossings}"
+            );
+            if i % 4 == 2 {
+                assert_eq!(crossings, 2, "{params:?}: a vertical ray through the apex");
+            }
+        }
+    }
+}
