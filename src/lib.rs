@@ -14,6 +14,7 @@
 //! ```
 
 pub mod brdf;
+pub mod geometry;
 pub mod output;
 pub mod plot;
 pub mod recipe;

@@ -1,0 +1,575 @@
+//! An analytic cabochon: outline × dome profile, a girdle band and a base,
+//! intersected by rays without tessellation.
+//!
+//! # Object space
+//!
+//! z is up. The plane `z = 0` is where the dome meets the girdle (the
+//! stone's widest outline); the dome rises to `z = dome_height`; the
+//! vertical girdle band spans `−girdle_height ≤ z ≤ 0`; below it the base is
+//! either the plane `z = −girdle_height` (`Base::Flat`) or a second dome
+//! reaching `z = −girdle_height − height` (`Base::Domed`, a double
+//! cabochon). x runs along the length, y along the width, and the outline's
+//! bounding box is centred on the z axis (see [`super::outline`]).
+//!
+//! # The solid
+//!
+//! With the outline gauge `s(x, y)` (0 at the apex, 1 on the girdle) and the
+//! normalised height
+//!
+//! ```text
+//! ζ(z) = z / h                       for z > 0            (dome)
+//!      = 0                           for −g ≤ z ≤ 0       (girdle band)
+//!      = (−g − z) / h_b              for z < −g           (domed base; 0 for a flat base)
+//! ```
+//!
+//! the stone is `N(x, y, z) = (sᵖ + ζᵖ)^(1/p) ≤ 1`, intersected with the
+//! half-spaces `z ≤ z_top` (buff top) and `z ≥ −g` (flat base). On the dome
+//! this is `z = h·(1 − sᵖ)^(1/p)`: p = 2 gives an ellipsoid cap over a round
+//! or oval outline, p < 2 a lower, more pointed dome, p > 2 a fuller, flatter
+//! topped one. The domed base uses the same profile exponent.
+//!
+//! Every piece is convex (`s` is a gauge of a convex outline, ζ is convex and
+//! non-negative, and the p-norm is monotone), so the solid is convex and a
+//! line meets it in one interval: closedness holds by construction, and the
+//! entry and exit points can each be found by Newton's method started
+//! outside, which on a convex function never overshoots.
+//!
+//! # Accuracy
+//!
+//! Round and oval stones with p = 2 are intersected exactly (quadratics for
+//! the dome, the band's elliptic cylinder and the base ellipsoid). All other
+//! stones use monotone Newton iteration on `N − 1` along the ray, stopped when
+//! a step is below `1e-12 × size` (at most [`MAX_NEWTON_STEPS`]); hit points
+//! lie within about `1e-9 × size` of the surface, on its outside. Normals are
+//! the normalised analytic gradient of `N`, smooth everywhere except at the
+//! points of a pear or marquise and along the rims of a buff top or flat base.
+
+use glam::{DVec2, DVec3};
+
+use super::error::{check_positive, GeometryError};
+use super::outline::{pow, root, Footprint, Outline};
+
+/// The base of the stone, below the girdle band.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Base {
+    /// A flat polished back at `z = −girdle_height` (the usual cabochon).
+    Flat,
+    /// A second dome below the girdle (a double cabochon), with the dome's
+    /// profile exponent.
+    Domed {
+        /// Depth of the lower dome below the girdle band, > 0.
+        height: f64,
+    },
+}
+
+/// The parameters of a cabochon, as a recipe would write them (lengths in
+/// scene units). Validated by [`Cabochon::new`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CabochonParams {
+    /// The girdle's shape seen from above.
+    pub outline: Outline,
+    /// Extent along x, > 0.
+    pub length: f64,
+    /// Extent along y, > 0 (equal to `length` for `Round`, smaller for
+    /// `Pear` and `Marquise`).
+    pub width: f64,
+    /// Height of the dome above the girdle plane z = 0, > 0.
+    pub dome_height: f64,
+    /// Dome profile exponent p in `z = h·(1 − sᵖ)^(1/p)`, in
+    /// [`PROFILE_EXPONENT_RANGE`]; 2 is elliptical.
+    pub profile_exponent: f64,
+    /// Height of the vertical girdle band below z = 0, ≥ 0.
+    pub girdle_height: f64,
+    /// Flat or domed back.
+    pub base: Base,
+    /// `Some(f)`: the dome is polished flat where its outline gauge is below
+    /// `f` (the table is the outline scaled by f, 0 < f < 1); `None`: a full
+    /// dome.
+    pub buff_top: Option<f64>,
+}
+
+impl Default for CabochonParams {
+    /// A 10 × 8 oval with an elliptical 4-high dome, a 0.5 girdle band and a
+    /// flat back.
+    fn default() -> Self {
+        Self {
+            outline: Outline::Oval,
+            length: 10.0,
+            width: 8.0,
+            dome_height: 4.0,
+            profile_exponent: 2.0,
+            girdle_height: 0.5,
+            base: Base::Flat,
+            buff_top: None,
+        }
+    }
+}
+
+/// Allowed dome profile exponents: above 1 (p = 1 is a cone with no normal
+/// at its tip) up to 16 (nearly a flat-topped cylinder).
+pub const PROFILE_EXPONENT_RANGE: (f64, f64) = (1.0, 16.0);
+
+/// Upper bound on Newton steps per root; a ray that has not converged by
+/// then grazes the stone and is reported as a miss.
+pub const MAX_NEWTON_STEPS: usize = 64;
+
+/// A ray–stone intersection in object space.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// Ray parameter: `point = origin + t · dir`.
+    pub t: f64,
+    /// The hit point, on the surface (within the documented accuracy).
+    pub point: DVec3,
+    /// Unit outward surface normal (whether the ray enters or leaves).
+    pub normal: DVec3,
+    /// True when the ray enters the stone here, false when it leaves (its
+    /// origin side is inside).
+    pub entering: bool,
+}
+
+/// Which surface bounds an interval end, for its normal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Side {
+    /// The dome/band/base body `N = 1`.
+    Body,
+    /// The buff-top plane.
+    Top,
+    /// The flat base plane.
+    Bottom,
+}
+
+/// A validated, analytic cabochon solid (see the module docs for the
+/// geometry and accuracy).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cabochon {
+    params: CabochonParams,
+    footprint: Footprint,
+    p: f64,
+    inv_h: f64,
+    /// 1 / base height; 0 for a flat base (ζ = 0 below the band).
+    inv_hb: f64,
+    girdle: f64,
+    /// Buff-top plane height, `dome_height` when there is none.
+    z_top: f64,
+    /// Lowest z of the stone.
+    z_bottom: f64,
+    flat_base: bool,
+    buffed: bool,
+    /// Round/oval with p = 2: closed-form quadratics.
+    ellipsoidal: bool,
+    size: f64,
+}
+
+impl Cabochon {
+    /// Validates the parameters and precomputes the solid.
+    ///
+    /// Errors name the offending parameter and its allowed range: sizes must
+    /// be finite and positive (`girdle_height` may be 0), `profile_exponent`
+    /// in `(1, 16]`, `buff_top` in `(0, 1)`, and the outline's own rules of
+    /// [`Footprint::new`].
+    pub fn new(params: CabochonParams) -> Result<Self, GeometryError> {
+        let footprint = Footprint::new(params.outline, params.length, params.width)?;
+        let h = check_positive("dome_height", params.dome_height)?;
+        let p = params.profile_exponent;
+        let (p_lo, p_hi) = PROFILE_EXPONENT_RANGE;
+        if !(p.is_finite() && p > p_lo && p <= p_hi) {
+            return Err(GeometryError::new(
+                "profile_exponent",
+                p,
+                format!("must be in ({p_lo}, {p_hi}] (2 is elliptical)"),
+            ));
+        }
+        let g = params.girdle_height;
+        if !(g.is_finite() && g >= 0.0) {
+            return Err(GeometryError::new(
+                "girdle_height",
+                g,
+                "must be finite and ≥ 0",
+            ));
+        }
+        let (inv_hb, base_depth, flat_base) = match params.base {
+            Base::Flat => (0.0, 0.0, true),
+            Base::Domed { height } => {
+                let hb = check_positive("base.height", height)?;
+                (1.0 / hb, hb, false)
+            }
+        };
+        let z_top = match params.buff_top {
+            None => h,
+            Some(f) => {
+                if !(f.is_finite() && f > 0.0 && f < 1.0) {
+                    return Err(GeometryError::new(
+                        "buff_top",
+                        f,
+                        "the flat top fraction must be in (0, 1)",
+                    ));
+                }
+                // The dome height where the outline gauge equals f.
+                h * (1.0 - f.powf(p)).powf(1.0 / p)
+            }
+        };
+        let z_bottom = -g - base_depth;
+        let ellipsoidal = matches!(params.outline, Outline::Round | Outline::Oval) && p == 2.0;
+        let size = params.length.max(params.width).max(z_top - z_bottom);
+        Ok(Self {
+            params,
+            footprint,
+            p,
+            inv_h: 1.0 / h,
+            inv_hb,
+            girdle: g,
+            z_top,
+            z_bottom,
+            flat_base,
+            buffed: params.buff_top.is_some(),
+            ellipsoidal,
+            size,
+        })
+    }
+
+    /// The validated parameters.
+    pub fn params(&self) -> &CabochonParams {
+        &self.params
+    }
+
+    /// The outline with its size.
+    pub fn footprint(&self) -> &Footprint {
+        &self.footprint
+    }
+
+    /// The stone's characteristic size (largest extent), the scale of all
+    /// tolerances.
+    pub fn size(&self) -> f64 {
+        self.size
+    }
+
+    /// Axis-aligned bounds `(min, max)` in object space, for the BVH: tight
+    /// (the outline's box × the stone's z range).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        let (a, b) = (0.5 * self.params.length, 0.5 * self.params.width);
+        (
+            DVec3::new(-a, -b, self.z_bottom),
+            DVec3::new(a, b, self.z_top),
+        )
+    }
+
+    /// The body function `N(x, y, z) = (sᵖ + ζᵖ)^(1/p)` (1 on the dome,
+    /// band and domed base) and its gradient.
+    pub fn body_and_gradient(&self, point: DVec3) -> (f64, DVec3) {
+        let (s, grad_s) = self.footprint.gauge_and_gradient(point.x, point.y);
+        let z = point.z;
+        let (zeta, dzeta) = if z > 0.0 {
+            (z * self.inv_h, self.inv_h)
+        } else if z < -self.girdle {
+            ((-self.girdle - z) * self.inv_hb, -self.inv_hb)
+        } else {
+            (0.0, 0.0)
+        };
+        if zeta == 0.0 {
+            return (s, grad_s.extend(0.0));
+        }
+        if s == 0.0 {
+            return (zeta, DVec3::new(0.0, 0.0, dzeta));
+        }
+        let p = self.p;
+        if p == 2.0 {
+            let n = (s * s + zeta * zeta).sqrt();
+            let inv_n = 1.0 / n;
+            return (n, (grad_s * (s * inv_n)).extend(dzeta * zeta * inv_n));
+        }
+        // (s/N)^(p−1) = s^(p−1) · N / Σ with Σ = sᵖ + ζᵖ = Nᵖ.
+        let (sp1, zp1) = (pow(s, p - 1.0), pow(zeta, p - 1.0));
+        let sum = sp1 * s + zp1 * zeta;
+        let n = root(sum, p);
+        let k = n / sum;
+        (n, (grad_s * (sp1 * k)).extend(dzeta * zp1 * k))
+    }
+
+    /// A signed distance estimate to the surface (negative inside): the
+    /// body's first-order distance `(N − 1)/|∇N|`, combined by `max` with the
+    /// buff-top and flat-base planes. Exact on the planes, first-order
+    /// accurate near the curved surface; zero on the surface.
+    pub fn implicit(&self, point: DVec3) -> f64 {
+        let (n, grad) = self.body_and_gradient(point);
+        let len = grad.length();
+        let mut d = if len > 0.0 {
+            (n - 1.0) / len
+        } else {
+            -self.size
+        };
+        if self.buffed {
+            d = d.max(point.z - self.z_top);
+        }
+        if self.flat_base {
+            d = d.max(-self.girdle - point.z);
+        }
+        d
+    }
+
+    /// Whether the point is inside or on the stone.
+    pub fn contains(&self, point: DVec3) -> bool {
+        self.implicit(point) <= 0.0
+    }
+
+    /// The unit outward normal at a surface point: the normalised gradient
+    /// of the body, or ±z on the buff-top and flat-base planes (whichever
+    /// surface the point is nearest).
+    pub fn normal(&self, point: DVec3) -> DVec3 {
+        let (n, grad) = self.body_and_gradient(point);
+        let body = (n - 1.0) / grad.length().max(f64::MIN_POSITIVE);
+        let mut side = Side::Body;
+        let mut best = body;
+        if self.buffed && point.z - self.z_top > best {
+            best = point.z - self.z_top;
+            side = Side::Top;
+        }
+        if self.flat_base && -self.girdle - point.z > best {
+            side = Side::Bottom;
+        }
+        self.side_normal(side, grad)
+    }
+
+    fn side_normal(&self, side: Side, body_grad: DVec3) -> DVec3 {
+        match side {
+            Side::Body => body_grad.try_normalize().unwrap_or(DVec3::Z),
+            Side::Top => DVec3::Z,
+            Side::Bottom => DVec3::NEG_Z,
+        }
+    }
+
+    /// The first intersection of the ray `origin + t·dir` with the stone's
+    /// surface for `t_min < t < t_max`, entering or leaving.
+    ///
+    /// `dir` need not be normalised. Chords shorter than `1e-8 × size`
+    /// (grazing rays) count as misses, so hits always come in entry/exit
+    /// pairs. Round/oval stones with p = 2 are solved exactly; all others
+    /// by [`Self::intersect_iterative`].
+    pub fn intersect(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> Option<Hit> {
+        let chord = if self.ellipsoidal {
+            self.body_chord_exact(origin, dir)
+        } else {
+            self.body_chord_newton(origin, dir)
+        };
+        self.finish(origin, dir, t_min, t_max, chord)
+    }
+
+    /// Like [`Self::intersect`] but always by Newton iteration, also for
+    /// ellipsoidal stones; public so that the exact and iterative solvers can
+    /// be checked against each other.
+    pub fn intersect_iterative(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<Hit> {
+        let chord = self.body_chord_newton(origin, dir);
+        self.finish(origin, dir, t_min, t_max, chord)
+    }
+
+    /// Clips the body chord by the planes and picks the first end in range.
+    fn finish(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t_min: f64,
+        t_max: f64,
+        chord: Option<(f64, f64)>,
+    ) -> Option<Hit> {
+        let (mut t_in, mut t_out) = chord?;
+        let (mut side_in, mut side_out) = (Side::Body, Side::Body);
+        let mut clip = |plane_z: f64, below: bool, side: Side| {
+            // Keep z ≤ plane_z (below) or z ≥ plane_z.
+            if dir.z == 0.0 {
+                let outside = if below {
+                    origin.z > plane_z
+                } else {
+                    origin.z < plane_z
+                };
+                if outside {
+                    t_out = f64::NEG_INFINITY;
+                }
+                return;
+            }
+            let t = (plane_z - origin.z) / dir.z;
+            if (dir.z > 0.0) == below {
+                if t < t_out {
+                    t_out = t;
+                    side_out = side;
+                }
+            } else if t > t_in {
+                t_in = t;
+                side_in = side;
+            }
+        };
+        if self.buffed {
+            clip(self.z_top, true, Side::Top);
+        }
+        if self.flat_base {
+            clip(-self.girdle, false, Side::Bottom);
+        }
+        let min_chord = 1e-8 * self.size / dir.length();
+        // Also refuses NaN chords.
+        let long_enough = t_out - t_in >= min_chord;
+        if !long_enough {
+            return None;
+        }
+        let (t, side, entering) = if t_in > t_min && t_in < t_max {
+            (t_in, side_in, true)
+        } else if t_out > t_min && t_out < t_max {
+            (t_out, side_out, false)
+        } else {
+            return None;
+        };
+        let point = origin + t * dir;
+        let grad = if side == Side::Body {
+            self.body_and_gradient(point).1
+        } else {
+            DVec3::ZERO
+        };
+        Some(Hit {
+            t,
+            point,
+            normal: self.side_normal(side, grad),
+            entering,
+        })
+    }
+
+    /// The line's parameter range inside the bounding box grown by a small
+    /// margin (so both ends are strictly outside the body), if any.
+    fn box_range(&self, origin: DVec3, dir: DVec3) -> Option<(f64, f64)> {
+        let (lo, hi) = self.bounds();
+        let pad = DVec3::splat(1e-6 * self.size);
+        let (lo, hi) = (lo - pad, hi + pad);
+        let mut t0 = f64::NEG_INFINITY;
+        let mut t1 = f64::INFINITY;
+        for axis in 0..3 {
+            let (o, d) = (origin[axis], dir[axis]);
+            if d == 0.0 {
+                if o < lo[axis] || o > hi[axis] {
+                    return None;
+                }
+                continue;
+            }
+            let (a, b) = ((lo[axis] - o) / d, (hi[axis] - o) / d);
+            t0 = t0.max(a.min(b));
+            t1 = t1.min(a.max(b));
+        }
+        (t0 < t1 && t0.is_finite() && t1.is_finite()).then_some((t0, t1))
+    }
+
+    /// Entry and exit of the line through the body `N ≤ 1` (ignoring the
+    /// planes), by Newton's method from each end of the box range. `N − 1`
+    /// is convex along the line, so each Newton iterate started outside stays
+    /// outside and approaches its root monotonically; a step away from the
+    /// body or beyond the range means a miss.
+    fn body_chord_newton(&self, origin: DVec3, dir: DVec3) -> Option<(f64, f64)> {
+        if !(origin.is_finite() && dir.is_finite()) || dir == DVec3::ZERO {
+            return None;
+        }
+        let (t0, t1) = self.box_range(origin, dir)?;
+        let tol = 1e-12 * self.size / dir.length();
+        let t_in = self.newton_root(origin, dir, t0, t1, tol, 1.0)?;
+        let t_out = self.newton_root(origin, dir, t1, t_in, tol, -1.0)?;
+        Some((t_in, t_out))
+    }
+
+    /// Newton on `f(t) = N(origin + t·dir) − 1` from `start` towards `limit`
+    /// (`sense` = +1 forwards, −1 backwards).
+    fn newton_root(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        start: f64,
+        limit: f64,
+        tol: f64,
+        sense: f64,
+    ) -> Option<f64> {
+        let mut t = start;
+        for _ in 0..MAX_NEWTON_STEPS {
+            let (n, grad) = self.body_and_gradient(origin + t * dir);
+            let f = n - 1.0;
+            if f <= 0.0 {
+                return Some(t);
+            }
+            // Slope along the search direction; must point into the body.
+            let slope = grad.dot(dir) * sense;
+            if slope >= 0.0 {
+                return None;
+            }
+            let step = -f / slope;
+            t += sense * step;
+            if (t - limit) * sense > 0.0 {
+                return None;
+            }
+            if step <= tol {
+                return Some(t);
+            }
+        }
+        None
+    }
+
+    /// Exact entry and exit for round/oval stones with p = 2: the dome
+    /// ellipsoid (z ≥ 0), the band's elliptic cylinder (−g ≤ z ≤ 0, or all
+    /// z ≤ 0 over a flat base) and the base ellipsoid (z ≤ −g). Each root on
+    /// its own patch is a boundary point of the convex body, so entry and
+    /// exit are the smallest and largest of them.
+    fn body_chord_exact(&self, origin: DVec3, dir: DVec3) -> Option<(f64, f64)> {
+        if !(origin.is_finite() && dir.is_finite()) || dir == DVec3::ZERO {
+            return None;
+        }
+        let inv_ab = DVec2::new(2.0 / self.params.length, 2.0 / self.params.width);
+        let eps = 1e-12 * self.size;
+        let g = self.girdle;
+        let mut lo = f64::INFINITY;
+        let mut hi = f64::NEG_INFINITY;
+        let mut keep = |t: f64, z_ok: &dyn Fn(f64) -> bool| {
+            if z_ok(origin.z + t * dir.z) {
+                lo = lo.min(t);
+                hi = hi.max(t);
+            }
+        };
+        let o2 = origin.truncate() * inv_ab;
+        let d2 = dir.truncate() * inv_ab;
+        // Dome: (x/a)² + (y/b)² + (z/h)² = 1 for z ≥ 0.
+        let o3 = o2.extend(origin.z * self.inv_h);
+        let d3 = d2.extend(dir.z * self.inv_h);
+        for t in quadratic_unit_roots(o3.dot(o3), o3.dot(d3), d3.dot(d3)) {
+            keep(t, &|z| z >= -eps);
+        }
+        // Band: (x/a)² + (y/b)² = 1.
+        if g > 0.0 || self.flat_base {
+            let flat = self.flat_base;
+            for t in quadratic_unit_roots(o2.dot(o2), o2.dot(d2), d2.dot(d2)) {
+                keep(t, &|z| z <= eps && (flat || z >= -g - eps));
+            }
+        }
+        // Domed base: (x/a)² + (y/b)² + ((z + g)/h_b)² = 1 for z ≤ −g.
+        if !self.flat_base {
+            let o3 = o2.extend((origin.z + g) * self.inv_hb);
+            let d3 = d2.extend(dir.z * self.inv_hb);
+            for t in quadratic_unit_roots(o3.dot(o3), o3.dot(d3), d3.dot(d3)) {
+                keep(t, &|z| z <= -g + eps);
+            }
+        }
+        (lo < hi).then_some((lo, hi))
+    }
+}
+
+/// Roots of `|o + t·d|² = 1` given `oo = o·o`, `od = o·d`, `dd = d·d`, by
+/// the cancellation-free form of the quadratic formula.
+fn quadratic_unit_roots(oo: f64, od: f64, dd: f64) -> impl Iterator<Item = f64> {
+    let c = oo - 1.0;
+    let disc = od * od - dd * c;
+    let roots = if dd > 0.0 && disc >= 0.0 {
+        let q = -(od + disc.sqrt().copysign(od));
+        if q == 0.0 {
+            [Some(0.0), None]
+        } else {
+            [Some(q / dd), Some(c / q)]
+        }
+    } else {
+        [None, None]
+    };
+    roots.into_iter().flatten()
+}
