@@ -8,7 +8,7 @@
 //! * [`layer`]: compiled interfaces (with Beer absorption) and bases;
 //! * [`stack`]: the layered BRDF with eval, sample and pdf;
 //! * [`compensation`]: the multiple-scattering lobe restoring lost energy;
-//! * [`reference`]: the Monte Carlo random walk the model is measured against;
+//! * [`reference`](mod@reference): the Monte Carlo random walk the model is measured against;
 //! * [`albedo`]: directional albedo estimators.
 
 pub mod albedo;

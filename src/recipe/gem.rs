@@ -1,6 +1,6 @@
 //! Gem recipes: the RON schema of a procedural stone (section 4.3.1,
 //! figures 4.6 and 4.7) and its compilation into the flat
-//! [`Pattern`](crate::texture::pattern::Pattern) plus the list of layered
+//! [`crate::texture::pattern::Pattern`] plus the list of layered
 //! materials the pattern's indices refer to.
 //!
 //! ```ron
