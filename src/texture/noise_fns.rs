@@ -65,6 +65,23 @@ fn trunc_fast(x: f64) -> f64 {
 /// 8 bits of its integer value (saturating cast: no panic on huge input).
 #[inline(always)]
 fn corner_and_index(x: f64) -> (f64, usize) {
+    const ALL_INTEGERS_FROM: f64 = 4_503_599_627_370_496.0; // 2⁵²
+    if x.abs() < ALL_INTEGERS_FROM {
+        // Branch-free (the sign of x is random; a branch on it mispredicts
+        // half the time): corner = trunc(x) − [x ≤ 0] as an integer, exact
+        // below 2⁵², and the same f64 as the definition below (a zero corner
+        // only arises for x > 0, as +0).
+        let corner = x as i64 - i64::from(x <= 0.0);
+        (corner as f64, (corner & 0xff) as usize)
+    } else {
+        corner_and_index_huge(x)
+    }
+}
+
+/// [`corner_and_index`] for `|x| ≥ 2⁵²` and NaN: the definition as written.
+#[cold]
+#[inline(never)]
+fn corner_and_index_huge(x: f64) -> (f64, usize) {
     let corner = if x <= 0.0 {
         trunc_fast(x) - 1.0
     } else {

@@ -354,6 +354,7 @@ impl LatticePoint {
     }
 
     /// The site of a candidate in object space.
+    #[inline(always)]
     fn object_point(&self, c: &Candidate) -> DVec3 {
         let cell = self.cell.wrapping_add(c.cell_offset);
         (cell.as_dvec3() + site_in_cell(c.hash, self.jitter)) * self.scale
@@ -388,6 +389,76 @@ impl TwoNearest {
 fn bisector_distance(a: DVec3, a_sq: f64, b: DVec3, b_sq: f64) -> Option<f64> {
     let len_sq = (b - a).length_squared();
     (len_sq > 0.0).then(|| (b_sq - a_sq) / (2.0 * len_sq.sqrt()))
+}
+
+/// State of the pruned 3×3×3 nearest-site search of [`Voronoi::nearest`]:
+/// per axis the cell offsets, squared gaps and zero-hash site bases in
+/// visiting order (own, nearer face, farther face), and the best site so far.
+/// Cells are visited in `(i, j, k)` order; a cell replaces the best only if
+/// strictly closer, so ties go to the first visited.
+struct NearestSearch {
+    cell: IVec3,
+    offsets: [[i32; 3]; 3],
+    gaps_sq: [[f64; 3]; 3],
+    bases: [[f64; 3]; 3],
+    jitter_step: f64,
+    best_distance_sq: f64,
+    best_hash: u64,
+    best_index: usize,
+}
+
+impl NearestSearch {
+    /// The slab `i` (x offset `offsets[0][i]`), skipped when its gap is
+    /// farther than the best site.
+    #[inline(always)]
+    fn slab(&mut self, key: u64, i: usize) {
+        if self.gaps_sq[0][i] >= self.best_distance_sq {
+            return;
+        }
+        let hx = hash_prefix(key, self.cell.x.wrapping_add(self.offsets[0][i]));
+        self.row(hx, i, 0);
+        self.row(hx, i, 1);
+        self.row(hx, i, 2);
+    }
+
+    /// The row `(i, j)`, skipped when its gap is farther than the best site.
+    #[inline(always)]
+    fn row(&mut self, hx: u64, i: usize, j: usize) {
+        let row_gap_sq = self.gaps_sq[0][i] + self.gaps_sq[1][j];
+        if row_gap_sq >= self.best_distance_sq {
+            return;
+        }
+        let hxy = hash_prefix(hx, self.cell.y.wrapping_add(self.offsets[1][j]));
+        self.site(hxy, row_gap_sq, i, j, 0);
+        self.site(hxy, row_gap_sq, i, j, 1);
+        self.site(hxy, row_gap_sq, i, j, 2);
+    }
+
+    /// The cell `(i, j, k)`: hashed and compared unless its jitter box is
+    /// farther than the best site.
+    #[inline(always)]
+    fn site(&mut self, hxy: u64, row_gap_sq: f64, i: usize, j: usize, k: usize) {
+        if row_gap_sq + self.gaps_sq[2][k] >= self.best_distance_sq {
+            return;
+        }
+        let h = hash_prefix(hxy, self.cell.z.wrapping_add(self.offsets[2][k]));
+        let [nx, ny, nz] = triple_21bit(h);
+        let rel = DVec3::new(
+            self.bases[0][i] + self.jitter_step * nx as f64,
+            self.bases[1][j] + self.jitter_step * ny as f64,
+            self.bases[2][k] + self.jitter_step * nz as f64,
+        );
+        let d = rel.length_squared();
+        // Selects, not a branch: which site wins is random.
+        let closer = d < self.best_distance_sq;
+        self.best_distance_sq = if closer { d } else { self.best_distance_sq };
+        self.best_hash = if closer { h } else { self.best_hash };
+        self.best_index = if closer {
+            9 * i + 3 * j + k
+        } else {
+            self.best_index
+        };
+    }
 }
 
 impl Voronoi {
@@ -456,43 +527,28 @@ impl Voronoi {
         let (oy, gy, by) = axis(lat.fraction.y);
         let (oz, gz, bz) = axis(lat.fraction.z);
 
-        let mut best_distance_sq = f64::INFINITY;
-        let mut best_hash = 0;
-        let mut best_index = 0;
-        for i in 0..3 {
-            if gx[i] >= best_distance_sq {
-                continue;
-            }
-            let hx = hash_prefix(lat.key, lat.cell.x.wrapping_add(ox[i]));
-            for j in 0..3 {
-                let row_gap_sq = gx[i] + gy[j];
-                if row_gap_sq >= best_distance_sq {
-                    continue;
-                }
-                let hxy = hash_prefix(hx, lat.cell.y.wrapping_add(oy[j]));
-                for k in 0..3 {
-                    if row_gap_sq + gz[k] >= best_distance_sq {
-                        continue;
-                    }
-                    let h = hash_prefix(hxy, lat.cell.z.wrapping_add(oz[k]));
-                    let [nx, ny, nz] = triple_21bit(h);
-                    let rel = DVec3::new(
-                        bx[i] + jitter_step * nx as f64,
-                        by[j] + jitter_step * ny as f64,
-                        bz[k] + jitter_step * nz as f64,
-                    );
-                    let d = rel.length_squared();
-                    let closer = d < best_distance_sq;
-                    best_distance_sq = if closer { d } else { best_distance_sq };
-                    best_hash = if closer { h } else { best_hash };
-                    best_index = if closer {
-                        9 * i + 3 * j + k
-                    } else {
-                        best_index
-                    };
-                }
-            }
-        }
+        let mut search = NearestSearch {
+            cell: lat.cell,
+            offsets: [ox, oy, oz],
+            gaps_sq: [gx, gy, gz],
+            bases: [bx, by, bz],
+            jitter_step,
+            best_distance_sq: f64::INFINITY,
+            best_hash: 0,
+            best_index: 0,
+        };
+        // Fully unrolled (constant i, j, k after inlining): the per-axis
+        // tables stay in registers and every skip decision is its own branch,
+        // predicted from its own history.
+        search.slab(lat.key, 0);
+        search.slab(lat.key, 1);
+        search.slab(lat.key, 2);
+        let NearestSearch {
+            best_distance_sq,
+            best_hash,
+            best_index,
+            ..
+        } = search;
         let mut best = Candidate {
             distance_sq: best_distance_sq,
             offset_from_query: DVec3::ZERO, // not needed below
