@@ -14,15 +14,10 @@ const LEPIDOLITE: &str = concat!(
 );
 
 fn points(n: usize) -> Vec<DVec3> {
-    let mut s = 0x2545_f491_4f6c_dd1d_u64;
-    let mut next = move || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
+    // The library's SplitMix64: deterministic points in a cube around the origin.
+    let mut rng = lapidary::sampling::Rng::new(0x2545_f491_4f6c_dd1d, 0);
     (0..n)
-        .map(|_| DVec3::new(next(), next(), next()) * 6.0 - DVec3::splat(3.0))
+        .map(|_| DVec3::from_array(rng.next_3()) * 6.0 - DVec3::splat(3.0))
         .collect()
 }
 

@@ -184,15 +184,10 @@ fn lepidolite_like(seed: u64) -> Pattern {
 }
 
 fn test_points(n: usize, seed: u64) -> Vec<DVec3> {
-    let mut s = seed | 1;
-    let mut next = move || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
+    // The library's SplitMix64: deterministic points in a cube around the origin.
+    let mut rng = lapidary::sampling::Rng::new(seed, 0);
     (0..n)
-        .map(|_| DVec3::new(next(), next(), next()) * 4.0 - DVec3::splat(2.0))
+        .map(|_| DVec3::from_array(rng.next_3()) * 4.0 - DVec3::splat(2.0))
         .collect()
 }
 
