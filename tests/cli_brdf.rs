@@ -243,3 +243,21 @@ fn a_closed_output_pipe_ends_quietly_without_a_panic() {
     assert!(!String::from_utf8_lossy(&out.stderr).contains("panicked"));
     assert_eq!(out.status.code(), Some(0));
 }
+
+#[test]
+fn a_directory_or_non_utf8_file_is_refused_with_its_name() {
+    let dir = scratch_dir("notfile");
+    let folder = dir.join("folder.ron");
+    std::fs::create_dir_all(&folder).unwrap();
+    let binary = dir.join("binary.ron");
+    std::fs::write(&binary, [0x4d, 0x61, 0xff, 0xfe, 0x00]).unwrap();
+    for (path, fragment) in [(&folder, "is a directory"), (&binary, "not UTF-8")] {
+        let out = lapidary(&["brdf", path.to_str().unwrap(), "--albedo"]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains(path.to_str().unwrap()) && stderr.contains(fragment),
+            "{stderr}"
+        );
+    }
+}

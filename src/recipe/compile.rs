@@ -65,21 +65,34 @@ pub struct MaterialSource {
     pub text: String,
 }
 
+/// Whether a command-line argument names a file rather than a library entry:
+/// it exists, ends in `.ron`, or contains a `/`.
+pub fn names_a_file(spec: &str) -> bool {
+    Path::new(spec).exists() || spec.ends_with(".ron") || spec.contains('/')
+}
+
+/// Read a RON file as UTF-8 text; `what` names the kind of file expected in
+/// the message for a directory ("material file", "gem recipe").
+pub fn read_ron_file(spec: &str, what: &str) -> Result<String, RecipeError> {
+    let path = Path::new(spec);
+    if path.is_dir() {
+        return Err(RecipeError::whole_file(
+            spec,
+            format!("is a directory, expected a .ron {what}"),
+        ));
+    }
+    let bytes = std::fs::read(path)
+        .map_err(|e| RecipeError::whole_file(spec, format!("cannot read: {e}")))?;
+    String::from_utf8(bytes)
+        .map_err(|e| RecipeError::whole_file(spec, format!("not UTF-8 text: {e}")))
+}
+
 /// Find MATERIAL as a file (if it names one or ends in `.ron`) or as a
 /// library name; unknown names get a did-you-mean.
 pub fn locate_material(spec: &str) -> Result<MaterialSource, RecipeError> {
     let path = Path::new(spec);
-    if path.exists() || spec.ends_with(".ron") || spec.contains('/') {
-        if path.is_dir() {
-            return Err(RecipeError::whole_file(
-                spec,
-                "is a directory, expected a .ron material file",
-            ));
-        }
-        let bytes = std::fs::read(path)
-            .map_err(|e| RecipeError::whole_file(spec, format!("cannot read: {e}")))?;
-        let text = String::from_utf8(bytes)
-            .map_err(|e| RecipeError::whole_file(spec, format!("not UTF-8 text: {e}")))?;
+    if names_a_file(spec) {
+        let text = read_ron_file(spec, "material file")?;
         let name = path
             .file_stem()
             .map_or(spec.to_string(), |s| s.to_string_lossy().into_owned());

@@ -350,10 +350,7 @@ pub fn has_conductor_base(m: &Material) -> bool {
 
 /// Read and compile a gem recipe file.
 pub fn load_gem(path: &str) -> Result<CompiledGem, RecipeError> {
-    let bytes = std::fs::read(path)
-        .map_err(|e| RecipeError::whole_file(path, format!("cannot read: {e}")))?;
-    let text = String::from_utf8(bytes)
-        .map_err(|e| RecipeError::whole_file(path, format!("not UTF-8 text: {e}")))?;
+    let text = crate::recipe::compile::read_ron_file(path, "gem recipe")?;
     parse_gem(path, &text)
 }
 
@@ -827,18 +824,8 @@ impl<'a> Compiler<'a> {
 pub fn load_gem_source(spec: &str) -> Result<(String, String), RecipeError> {
     use crate::recipe::error::did_you_mean;
     use crate::recipe::library::{builtin_gem_names, builtin_gem_source};
-    let path = std::path::Path::new(spec);
-    if path.exists() || spec.ends_with(".ron") || spec.contains('/') {
-        if path.is_dir() {
-            return Err(RecipeError::whole_file(
-                spec,
-                "is a directory, expected a .ron gem recipe",
-            ));
-        }
-        let bytes = std::fs::read(path)
-            .map_err(|e| RecipeError::whole_file(spec, format!("cannot read: {e}")))?;
-        let text = String::from_utf8(bytes)
-            .map_err(|e| RecipeError::whole_file(spec, format!("not UTF-8 text: {e}")))?;
+    if crate::recipe::compile::names_a_file(spec) {
+        let text = crate::recipe::compile::read_ron_file(spec, "gem recipe")?;
         return Ok((spec.to_string(), text));
     }
     match builtin_gem_source(spec) {
