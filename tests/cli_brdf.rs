@@ -33,7 +33,7 @@ fn albedo_prints_csv_for_0_to_85_degrees() {
     assert_eq!(lines.len(), 19);
     let first: Vec<f64> = lines[1].split(',').map(|v| v.parse().unwrap()).collect();
     assert_eq!(first[0], 0.0);
-    // Gold reflects red more than blue (table 4.2: R ≈ 0.97, B ≈ 0.49 at 0°... independent bound).
+    // Table 4.2's n, k give gold F(0) ≈ 0.97 in red and ≈ 0.39 in blue.
     assert!(first[1] > first[3] + 0.2, "{:?}", first);
 }
 

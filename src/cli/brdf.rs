@@ -2,7 +2,7 @@
 
 use super::BrdfArgs;
 use lapidary::brdf::albedo::{albedo_angles_deg, directional_albedo, in_plane};
-use lapidary::brdf::reference::{reference_albedo, reference_slice};
+use lapidary::brdf::reference::{reference_albedo_with, reference_slice, WalkTables};
 use lapidary::brdf::LayeredBrdf;
 use lapidary::plot::{polar_plot, PolarPanel, PolarPlotStyle};
 use lapidary::recipe::compile::{compile_material, locate_material, parse_material};
@@ -75,6 +75,8 @@ fn parse_eval_angles(text: &str) -> Result<[f64; 4], String> {
 }
 
 fn print_albedo(brdf: &LayeredBrdf, with_reference: bool) {
+    // The walk's micro-facet tables, built once for all 18 angles.
+    let tables = with_reference.then(|| WalkTables::new(brdf));
     if with_reference {
         super::emit("theta_deg,r,g,b,reference_r,reference_g,reference_b");
     } else {
@@ -83,8 +85,8 @@ fn print_albedo(brdf: &LayeredBrdf, with_reference: bool) {
     for theta in albedo_angles_deg() {
         let a = directional_albedo(brdf, theta, ALBEDO_STD_ERROR, 4_000_000, SEED);
         let m = a.mean;
-        if with_reference {
-            let (r, _) = reference_albedo(brdf, in_plane(theta), 100_000, SEED);
+        if let Some(tables) = &tables {
+            let (r, _) = reference_albedo_with(brdf, tables, in_plane(theta), 100_000, SEED);
             super::emit(&format!(
                 "{theta},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}",
                 m.x, m.y, m.z, r.x, r.y, r.z
