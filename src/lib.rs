@@ -18,5 +18,6 @@ pub mod geometry;
 pub mod output;
 pub mod plot;
 pub mod recipe;
+pub mod render;
 pub mod sampling;
 pub mod texture;
