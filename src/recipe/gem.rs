@@ -356,7 +356,20 @@ pub fn load_gem(path: &str) -> Result<CompiledGem, RecipeError> {
 
 /// Parse, validate and compile gem recipe `text` (`path` is for messages).
 pub fn parse_gem(path: &str, text: &str) -> Result<CompiledGem, RecipeError> {
-    let spec = ron::from_str::<GemSpec>(text).map_err(|e| ron_error(path, text, e))?;
+    parse_gem_with_seed(path, text, None)
+}
+
+/// [`parse_gem`], with the recipe's seed replaced by `seed` when given (a
+/// scene's two stones of one gem that should not look alike).
+pub fn parse_gem_with_seed(
+    path: &str,
+    text: &str,
+    seed: Option<u64>,
+) -> Result<CompiledGem, RecipeError> {
+    let mut spec = ron::from_str::<GemSpec>(text).map_err(|e| ron_error(path, text, e))?;
+    if let Some(seed) = seed {
+        spec.seed = seed;
+    }
     Compiler::new(path, text, &spec).compile(spec.clone())
 }
 

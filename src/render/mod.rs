@@ -4,3 +4,12 @@
 //! compiled gems go in, linear radiance per pixel (plus AOVs) comes out.
 //! Every pixel is a pure function of (scene, gems, seed, settings), so the
 //! image is the same whatever the thread count.
+
+pub mod camera;
+pub mod environment;
+pub mod film;
+pub mod integrator;
+pub mod lights;
+pub mod prepare;
+pub mod sampler;
+pub mod world;

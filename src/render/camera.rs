@@ -1,0 +1,114 @@
+//! A pinhole camera: position, look-at point, up vector and vertical field
+//! of view, mapped onto a film of `width × height` pixels.
+
+use glam::DVec3;
+
+/// A ray leaving the camera through a point of the film.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraRay {
+    /// The pinhole, in world space.
+    pub origin: DVec3,
+    /// Unit direction through the film point.
+    pub direction: DVec3,
+}
+
+/// A pinhole camera with square pixels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PinholeCamera {
+    position: DVec3,
+    /// Unit vectors: right, up (on the film) and forward (the view axis).
+    right: DVec3,
+    up: DVec3,
+    forward: DVec3,
+    /// tan(vertical_fov / 2) and the same times the aspect ratio.
+    half_height: f64,
+    half_width: f64,
+    width_px: f64,
+    height_px: f64,
+}
+
+impl PinholeCamera {
+    /// A camera at `position` looking at `look_at`, with `up` (any vector
+    /// not parallel to the view axis) pointing up on the film.
+    pub fn new(
+        position: DVec3,
+        look_at: DVec3,
+        up: DVec3,
+        vertical_fov_deg: f64,
+        width_px: u32,
+        height_px: u32,
+    ) -> Self {
+        let forward = (look_at - position).normalize();
+        let mut right = forward.cross(up);
+        if right.length_squared() < 1e-12 {
+            // Looking along `up`: any right vector keeps the image upright
+            // enough; the scene compiler already avoids this case.
+            right = forward.any_orthonormal_vector();
+        }
+        let right = right.normalize();
+        let true_up = right.cross(forward);
+        let half_height = (vertical_fov_deg.to_radians() * 0.5).tan();
+        let aspect = f64::from(width_px) / f64::from(height_px);
+        Self {
+            position,
+            right,
+            up: true_up,
+            forward,
+            half_height,
+            half_width: half_height * aspect,
+            width_px: f64::from(width_px),
+            height_px: f64::from(height_px),
+        }
+    }
+
+    /// The ray through film point (x, y) in pixels, x to the right and y
+    /// downward from the top-left corner; pixel (i, j) covers
+    /// [i, i+1) × [j, j+1).
+    pub fn ray(&self, x_px: f64, y_px: f64) -> CameraRay {
+        let sx = (2.0 * x_px / self.width_px - 1.0) * self.half_width;
+        let sy = (1.0 - 2.0 * y_px / self.height_px) * self.half_height;
+        let direction = (self.forward + self.right * sx + self.up * sy).normalize();
+        CameraRay {
+            origin: self.position,
+            direction,
+        }
+    }
+
+    /// The camera's position.
+    pub fn position(&self) -> DVec3 {
+        self.position
+    }
+
+    /// The unit view axis.
+    pub fn forward(&self) -> DVec3 {
+        self.forward
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_film_centre_looks_at_the_target_and_corners_span_the_field_of_view() {
+        let cam = PinholeCamera::new(
+            DVec3::new(0.0, -10.0, 0.0),
+            DVec3::ZERO,
+            DVec3::Z,
+            90.0,
+            200,
+            100,
+        );
+        let centre = cam.ray(100.0, 50.0);
+        assert!((centre.direction - DVec3::Y).length() < 1e-12);
+        // Top edge centre: 45° above the axis for a 90° vertical field.
+        let top = cam.ray(100.0, 0.0).direction;
+        assert!(
+            (top.z - std::f64::consts::FRAC_1_SQRT_2).abs() < 1e-12,
+            "{top}"
+        );
+        // Right edge centre: atan(2) to the right for a 2:1 film.
+        let right = cam.ray(200.0, 50.0).direction;
+        assert!((right.x / right.y - 2.0).abs() < 1e-12, "{right}");
+    }
+}

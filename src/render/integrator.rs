@@ -1,0 +1,346 @@
+//! The path tracer: at every hit the gem's pattern picks a layered BRDF,
+//! light arrives by next-event estimation (every light, and the environment
+//! by its luminance distribution) and by BRDF sampling, and the two
+//! strategies are combined with the power heuristic (Veach 1997, §9.2).
+//!
+//! Stones are opaque surfaces (the layered BRDF models what happens under
+//! the varnish), so a path bounces between stones and the ground until it
+//! escapes to the environment, meets a light, or reaches `max_bounces`.
+
+use glam::DVec3;
+
+use crate::brdf::{LayeredBrdf, Rgb};
+use crate::render::environment::Environment;
+use crate::render::lights::Light;
+use crate::render::sampler::SampleStream;
+use crate::render::world::{Surface, SurfaceHit, World, RAY_OFFSET};
+use crate::texture::pattern::Pattern;
+
+/// Length in texture space of one scene unit: recipes write cell sizes in
+/// centimetres of stone (a 10 mm stone is one texture unit long), scenes
+/// write stones in millimetres.
+pub const TEXTURE_UNITS_PER_SCENE_UNIT: f64 = 0.1;
+
+/// A gem ready to shade: its pattern and one compiled BRDF per material.
+pub struct GemShading {
+    /// The pattern tree (figure 4.6) in texture space.
+    pub pattern: Pattern,
+    /// BRDF per pattern material index.
+    pub brdfs: Vec<LayeredBrdf>,
+    /// `material_id` AOV value of this gem's material 0.
+    pub material_id_base: u32,
+}
+
+/// Everything the integrator reads.
+pub struct RenderScene {
+    /// Stones and ground.
+    pub world: World,
+    /// Gems, indexed by [`crate::render::world::StoneInstance::gem`].
+    pub gems: Vec<GemShading>,
+    /// The ground's BRDF (used when the world has a ground).
+    pub ground_brdf: Option<LayeredBrdf>,
+    /// Lights placed in the scene.
+    pub lights: Vec<Light>,
+    /// Light from infinitely far away.
+    pub environment: Environment,
+    /// Bounces after the first hit (0: direct light only).
+    pub max_bounces: u32,
+}
+
+/// `material_id` AOV values: 0 is the background, 1 the ground, stones'
+/// materials count from 2.
+pub const MATERIAL_ID_GROUND: u32 = 1;
+/// See [`MATERIAL_ID_GROUND`].
+pub const MATERIAL_ID_FIRST_STONE: u32 = 2;
+
+/// What the camera ray met first (the AOVs of one sample).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FirstHit {
+    /// Distance from the camera.
+    pub depth: f64,
+    /// World-space shading normal.
+    pub normal: DVec3,
+    /// One-sample estimate of the directional albedo towards the camera,
+    /// f·cosθ/pdf of the first BRDF sample (its mean is the albedo).
+    pub albedo: Rgb,
+    /// Low 32 bits of the surface-map cell id (0 off the stones).
+    pub surface_cell: u32,
+    /// True when a glitter flake was hit.
+    pub glitter: bool,
+    /// See [`MATERIAL_ID_GROUND`].
+    pub material_id: u32,
+}
+
+/// Ray counts of one path, for the rays/s report.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RayCounts {
+    /// Camera and BRDF-sampled rays.
+    pub traced: u64,
+    /// Shadow rays.
+    pub shadow: u64,
+}
+
+/// The power heuristic with exponent 2 for a strategy of density `pdf_a`
+/// against one of density `pdf_b` (Veach 1997, eq. 9.13).
+pub fn power_heuristic(pdf_a: f64, pdf_b: f64) -> f64 {
+    let a = pdf_a * pdf_a;
+    let b = pdf_b * pdf_b;
+    if a + b <= 0.0 {
+        0.0
+    } else {
+        a / (a + b)
+    }
+}
+
+/// An orthonormal frame whose z axis is a surface normal.
+#[derive(Clone, Copy, Debug)]
+struct Frame {
+    t: DVec3,
+    b: DVec3,
+    n: DVec3,
+}
+
+impl Frame {
+    fn new(n: DVec3) -> Self {
+        let (t, b) = n.any_orthonormal_pair();
+        Self { t, b, n }
+    }
+    fn to_local(&self, v: DVec3) -> DVec3 {
+        DVec3::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
+    }
+    fn to_world(&self, v: DVec3) -> DVec3 {
+        self.t * v.x + self.b * v.y + self.n * v.z
+    }
+}
+
+/// The BRDF and frame at a hit.
+struct Shading<'a> {
+    brdf: &'a LayeredBrdf,
+    frame: Frame,
+    first_hit: FirstHit,
+}
+
+impl RenderScene {
+    /// Picks the material at a hit seen from direction `wo` (world, unit,
+    /// pointing away from the surface).
+    fn shade(&self, hit: &SurfaceHit, wo: DVec3) -> Option<Shading<'_>> {
+        match hit.surface {
+            Surface::Ground => Some(Shading {
+                brdf: self.ground_brdf.as_ref()?,
+                frame: Frame::new(hit.normal),
+                first_hit: FirstHit {
+                    material_id: MATERIAL_ID_GROUND,
+                    ..FirstHit::default()
+                },
+            }),
+            Surface::Stone {
+                index,
+                object_point,
+                object_normal,
+            } => {
+                let stone = &self.world.stones()[index];
+                let gem = &self.gems[stone.gem];
+                let resolved = gem
+                    .pattern
+                    .resolve(object_point * TEXTURE_UNITS_PER_SCENE_UNIT);
+                // A flake tilts the shading normal (figure 4.6 ③); if the
+                // viewer is behind the tilted facet, fall back to the
+                // stone's normal rather than shade a back face.
+                let normal = resolved
+                    .flake_normal
+                    .map(|f| (stone.rotation * f.world(object_normal)).normalize())
+                    .filter(|n| n.dot(wo) > 0.0 && n.dot(hit.normal) > 0.0)
+                    .unwrap_or(hit.normal);
+                Some(Shading {
+                    brdf: &gem.brdfs[resolved.material as usize],
+                    frame: Frame::new(normal),
+                    first_hit: FirstHit {
+                        surface_cell: resolved.surface_cell as u32,
+                        glitter: resolved.glitter_cell.is_some(),
+                        material_id: gem.material_id_base + resolved.material,
+                        ..FirstHit::default()
+                    },
+                })
+            }
+        }
+    }
+
+    /// Radiance arriving at the camera along one ray, and what the ray hit
+    /// first. Consumes numbers from `stream` in a fixed order.
+    pub fn radiance(
+        &self,
+        mut origin: DVec3,
+        mut direction: DVec3,
+        stream: &mut SampleStream,
+        counts: &mut RayCounts,
+    ) -> (Rgb, FirstHit) {
+        let mut radiance = Rgb::ZERO;
+        let mut throughput = Rgb::ONE;
+        let mut first = FirstHit::default();
+        // Where the previous BRDF sample came from and its pdf (None for
+        // the camera ray, whose emitters count in full).
+        let mut previous: Option<(DVec3, f64)> = None;
+        let mut bounce = 0;
+        loop {
+            counts.traced += 1;
+            let hit = self.world.intersect(origin, direction, 0.0, f64::INFINITY);
+            let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
+            // An emitter in front of the surface (or of the sky).
+            if let Some((light, t, emitted)) = self.nearest_light(origin, direction, t_hit) {
+                let weight = previous.map_or(1.0, |(p, brdf_pdf)| {
+                    power_heuristic(brdf_pdf, light.pdf(p, direction, t))
+                });
+                radiance += throughput * emitted * weight;
+                if t.is_finite() {
+                    break;
+                }
+            }
+            let Some(hit) = hit else {
+                let weight = previous.map_or(1.0, |(_, brdf_pdf)| {
+                    power_heuristic(brdf_pdf, self.environment.pdf(direction))
+                });
+                radiance += throughput * self.environment.radiance(direction) * weight;
+                break;
+            };
+            let wo_world = -direction;
+            let Some(shading) = self.shade(&hit, wo_world) else {
+                break;
+            };
+            let wo = shading.frame.to_local(wo_world);
+            if wo.z <= 0.0 {
+                break; // seen from behind (a ray leaving from inside a surface)
+            }
+            let point = hit.point + hit.normal * RAY_OFFSET;
+
+            // Next-event estimation: every light, then the environment.
+            for light in &self.lights {
+                let u = stream.next_2d();
+                let Some(sample) = light.sample(point, u) else {
+                    continue;
+                };
+                let contribution = self.direct(
+                    &shading,
+                    &hit,
+                    point,
+                    wo,
+                    sample.direction,
+                    sample.distance,
+                    sample.radiance,
+                    sample.pdf,
+                    sample.is_delta,
+                    counts,
+                );
+                radiance += throughput * contribution;
+            }
+            let u = stream.next_2d();
+            if let Some(sample) = self.environment.sample(u) {
+                let contribution = self.direct(
+                    &shading,
+                    &hit,
+                    point,
+                    wo,
+                    sample.direction,
+                    f64::INFINITY,
+                    sample.radiance,
+                    sample.pdf,
+                    false,
+                    counts,
+                );
+                radiance += throughput * contribution;
+            }
+
+            // Continue the path by sampling the BRDF.
+            let sample = shading.brdf.sample(wo, stream.next_3d());
+            if bounce == 0 {
+                first = FirstHit {
+                    depth: hit.t,
+                    normal: shading.frame.n,
+                    albedo: sample.map_or(Rgb::ZERO, |s| s.weight()),
+                    ..shading.first_hit
+                };
+            }
+            if bounce >= self.max_bounces {
+                break;
+            }
+            let Some(sample) = sample else {
+                break;
+            };
+            let wi_world = shading.frame.to_world(sample.wi);
+            if wi_world.dot(hit.normal) <= 0.0 {
+                break; // below the geometric surface: blocked by the stone itself
+            }
+            throughput *= sample.weight();
+            if throughput.max_element() <= 0.0 {
+                break;
+            }
+            previous = Some((point, sample.pdf));
+            origin = point;
+            direction = wi_world;
+            bounce += 1;
+        }
+        (radiance, first)
+    }
+
+    /// The nearest light surface along the ray before `t_max` (the sun only
+    /// when `t_max` is infinite).
+    fn nearest_light(
+        &self,
+        origin: DVec3,
+        direction: DVec3,
+        t_max: f64,
+    ) -> Option<(&Light, f64, Rgb)> {
+        let mut best: Option<(&Light, f64, Rgb)> = None;
+        for light in &self.lights {
+            let limit = best.map_or(t_max, |b| b.1);
+            if let Some((t, emitted)) = light.hit(origin, direction, limit) {
+                if best.is_none() || t < limit {
+                    best = Some((light, t, emitted));
+                }
+            }
+        }
+        best
+    }
+
+    /// One light sample's MIS-weighted contribution f·L·cosθ/pdf.
+    #[allow(clippy::too_many_arguments)]
+    fn direct(
+        &self,
+        shading: &Shading<'_>,
+        hit: &SurfaceHit,
+        point: DVec3,
+        wo: DVec3,
+        direction: DVec3,
+        distance: f64,
+        incoming: Rgb,
+        pdf: f64,
+        is_delta: bool,
+        counts: &mut RayCounts,
+    ) -> Rgb {
+        if pdf <= 0.0 || direction.dot(hit.normal) <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let wi = shading.frame.to_local(direction);
+        if wi.z <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let f = shading.brdf.eval(wi, wo);
+        if f.max_element() <= 0.0 || incoming.max_element() <= 0.0 {
+            return Rgb::ZERO;
+        }
+        counts.shadow += 1;
+        let reach = if distance.is_finite() {
+            distance * (1.0 - 1e-7) - RAY_OFFSET
+        } else {
+            f64::INFINITY
+        };
+        if self.world.occluded(point, direction, reach) {
+            return Rgb::ZERO;
+        }
+        let weight = if is_delta {
+            1.0
+        } else {
+            power_heuristic(pdf, shading.brdf.pdf(wi, wo))
+        };
+        f * incoming * (wi.z * weight / pdf)
+    }
+}
