@@ -105,10 +105,10 @@ impl Frame {
         let (t, b) = n.any_orthonormal_pair();
         Self { t, b, n }
     }
-    fn to_local(&self, v: DVec3) -> DVec3 {
+    fn to_local(self, v: DVec3) -> DVec3 {
         DVec3::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
     }
-    fn to_world(&self, v: DVec3) -> DVec3 {
+    fn to_world(self, v: DVec3) -> DVec3 {
         self.t * v.x + self.b * v.y + self.n * v.z
     }
 }
