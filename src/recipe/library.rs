@@ -109,10 +109,19 @@ pub fn builtin_material_names() -> impl Iterator<Item = &'static str> {
 }
 
 /// (name, RON source) of every gem recipe in `gem-recipes/`.
-pub const BUILTIN_GEMS: &[(&str, &str)] = &[(
-    "lavender-lepidolite",
-    include_str!("../../gem-recipes/lavender-lepidolite.ron"),
-)];
+pub const BUILTIN_GEMS: &[(&str, &str)] = &[
+    (
+        "green-aventurine",
+        include_str!("../../gem-recipes/green-aventurine.ron"),
+    ),
+    (
+        "lavender-lepidolite",
+        include_str!("../../gem-recipes/lavender-lepidolite.ron"),
+    ),
+];
+
+/// The gem `lapidary render` draws when no recipe is named.
+pub const DEFAULT_GEM: &str = "green-aventurine";
 
 /// The RON source of a built-in gem.
 pub fn builtin_gem_source(name: &str) -> Option<&'static str> {
