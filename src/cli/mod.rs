@@ -3,6 +3,7 @@
 mod brdf;
 mod catalogue;
 mod maps;
+mod render;
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -29,6 +30,9 @@ enum Command {
     /// Draw the figure 4.6 sheet of a gem: surface map, glitter map, facet
     /// normals and the combination, over the slice z = 0.
     Maps(MapsArgs),
+    /// Render a gem (default: green-aventurine) on a cabochon in a scene
+    /// (default: the studio scene), to PNG or EXR.
+    Render(render::RenderArgs),
 }
 
 /// Arguments of `lapidary maps`.
@@ -103,6 +107,7 @@ pub fn run() -> i32 {
         Command::Classify { material } => catalogue::classify(&material),
         Command::List => catalogue::list(),
         Command::Maps(args) => maps::run(args),
+        Command::Render(args) => render::run(args),
     };
     match result {
         Ok(()) => 0,

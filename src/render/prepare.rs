@@ -1,7 +1,18 @@
 //! Compiling what the integrator needs from recipes: gems (pattern and
 //! BRDFs) and single materials (the ground).
 
+use std::path::Path;
+
 use rayon::prelude::*;
+
+use crate::geometry::Cabochon;
+use crate::recipe::compile::load_material;
+use crate::render::camera::PinholeCamera;
+use crate::render::environment::Environment;
+use crate::render::integrator::{RenderScene, MATERIAL_ID_FIRST_STONE};
+use crate::render::lights::Light;
+use crate::render::world::{StoneInstance, World};
+use crate::scene::{EnvironmentSpec, LightSpec, Scene};
 
 use crate::brdf::LayeredBrdf;
 use crate::recipe::compile::{compile_material, MaterialSource};
@@ -50,4 +61,125 @@ pub fn compile_gem_source(
         },
         gem.name,
     ))
+}
+
+/// Builds everything the integrator reads from a compiled scene.
+///
+/// Stones without a recipe use `default_gem`; `environment_file`, when
+/// given, replaces the scene's environment (the `--env` option). Each
+/// distinct (gem, seed) pair is compiled once. `report` hears what is being
+/// compiled (slow layered materials tabulate their compensation).
+pub fn prepare_scene(
+    scene: &Scene,
+    default_gem: &str,
+    environment_file: Option<&Path>,
+    max_bounces: u32,
+    report: &dyn Fn(&str),
+) -> Result<RenderScene, String> {
+    let mut keys: Vec<(String, Option<u64>)> = Vec::new();
+    let mut stones = Vec::with_capacity(scene.stones.len());
+    for stone in &scene.stones {
+        let key = (
+            stone.recipe.clone().unwrap_or_else(|| default_gem.to_string()),
+            stone.seed,
+        );
+        let gem = match keys.iter().position(|k| *k == key) {
+            Some(i) => i,
+            None => {
+                keys.push(key);
+                keys.len() - 1
+            }
+        };
+        stones.push(StoneInstance {
+            cabochon: Cabochon::new(stone.shape).map_err(|e| e.to_string())?,
+            rotation: stone.rotation,
+            position: stone.position,
+            gem,
+        });
+    }
+    let mut gems = Vec::with_capacity(keys.len());
+    let mut material_id_base = MATERIAL_ID_FIRST_STONE;
+    for (spec, seed) in &keys {
+        report(&format!("compiling gem {spec}"));
+        let (gem, _) = compile_gem(spec, *seed, material_id_base).map_err(|e| e.to_string())?;
+        material_id_base += gem.brdfs.len() as u32;
+        gems.push(gem);
+    }
+    let ground_brdf = match &scene.ground {
+        Some(ground) => Some(load_material(&ground.material).map_err(|e| e.to_string())?),
+        None => None,
+    };
+    let environment = match environment_file {
+        Some(path) => Environment::from_file(path, 0.0, 1.0).map_err(|e| e.to_string())?,
+        None => match &scene.environment {
+            EnvironmentSpec::Constant(radiance) => Environment::constant(*radiance),
+            EnvironmentSpec::Studio {
+                intensity,
+                rotation_deg,
+            } => Environment::studio(*intensity, *rotation_deg),
+            EnvironmentSpec::File {
+                path,
+                rotation_deg,
+                intensity,
+            } => Environment::from_file(path, *rotation_deg, *intensity).map_err(|e| e.to_string())?,
+        },
+    };
+    Ok(RenderScene {
+        world: World::new(stones, scene.ground.as_ref().map(|g| g.height)),
+        gems,
+        ground_brdf,
+        lights: scene.lights.iter().map(light_from_spec).collect(),
+        environment,
+        max_bounces,
+    })
+}
+
+/// The renderer's light for a scene's light description.
+pub fn light_from_spec(spec: &LightSpec) -> Light {
+    match *spec {
+        LightSpec::Point {
+            position,
+            intensity,
+        } => Light::Point {
+            position,
+            intensity,
+        },
+        LightSpec::Sphere {
+            centre,
+            radius,
+            radiance,
+        } => Light::Sphere {
+            centre,
+            radius,
+            radiance,
+        },
+        LightSpec::Rect {
+            centre,
+            normal,
+            u_axis,
+            v_axis,
+            width,
+            height,
+            radiance,
+        } => Light::Rect {
+            centre,
+            normal,
+            u_axis,
+            v_axis,
+            width,
+            height,
+            radiance,
+        },
+        LightSpec::Sun {
+            direction,
+            angular_diameter_deg,
+            irradiance,
+        } => Light::sun(direction, angular_diameter_deg, irradiance),
+    }
+}
+
+/// The scene camera on a film of `width × height` pixels.
+pub fn camera_for(scene: &Scene, width: u32, height: u32) -> PinholeCamera {
+    let c = &scene.camera;
+    PinholeCamera::new(c.position, c.look_at, c.up, c.vertical_fov_deg, width, height)
 }

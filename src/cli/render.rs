@@ -1,0 +1,281 @@
+//! `lapidary render`: a gem on a cabochon in a scene, to PNG or EXR.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use lapidary::output::exr::{write_exr, ChannelData, ExrChannel};
+use lapidary::output::tonemap::{DisplayTransform, ToneCurve};
+use lapidary::recipe::library::DEFAULT_GEM;
+use lapidary::render::film::{render, Film, FilmSettings, FILM_BYTES_PER_PIXEL};
+use lapidary::render::prepare::{camera_for, prepare_scene};
+use lapidary::scene::{default_scene, load_scene};
+
+/// Largest image side accepted, in pixels.
+pub const MAX_SIDE_PX: u32 = 32_768;
+/// Most samples per pixel accepted.
+pub const MAX_SPP: u32 = 1 << 20;
+/// Most bounces accepted.
+pub const MAX_BOUNCES: u32 = 64;
+
+/// How the linear film becomes 8-bit PNG values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TonemapArg {
+    /// A filmic curve with a soft shoulder (highlights roll off).
+    Filmic,
+    /// Clamp to [0, 1].
+    Linear,
+}
+
+/// Arguments of `lapidary render`.
+#[derive(clap::Args, Debug)]
+pub struct RenderArgs {
+    /// A built-in gem (see `lapidary list`) or a RON gem recipe; default:
+    /// green-aventurine. Used by every stone of the scene that names none.
+    recipe: Option<String>,
+    /// A RON scene (camera, stones, ground, lights, environment); default:
+    /// the built-in studio scene.
+    #[arg(long, value_name = "SCENE.ron")]
+    scene: Option<PathBuf>,
+    /// The image to write: .png (tone-mapped sRGB) or .exr (linear, with AOV layers).
+    #[arg(short = 'o', long = "output", value_name = "OUT.png|OUT.exr")]
+    output: PathBuf,
+    /// Width and height of a square image in pixels.
+    #[arg(long, value_name = "N", conflicts_with_all = ["width", "height"])]
+    size: Option<u32>,
+    /// Image width in pixels (default 512).
+    #[arg(long, value_name = "W")]
+    width: Option<u32>,
+    /// Image height in pixels (default 512).
+    #[arg(long, value_name = "H")]
+    height: Option<u32>,
+    /// Samples per pixel.
+    #[arg(long, value_name = "N", default_value_t = 64)]
+    spp: u32,
+    /// Seed of the sample pattern (the gems keep their recipe seeds).
+    #[arg(long, value_name = "S", default_value_t = 0)]
+    seed: u64,
+    /// Worker threads (default: all cores). The image does not depend on it.
+    #[arg(long, value_name = "N")]
+    threads: Option<usize>,
+    /// An equirectangular .hdr or .exr environment replacing the scene's.
+    #[arg(long, value_name = "FILE")]
+    env: Option<PathBuf>,
+    /// Exposure in stops applied before tone mapping (PNG only).
+    #[arg(long, value_name = "EV", default_value_t = 0.0, allow_negative_numbers = true)]
+    exposure: f64,
+    /// Tone curve for PNG output.
+    #[arg(long, value_enum, default_value_t = TonemapArg::Filmic)]
+    tonemap: TonemapArg,
+    /// Bounces after the first hit (0: direct light only).
+    #[arg(long, value_name = "N", default_value_t = 4)]
+    bounces: u32,
+    /// No progress bar and no summary.
+    #[arg(long, short = 'q')]
+    quiet: bool,
+}
+
+enum Format {
+    Png,
+    Exr,
+}
+
+fn output_format(path: &Path) -> Result<Format, String> {
+    match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+    {
+        Some("png") => Ok(Format::Png),
+        Some("exr") => Ok(Format::Exr),
+        _ => Err(format!(
+            "{}: the output must end in .png or .exr",
+            path.display()
+        )),
+    }
+}
+
+/// Memory the render needs, in bytes: the film and its rows (assembled
+/// from per-row buffers, so twice the film at the peak).
+fn memory_needed(width: u32, height: u32) -> u64 {
+    2 * u64::from(width) * u64::from(height) * FILM_BYTES_PER_PIXEL
+}
+
+/// Memory available for a render: MemAvailable from /proc/meminfo, or
+/// 4 GiB where that cannot be read.
+fn memory_available() -> u64 {
+    std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|text| {
+            text.lines()
+                .find(|l| l.starts_with("MemAvailable:"))
+                .and_then(|l| l.split_whitespace().nth(1))
+                .and_then(|kib| kib.parse::<u64>().ok())
+        })
+        .map_or(4 << 30, |kib| kib * 1024)
+}
+
+fn gib(bytes: u64) -> f64 {
+    bytes as f64 / f64::from(1u32 << 30)
+}
+
+fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
+    let width = args.size.or(args.width).unwrap_or(512);
+    let height = args.size.or(args.height).unwrap_or(512);
+    for (name, value) in [("width", width), ("height", height)] {
+        if value == 0 || value > MAX_SIDE_PX {
+            return Err(format!(
+                "--{name} {value}: allowed 1 to {MAX_SIDE_PX} pixels"
+            ));
+        }
+    }
+    if args.spp == 0 || args.spp > MAX_SPP {
+        return Err(format!("--spp {}: allowed 1 to {MAX_SPP}", args.spp));
+    }
+    if args.bounces > MAX_BOUNCES {
+        return Err(format!("--bounces {}: allowed 0 to {MAX_BOUNCES}", args.bounces));
+    }
+    if args.threads == Some(0) || args.threads.is_some_and(|t| t > 1024) {
+        return Err(format!(
+            "--threads {}: allowed 1 to 1024",
+            args.threads.unwrap_or(0)
+        ));
+    }
+    if !args.exposure.is_finite() || args.exposure.abs() > 64.0 {
+        return Err(format!("--exposure {}: allowed −64 to 64 stops", args.exposure));
+    }
+    let needed = memory_needed(width, height);
+    let available = memory_available();
+    if needed > available {
+        return Err(format!(
+            "a {width} × {height} render needs {:.1} GiB of memory for its film, but only {:.1} GiB is available; use a smaller --size",
+            gib(needed),
+            gib(available)
+        ));
+    }
+    Ok((width, height))
+}
+
+/// Run `lapidary render`.
+pub fn run(args: RenderArgs) -> Result<(), String> {
+    let format = output_format(&args.output)?;
+    let (width, height) = check_settings(&args)?;
+    lapidary::output::check_writable(&args.output).map_err(|e| e.to_string())?;
+    let scene = match &args.scene {
+        Some(path) => load_scene(path).map_err(|e| e.to_string())?,
+        None => default_scene(),
+    };
+    let gem = args.recipe.as_deref().unwrap_or(DEFAULT_GEM);
+    let quiet = args.quiet;
+    let report = |message: &str| {
+        if !quiet {
+            eprintln!("{message}");
+        }
+    };
+    let started = Instant::now();
+    let render_scene = prepare_scene(&scene, gem, args.env.as_deref(), args.bounces, &report)?;
+    let camera = camera_for(&scene, width, height);
+    let settings = FilmSettings {
+        width,
+        height,
+        samples_per_pixel: args.spp,
+        seed: args.seed,
+    };
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(threads) = args.threads {
+        pool = pool.num_threads(threads);
+    }
+    let pool = pool
+        .build()
+        .map_err(|e| format!("cannot start worker threads: {e}"))?;
+    let bar = if !quiet && std::io::stderr().is_terminal() {
+        let bar = ProgressBar::new(u64::from(width) * u64::from(height));
+        bar.set_style(
+            ProgressStyle::with_template("{bar:40} {percent:>3}% {elapsed_precise} eta {eta} {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        Some(bar)
+    } else {
+        None
+    };
+    let tracing = Instant::now();
+    let film = pool.install(|| {
+        render(&render_scene, &camera, &settings, &|pixels| {
+            if let Some(bar) = &bar {
+                bar.inc(pixels);
+            }
+        })
+    });
+    let seconds = tracing.elapsed().as_secs_f64();
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    match format {
+        Format::Png => {
+            let transform = DisplayTransform {
+                exposure_ev: args.exposure,
+                curve: match args.tonemap {
+                    TonemapArg::Filmic => ToneCurve::Filmic,
+                    TonemapArg::Linear => ToneCurve::Linear,
+                },
+                dither_seed: args.seed,
+            };
+            let image = transform.encode(&film.rgb, width, height);
+            lapidary::output::write_png(&args.output, &image).map_err(|e| e.to_string())?;
+        }
+        Format::Exr => {
+            write_exr(&args.output, width, height, &exr_channels(&film))
+                .map_err(|e| e.to_string())?;
+        }
+    }
+    if film.stats.bad_samples > 0 {
+        eprintln!(
+            "warning: {} samples were NaN, infinite or negative and were left out",
+            film.stats.bad_samples
+        );
+    }
+    let rays = film.stats.traced_rays + film.stats.shadow_rays;
+    report(&format!(
+        "wrote {} ({width} × {height}, {} spp) in {:.1} s: {:.2} Mrays/s, {:.2} M samples/s, {:.1} s total",
+        args.output.display(),
+        args.spp,
+        seconds,
+        rays as f64 / seconds / 1e6,
+        f64::from(width) * f64::from(height) * f64::from(args.spp) / seconds / 1e6,
+        started.elapsed().as_secs_f64(),
+    ));
+    Ok(())
+}
+
+/// The EXR channels of a film: RGBA and the AOV layers, dotted names.
+pub fn exr_channels(film: &Film) -> Vec<ExrChannel> {
+    let f32_channel = |name: &str, data: Vec<f32>| ExrChannel {
+        name: name.to_string(),
+        data: ChannelData::F32(data),
+    };
+    let component = |v: &[[f32; 3]], i: usize| v.iter().map(|p| p[i]).collect::<Vec<f32>>();
+    vec![
+        f32_channel("R", component(&film.rgb, 0)),
+        f32_channel("G", component(&film.rgb, 1)),
+        f32_channel("B", component(&film.rgb, 2)),
+        f32_channel("A", film.alpha.clone()),
+        f32_channel("albedo.R", component(&film.albedo, 0)),
+        f32_channel("albedo.G", component(&film.albedo, 1)),
+        f32_channel("albedo.B", component(&film.albedo, 2)),
+        f32_channel("normal.X", component(&film.normal, 0)),
+        f32_channel("normal.Y", component(&film.normal, 1)),
+        f32_channel("normal.Z", component(&film.normal, 2)),
+        f32_channel("depth.Z", film.depth.clone()),
+        ExrChannel {
+            name: "surface_cell".to_string(),
+            data: ChannelData::U32(film.surface_cell.clone()),
+        },
+        f32_channel("glitter", film.glitter.clone()),
+        ExrChannel {
+            name: "material_id".to_string(),
+            data: ChannelData::U32(film.material_id.clone()),
+        },
+    ]
+}
