@@ -1,6 +1,9 @@
 //! Writing results to disk without ever leaving a half-written file: data
 //! goes to a temporary file beside the target, which is then renamed over it.
 
+pub mod exr;
+pub mod tonemap;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

@@ -1,0 +1,219 @@
+//! OpenEXR files of linear film and AOVs (albedo, normal, depth, cell ids).
+//!
+//! One part, one layer, any number of channels with dotted names (`R`, `G`,
+//! `B`, `A`, `albedo.R`, `normal.X`, `depth.Z`, `surface_cell` as U32): the
+//! most portable layout, which Nuke, Blender, `exrheader` and the `exr`
+//! crate all read as layers named by the prefix. Samples are stored exactly
+//! (32-bit float or unsigned int) with ZIP compression over blocks of 16
+//! scan lines (`Encoding::SMALL_LOSSLESS`), so a round trip is bit-exact.
+//!
+//! The file is encoded in memory and written with
+//! [`write_atomically`](super::write_atomically): a crash or a full disk
+//! never leaves a half-written EXR behind.
+
+use std::collections::HashSet;
+use std::io::Cursor;
+use std::path::Path;
+
+use ::exr::prelude::{
+    read, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes,
+    ReadChannels, ReadLayers, SmallVec, WritableImage,
+};
+
+use super::{check_writable, write_atomically, OutputError};
+
+/// The samples of one channel, row-major, `width * height` of them.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ChannelData {
+    /// 32-bit float samples: radiance, albedo, normals, depth.
+    F32(Vec<f32>),
+    /// 32-bit unsigned samples: ids (e.g. the Voronoi cell of a surface),
+    /// stored exactly where a float would lose integers above 2^24.
+    U32(Vec<u32>),
+}
+
+impl ChannelData {
+    /// Number of samples held.
+    pub fn len(&self) -> usize {
+        match self {
+            ChannelData::F32(v) => v.len(),
+            ChannelData::U32(v) => v.len(),
+        }
+    }
+
+    /// `true` when no samples are held.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// One named channel of an EXR image.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExrChannel {
+    /// Channel name, dotted for layers (`albedo.R`); printable ASCII,
+    /// 1 to 255 bytes, unique within the file.
+    pub name: String,
+    /// The samples, row-major, `width * height` of them.
+    pub data: ChannelData,
+}
+
+/// An EXR image as read back: its size and its channels sorted by name.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExrImage {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// All channels of the first layer, sorted by name (byte order, as the
+    /// EXR format stores them).
+    pub channels: Vec<ExrChannel>,
+}
+
+/// Longest channel name the EXR format allows (with the long-names flag,
+/// which the `exr` crate sets by itself above 31 bytes).
+const MAX_CHANNEL_NAME_BYTES: usize = 255;
+
+/// Write `channels` of a `width × height` image to `path` as a single-part,
+/// single-layer, losslessly compressed EXR, atomically.
+///
+/// Refused with an [`OutputError`] naming `path` (and the channel, where one
+/// is at fault): a zero width or height, no channels, an empty, duplicate,
+/// over-long or non-printable-ASCII name, a channel whose sample count is not
+/// `width * height`, and a path whose directory does not exist. Channels may
+/// come in any order; the file stores them sorted by name.
+pub fn write_exr(
+    path: &Path,
+    width: u32,
+    height: u32,
+    channels: &[ExrChannel],
+) -> Result<(), OutputError> {
+    let err = |message: String| OutputError {
+        path: path.display().to_string(),
+        message,
+    };
+    let pixel_count = validate(width, height, channels).map_err(err)?;
+    debug_assert!(channels.iter().all(|c| c.data.len() == pixel_count));
+    check_writable(path)?;
+
+    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels
+        .iter()
+        .map(|channel| {
+            let samples = match &channel.data {
+                ChannelData::F32(v) => FlatSamples::F32(v.clone()),
+                ChannelData::U32(v) => FlatSamples::U32(v.clone()),
+            };
+            AnyChannel::new(channel.name.as_str(), samples)
+        })
+        .collect();
+    let layer = Layer::new(
+        (width as usize, height as usize),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(list),
+    );
+    let mut bytes = Vec::new();
+    Image::from_layer(layer)
+        .write()
+        .to_buffered(Cursor::new(&mut bytes))
+        .map_err(|e| err(format!("cannot encode EXR: {e}")))?;
+    write_atomically(path, &bytes)
+}
+
+/// Check the image size and channels before encoding; returns the pixel
+/// count, or a message naming the offending channel and the allowed values.
+fn validate(width: u32, height: u32, channels: &[ExrChannel]) -> Result<usize, String> {
+    if width == 0 || height == 0 {
+        return Err(format!(
+            "image size {width}×{height}: width and height must both be at least 1"
+        ));
+    }
+    // The EXR data window is limited to i32::MAX / 2 per axis (OpenEXR).
+    let max_side = (i32::MAX / 2) as u32;
+    if width >= max_side || height >= max_side {
+        return Err(format!(
+            "image size {width}×{height}: width and height must be below {max_side}"
+        ));
+    }
+    let pixel_count = (width as usize)
+        .checked_mul(height as usize)
+        .ok_or_else(|| format!("image size {width}×{height} is too large"))?;
+    if channels.is_empty() {
+        return Err("no channels to write: an EXR needs at least one".into());
+    }
+    let mut seen = HashSet::new();
+    for channel in channels {
+        let name = &channel.name;
+        if name.is_empty() {
+            return Err("channel name \"\" is empty: names must have 1 to 255 bytes".into());
+        }
+        if name.len() > MAX_CHANNEL_NAME_BYTES {
+            return Err(format!(
+                "channel name \"{name}\" has {} bytes: names must have 1 to {MAX_CHANNEL_NAME_BYTES}",
+                name.len()
+            ));
+        }
+        if !name.bytes().all(|b| b.is_ascii_graphic() || b == b' ') {
+            return Err(format!(
+                "channel name {name:?} must be printable ASCII (e.g. \"albedo.R\")"
+            ));
+        }
+        if !seen.insert(name.as_str()) {
+            return Err(format!(
+                "channel \"{name}\" appears more than once: names must be unique"
+            ));
+        }
+        let samples = channel.data.len();
+        if samples != pixel_count {
+            return Err(format!(
+                "channel \"{name}\" has {samples} samples, expected {pixel_count} \
+                 (width {width} × height {height})"
+            ));
+        }
+    }
+    Ok(pixel_count)
+}
+
+/// Read the first layer of the EXR at `path`, all channels, at full
+/// resolution.
+///
+/// F32 and U32 channels come back exactly as stored; half-float (F16)
+/// channels, which lapidary never writes, are widened to F32 (exact). Deep
+/// images and unreadable files give an [`OutputError`] naming `path`.
+pub fn read_exr(path: &Path) -> Result<ExrImage, OutputError> {
+    let err = |message: String| OutputError {
+        path: path.display().to_string(),
+        message,
+    };
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| err(format!("cannot read EXR: {e}")))?;
+    let layer = image.layer_data;
+    let width = u32::try_from(layer.size.width())
+        .map_err(|_| err(format!("width {} is too large", layer.size.width())))?;
+    let height = u32::try_from(layer.size.height())
+        .map_err(|_| err(format!("height {} is too large", layer.size.height())))?;
+    let mut channels: Vec<ExrChannel> = layer
+        .channel_data
+        .list
+        .into_iter()
+        .map(|channel| ExrChannel {
+            name: channel.name.to_string(),
+            data: match channel.sample_data {
+                FlatSamples::F16(v) => ChannelData::F32(v.into_iter().map(f32::from).collect()),
+                FlatSamples::F32(v) => ChannelData::F32(v),
+                FlatSamples::U32(v) => ChannelData::U32(v),
+            },
+        })
+        .collect();
+    channels.sort_by(|a, b| a.name.as_bytes().cmp(b.name.as_bytes()));
+    Ok(ExrImage {
+        width,
+        height,
+        channels,
+    })
+}
