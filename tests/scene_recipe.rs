@@ -226,6 +226,15 @@ fn each_light_kind_parses_with_its_values() {
          Sun(elevation_deg: 0.0, azimuth_deg: 90.0, irradiance: (2.0, 2.0, 2.0))",
         None,
     );
+    // Left out: no ground, and the documented default environment.
+    assert_eq!(scene.ground, None);
+    assert_eq!(
+        scene.environment,
+        EnvironmentSpec::Studio {
+            intensity: 1.0,
+            rotation_deg: 0.0
+        }
+    );
     let l = &scene.lights;
     assert_eq!(l.len(), 6);
     assert_eq!(
@@ -419,6 +428,10 @@ Scene(
             irradiance: (1.0, 1.0, 1.0),
         ),
     ],
+    ground: Some(Ground(
+        height: 0.0,
+        material: "teflon",
+    )),
     environment: Constant(radiance: (0.1, 0.1, 0.1)),
 )
 "#;
@@ -468,7 +481,7 @@ fn good_scene_parses() {
     assert_eq!(scene.stones[0].shape.girdle_height, d.girdle_height);
     assert_eq!(scene.stones[0].shape.profile_exponent, d.profile_exponent);
     assert_eq!(scene.lights.len(), 3);
-    assert_eq!(scene.ground, None);
+    assert_eq!(scene.ground.as_ref().unwrap().material, "teflon");
     assert_eq!(
         scene.environment,
         EnvironmentSpec::Constant(DVec3::splat(0.1))
@@ -667,4 +680,26 @@ fn comments_and_strings_do_not_confuse_error_locations() {
         .to_string();
     let line = line_of(&text, "length: 0.0");
     assert!(err.starts_with(&format!("bad.ron:{line}:")), "{err}");
+}
+
+#[test]
+fn empty_names_are_refused_at_their_field() {
+    expect_error(
+        "material: \"teflon\"",
+        "material: \"\"",
+        "material: \"\"",
+        &[
+            "`material` is empty",
+            "allowed: a built-in material name or a .ron material file",
+        ],
+    );
+    expect_error(
+        "            position: (0.0, 0.0, 2.5),",
+        "            position: (0.0, 0.0, 2.5),\n            recipe: Some(\" \"),",
+        "recipe: Some",
+        &[
+            "`recipe` is empty",
+            "allowed: a built-in gem name or a .ron gem file",
+        ],
+    );
 }

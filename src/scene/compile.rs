@@ -172,9 +172,13 @@ impl<'t> Locator<'t> {
     }
 
     /// Offset of the first byte of the body of the struct-like value at
-    /// `start` (after its `(`), looking through `Some(` wrappers' names too.
+    /// `start` (after its `(`), looking through a `Some(…)` wrapper.
     fn body(&self, start: usize, end: usize) -> Option<usize> {
         let open = (start..end).find(|&i| self.code[i] == b'(')?;
+        if self.code[start..open].trim_ascii() == b"Some" {
+            let inner = (open + 1..end).find(|&i| self.code[i] == b'(')?;
+            return Some(inner + 1);
+        }
         Some(open + 1)
     }
 
