@@ -20,4 +20,5 @@ pub mod plot;
 pub mod recipe;
 pub mod render;
 pub mod sampling;
+pub mod scene;
 pub mod texture;

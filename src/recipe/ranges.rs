@@ -6,7 +6,8 @@ use serde::de::Error;
 use serde::{Deserialize, Deserializer};
 
 /// Parse a finite f64 and check `ok`, else an error naming `field` and `allowed`.
-fn checked<'de, D: Deserializer<'de>>(
+/// Public so that other RON schemas (the scene) report ranges the same way.
+pub fn checked<'de, D: Deserializer<'de>>(
     d: D,
     field: &str,
     allowed: &str,
@@ -21,8 +22,8 @@ fn checked<'de, D: Deserializer<'de>>(
     Ok(v)
 }
 
-/// Parse an RGB triple, each component checked.
-fn checked_rgb<'de, D: Deserializer<'de>>(
+/// Parse an RGB triple, each component checked (public like [`checked`]).
+pub fn checked_rgb<'de, D: Deserializer<'de>>(
     d: D,
     field: &str,
     allowed: &str,

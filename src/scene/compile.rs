@@ -1,0 +1,608 @@
+//! Parse and validate a scene: RON text → [`SceneSpec`] (numbers
+//! range-checked while parsing) → [`Scene`] (directions, frames and
+//! quaternions computed, paths resolved, shapes validated).
+//!
+//! Rules that involve several fields or another module (camera position ≠
+//! look_at, 1 to [`MAX_STONES`] stones, Rect aim_at ≠ centre, the cabochon's
+//! own rules) are checked after parsing; their errors are located by a small
+//! walk over the RON text ([`Locator`]) at the field they concern.
+
+use super::spec::{
+    BaseSpec, CameraSpec, EnvironmentKind, GroundSpec, LightKind, OutlineSpec, SceneSpec,
+    ShapeSpec, StoneSpec,
+};
+use super::{Camera, EnvironmentSpec, Ground, LightSpec, Scene, StonePlacement, MAX_STONES};
+use crate::brdf::Rgb;
+use crate::geometry::{Base, Cabochon, CabochonParams, GeometryError, Outline};
+use crate::recipe::compile::{read_ron_file, ron_error};
+use crate::recipe::error::{did_you_mean, line_col_of_offset, RecipeError};
+use glam::{DQuat, DVec3};
+use std::path::{Path, PathBuf};
+
+/// The built-in default scene (`gem-recipes/scenes/studio.ron`): one oval
+/// cabochon of the command line's gem on a dark ground in the studio.
+pub const DEFAULT_SCENE_SOURCE: &str = include_str!("../../gem-recipes/scenes/studio.ron");
+
+/// Display name of the built-in scene in error messages.
+const DEFAULT_SCENE_NAME: &str = "builtin:studio";
+
+/// A view or light axis closer than this (radians, ≈ the horizontal part of
+/// a unit vector) to world z cannot use z to build its frame.
+const VERTICAL_TOLERANCE: f64 = 1e-9;
+
+/// Parse and validate scene `text`. `path` is the scene file, used in error
+/// messages and to resolve relative paths (without one, errors say
+/// `<scene>` and relative paths stay as written).
+pub fn parse_scene(text: &str, path: Option<&Path>) -> Result<Scene, RecipeError> {
+    let display = path.map_or_else(|| "<scene>".to_string(), |p| p.display().to_string());
+    parse_named(text, &display, path)
+}
+
+/// Read, parse and validate the scene file at `path`; an unreadable,
+/// missing or non-UTF-8 file is a [`RecipeError`] naming it.
+pub fn load_scene(path: &Path) -> Result<Scene, RecipeError> {
+    let text = read_ron_file(&path.display().to_string(), "scene file")?;
+    parse_scene(&text, Some(path))
+}
+
+/// The built-in studio scene ([`DEFAULT_SCENE_SOURCE`]), parsed.
+///
+/// It is embedded at build time and pinned by `tests/scene_recipe.rs`, so
+/// failing to parse it is a bug in lapidary, not bad input.
+pub fn default_scene() -> Scene {
+    parse_named(DEFAULT_SCENE_SOURCE, DEFAULT_SCENE_NAME, None)
+        .unwrap_or_else(|e| panic!("the built-in studio scene is invalid: {e}"))
+}
+
+fn parse_named(text: &str, display: &str, path: Option<&Path>) -> Result<Scene, RecipeError> {
+    let spec: SceneSpec = ron::from_str(text).map_err(|e| scene_ron_error(display, text, e))?;
+    Compiler {
+        display,
+        locator: Locator::new(text),
+        dir: path.and_then(Path::parent),
+    }
+    .scene(&spec, path)
+}
+
+/// Like [`ron_error`], with unknown enum variants (an outline `Hexagon`, a
+/// light `Spot`) named by what they are and the allowed names listed.
+fn scene_ron_error(path: &str, text: &str, e: ron::error::SpannedError) -> RecipeError {
+    if let ron::error::Error::NoSuchEnumVariant {
+        expected,
+        found,
+        outer,
+    } = &e.code
+    {
+        let what = outer
+            .as_deref()
+            .map_or("variant".to_string(), str::to_lowercase);
+        let hint = did_you_mean(found, expected.iter().copied())
+            .map(|s| format!(" (did you mean `{s}`?)"))
+            .unwrap_or_default();
+        return RecipeError::at(
+            path,
+            e.span.start.line,
+            e.span.start.col,
+            format!(
+                "unknown {what} `{found}`{hint}; allowed: {}",
+                expected.join(", ")
+            ),
+        );
+    }
+    ron_error(path, text, e)
+}
+
+/// One step of a walk from the scene's top-level value to a field.
+#[derive(Clone, Copy, Debug)]
+enum Step<'a> {
+    /// The value of a named field of the current struct.
+    Field(&'a str),
+    /// The n-th (0-based) element of the current list.
+    Element(usize),
+}
+
+/// Finds where a value is written in the scene text, for errors found after
+/// parsing. Works on a copy of the text with comments and string contents
+/// blanked (byte offsets unchanged), so brackets and names in them do not
+/// count; struct names are optional, as in RON.
+struct Locator<'t> {
+    text: &'t str,
+    code: Vec<u8>,
+}
+
+impl<'t> Locator<'t> {
+    fn new(text: &'t str) -> Self {
+        let bytes = text.as_bytes();
+        let n = bytes.len();
+        let mut code = bytes.to_vec();
+        let mut i = 0;
+        while i < n {
+            // Blank [from, to) and go on at `next`: offsets (and the original
+            // text's line:col) stay valid.
+            let (from, to, next) = match bytes[i] {
+                b'"' => {
+                    let mut k = i + 1;
+                    while k < n && bytes[k] != b'"' {
+                        k += if bytes[k] == b'\\' { 2 } else { 1 };
+                    }
+                    (i + 1, k.min(n), k + 1)
+                }
+                b'/' if bytes.get(i + 1) == Some(&b'/') => {
+                    let end = bytes[i..].iter().position(|&c| c == b'\n');
+                    let to = end.map_or(n, |e| i + e);
+                    (i, to, to)
+                }
+                b'/' if bytes.get(i + 1) == Some(&b'*') => {
+                    let end = text[i + 2..].find("*/");
+                    let to = end.map_or(n, |e| i + 2 + e + 2);
+                    (i, to, to)
+                }
+                _ => {
+                    i += 1;
+                    continue;
+                }
+            };
+            code[from..to].fill(b' ');
+            i = next;
+        }
+        Locator { text, code }
+    }
+
+    fn skip_ws(&self, mut i: usize) -> usize {
+        while i < self.code.len() && self.code[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        i
+    }
+
+    /// End (exclusive) of the value starting at `start`: the first `,` or
+    /// closing bracket at its own nesting depth.
+    fn value_end(&self, start: usize) -> usize {
+        let mut depth = 0usize;
+        for (i, c) in self.code.iter().enumerate().skip(start) {
+            match c {
+                b'(' | b'[' | b'{' => depth += 1,
+                b')' | b']' | b'}' if depth == 0 => return i,
+                b')' | b']' | b'}' => depth -= 1,
+                b',' if depth == 0 => return i,
+                _ => {}
+            }
+        }
+        self.code.len()
+    }
+
+    /// Offset of the first byte of the body of the struct-like value at
+    /// `start` (after its `(`), looking through a `Some(…)` wrapper.
+    fn body(&self, start: usize, end: usize) -> Option<usize> {
+        let open = (start..end).find(|&i| self.code[i] == b'(')?;
+        if self.code[start..open].trim_ascii() == b"Some" {
+            let inner = (open + 1..end).find(|&i| self.code[i] == b'(')?;
+            return Some(inner + 1);
+        }
+        Some(open + 1)
+    }
+
+    /// Offset of the name of field `name` at depth 0 of the struct body
+    /// starting at `from` and the offset of its value.
+    fn field(&self, from: usize, end: usize, name: &str) -> Option<(usize, usize)> {
+        let mut depth = 0usize;
+        let mut i = from;
+        let is_word = |c: u8| c.is_ascii_alphanumeric() || c == b'_';
+        while i < end {
+            match self.code[i] {
+                b'(' | b'[' | b'{' => depth += 1,
+                b')' | b']' | b'}' => {
+                    if depth == 0 {
+                        return None;
+                    }
+                    depth -= 1;
+                }
+                c if depth == 0 && is_word(c) && (i == 0 || !is_word(self.code[i - 1])) => {
+                    let word_end = (i..end).find(|&k| !is_word(self.code[k])).unwrap_or(end);
+                    let after = self.skip_ws(word_end);
+                    if &self.code[i..word_end] == name.as_bytes()
+                        && self.code.get(after) == Some(&b':')
+                    {
+                        return Some((i, self.skip_ws(after + 1)));
+                    }
+                    i = word_end;
+                    continue;
+                }
+                _ => {}
+            }
+            i += 1;
+        }
+        None
+    }
+
+    /// Start of the n-th element of the list value at `start`.
+    fn element(&self, start: usize, end: usize, n: usize) -> Option<usize> {
+        if self.code.get(start) != Some(&b'[') {
+            return None;
+        }
+        let mut at = self.skip_ws(start + 1);
+        for _ in 0..n {
+            let stop = self.value_end(at);
+            if stop >= end || self.code[stop] != b',' {
+                return None;
+            }
+            at = self.skip_ws(stop + 1);
+        }
+        (at < end && self.code[at] != b']').then_some(at)
+    }
+
+    /// (line, col) of the deepest point of `steps` that could be found
+    /// (a field's name, or a list element's start); `None` if not even the
+    /// first step was found.
+    fn find(&self, steps: &[Step]) -> Option<(usize, usize)> {
+        let mut start = self.skip_ws(0);
+        let mut end = self.code.len();
+        let mut best = None;
+        for step in steps {
+            let found = match *step {
+                Step::Field(name) => self.body(start, end).and_then(|b| self.field(b, end, name)),
+                Step::Element(n) => self.element(start, end, n).map(|e| (e, e)),
+            };
+            let Some((mark, value)) = found else { break };
+            best = Some(mark);
+            start = value;
+            end = self.value_end(value);
+        }
+        best.map(|offset| line_col_of_offset(self.text, offset))
+    }
+}
+
+/// Turns the parsed spec into plain data, with errors located in the text.
+struct Compiler<'a> {
+    display: &'a str,
+    locator: Locator<'a>,
+    /// Folder of the scene file, for relative paths.
+    dir: Option<&'a Path>,
+}
+
+impl Compiler<'_> {
+    fn error(&self, steps: &[Step], message: String) -> RecipeError {
+        match self.locator.find(steps) {
+            Some((line, col)) => RecipeError::at(self.display, line, col, message),
+            None => RecipeError::whole_file(self.display, message),
+        }
+    }
+
+    fn scene(&self, spec: &SceneSpec, path: Option<&Path>) -> Result<Scene, RecipeError> {
+        let camera = self.camera(&spec.camera)?;
+        let count = spec.stones.len();
+        if count == 0 || count > MAX_STONES {
+            return Err(self.error(
+                &[Step::Field("stones")],
+                format!("`stones` has {count} stones; allowed: 1 to {MAX_STONES} stones"),
+            ));
+        }
+        let stones = spec
+            .stones
+            .iter()
+            .enumerate()
+            .map(|(i, s)| self.stone(i, s))
+            .collect::<Result<Vec<_>, _>>()?;
+        let ground = spec.ground.as_ref().map(|g| self.ground(g)).transpose()?;
+        let lights = spec
+            .lights
+            .iter()
+            .enumerate()
+            .map(|(i, l)| self.light(i, l))
+            .collect::<Result<Vec<_>, _>>()?;
+        let environment = self.environment(&spec.environment)?;
+        Ok(Scene {
+            camera,
+            stones,
+            ground,
+            lights,
+            environment,
+            path: path.map(Path::to_path_buf),
+        })
+    }
+
+    fn camera(&self, spec: &CameraSpec) -> Result<Camera, RecipeError> {
+        Ok(match *spec {
+            CameraSpec::Orbit {
+                target,
+                distance,
+                elevation_deg,
+                azimuth_deg,
+                vertical_fov_deg,
+            } => {
+                let target = DVec3::from_array(target);
+                let (elevation, azimuth) = (elevation_deg.to_radians(), azimuth_deg.to_radians());
+                let horizontal = DVec3::new(azimuth.cos(), azimuth.sin(), 0.0);
+                // Spherical coordinates about the target, z up.
+                let offset = horizontal * elevation.cos() + DVec3::Z * elevation.sin();
+                let up = if elevation.cos() < VERTICAL_TOLERANCE {
+                    // The limit of z projected off the view as |elevation| → 90°:
+                    // away from the camera's side when above, towards it below.
+                    -horizontal * elevation.signum()
+                } else {
+                    DVec3::Z
+                };
+                Camera {
+                    position: target + distance * offset,
+                    look_at: target,
+                    up,
+                    vertical_fov_deg,
+                }
+            }
+            CameraSpec::LookAt {
+                position,
+                look_at,
+                vertical_fov_deg,
+            } => {
+                let (position, look_at) = (DVec3::from_array(position), DVec3::from_array(look_at));
+                let view = unit(look_at - position).ok_or_else(|| {
+                    self.error(
+                        &[Step::Field("camera"), Step::Field("look_at")],
+                        format!(
+                            "camera `look_at` = {} is the camera `position`; allowed: any point other than `position`",
+                            fmt_vec(look_at)
+                        ),
+                    )
+                })?;
+                let up = if view.truncate().length() < VERTICAL_TOLERANCE {
+                    DVec3::Y
+                } else {
+                    DVec3::Z
+                };
+                Camera {
+                    position,
+                    look_at,
+                    up,
+                    vertical_fov_deg,
+                }
+            }
+        })
+    }
+
+    fn stone(&self, index: usize, spec: &StoneSpec) -> Result<StonePlacement, RecipeError> {
+        let at = |field| {
+            [
+                Step::Field("stones"),
+                Step::Element(index),
+                Step::Field(field),
+            ]
+        };
+        let recipe = match &spec.recipe {
+            None => None,
+            Some(name) => Some(self.name_or_path(
+                name,
+                &at("recipe"),
+                "a built-in gem name or a .ron gem file",
+            )?),
+        };
+        let ShapeSpec::Cabochon {
+            outline,
+            length,
+            width,
+            dome_height,
+            profile_exponent,
+            girdle_height,
+            base,
+            buff_top,
+        } = spec.shape;
+        let shape = CabochonParams {
+            outline: match outline {
+                OutlineSpec::Round => Outline::Round,
+                OutlineSpec::Oval => Outline::Oval,
+                OutlineSpec::Cushion { exponent } => Outline::Cushion { exponent },
+                OutlineSpec::Pear => Outline::Pear,
+                OutlineSpec::Marquise => Outline::Marquise,
+            },
+            length,
+            width,
+            dome_height,
+            profile_exponent,
+            girdle_height,
+            base: match base {
+                BaseSpec::Flat => Base::Flat,
+                BaseSpec::Domed { height } => Base::Domed { height },
+            },
+            buff_top,
+        };
+        Cabochon::new(shape).map_err(|e| self.shape_error(index, &e))?;
+        let [x, y, z] = spec.rotation_deg.map(f64::to_radians);
+        Ok(StonePlacement {
+            recipe,
+            shape,
+            position: DVec3::from_array(spec.position),
+            // About world x first, then y, then z.
+            rotation: DQuat::from_rotation_z(z)
+                * DQuat::from_rotation_y(y)
+                * DQuat::from_rotation_x(x),
+            seed: spec.seed,
+        })
+    }
+
+    /// A cabochon error at the offending field of stone `index`'s shape.
+    fn shape_error(&self, index: usize, e: &GeometryError) -> RecipeError {
+        let mut steps = vec![
+            Step::Field("stones"),
+            Step::Element(index),
+            Step::Field("shape"),
+        ];
+        match e.name {
+            "base.height" => steps.extend([Step::Field("base"), Step::Field("height")]),
+            "exponent" => steps.extend([Step::Field("outline"), Step::Field("exponent")]),
+            name => steps.push(Step::Field(name)),
+        }
+        self.error(&steps, format!("stone {}: {e}", index + 1))
+    }
+
+    fn ground(&self, spec: &GroundSpec) -> Result<Ground, RecipeError> {
+        let material = self.name_or_path(
+            &spec.material,
+            &[Step::Field("ground"), Step::Field("material")],
+            "a built-in material name or a .ron material file",
+        )?;
+        Ok(Ground {
+            height: spec.height,
+            material,
+        })
+    }
+
+    fn light(&self, index: usize, spec: &LightKind) -> Result<LightSpec, RecipeError> {
+        let rgb = Rgb::from_array;
+        Ok(match *spec {
+            LightKind::Sphere {
+                centre,
+                radius,
+                radiance,
+            } => LightSpec::Sphere {
+                centre: DVec3::from_array(centre),
+                radius,
+                radiance: rgb(radiance),
+            },
+            LightKind::Point {
+                position,
+                intensity,
+            } => LightSpec::Point {
+                position: DVec3::from_array(position),
+                intensity: rgb(intensity),
+            },
+            LightKind::Rect {
+                centre,
+                aim_at,
+                width,
+                height,
+                radiance,
+            } => {
+                let centre = DVec3::from_array(centre);
+                let normal = unit(DVec3::from_array(aim_at) - centre).ok_or_else(|| {
+                    self.error(
+                        &[Step::Field("lights"), Step::Element(index), Step::Field("aim_at")],
+                        format!(
+                            "light {}: Rect `aim_at` = {} is its `centre`; allowed: any point other than `centre`",
+                            index + 1,
+                            fmt_vec(centre)
+                        ),
+                    )
+                })?;
+                // Width runs horizontally, like a studio soft box, unless the
+                // box faces straight up or down.
+                let horizontal = DVec3::Z.cross(normal);
+                let u_axis = if horizontal.length() < VERTICAL_TOLERANCE {
+                    DVec3::X
+                } else {
+                    horizontal.normalize()
+                };
+                LightSpec::Rect {
+                    centre,
+                    normal,
+                    u_axis,
+                    v_axis: normal.cross(u_axis),
+                    width,
+                    height,
+                    radiance: rgb(radiance),
+                }
+            }
+            LightKind::Sun {
+                elevation_deg,
+                azimuth_deg,
+                angular_diameter_deg,
+                irradiance,
+            } => {
+                let (e, a) = (elevation_deg.to_radians(), azimuth_deg.to_radians());
+                LightSpec::Sun {
+                    direction: DVec3::new(e.cos() * a.cos(), e.cos() * a.sin(), e.sin()),
+                    angular_diameter_deg,
+                    irradiance: rgb(irradiance),
+                }
+            }
+        })
+    }
+
+    fn environment(&self, spec: &EnvironmentKind) -> Result<EnvironmentSpec, RecipeError> {
+        Ok(match spec {
+            EnvironmentKind::Constant { radiance } => {
+                EnvironmentSpec::Constant(Rgb::from_array(*radiance))
+            }
+            EnvironmentKind::Studio {
+                intensity,
+                rotation_deg,
+            } => EnvironmentSpec::Studio {
+                intensity: *intensity,
+                rotation_deg: *rotation_deg,
+            },
+            EnvironmentKind::File {
+                path,
+                rotation_deg,
+                intensity,
+            } => {
+                if path.trim().is_empty() {
+                    return Err(self.error(
+                        &[Step::Field("environment"), Step::Field("path")],
+                        "environment `path` is empty; allowed: an HDR or EXR image file, relative to the scene file".to_string(),
+                    ));
+                }
+                EnvironmentSpec::File {
+                    path: self.resolve(path),
+                    rotation_deg: *rotation_deg,
+                    intensity: *intensity,
+                }
+            }
+        })
+    }
+
+    /// A library name stays a name; a path (with `/` or ending in `.ron`)
+    /// is resolved against the scene's folder.
+    fn name_or_path(&self, spec: &str, at: &[Step], allowed: &str) -> Result<String, RecipeError> {
+        if spec.trim().is_empty() {
+            let field = match at.last() {
+                Some(Step::Field(f)) => f,
+                _ => "name",
+            };
+            return Err(self.error(at, format!("`{field}` is empty; allowed: {allowed}")));
+        }
+        Ok(if spec.contains('/') || spec.ends_with(".ron") {
+            self.resolve(spec).to_string_lossy().into_owned()
+        } else {
+            spec.to_string()
+        })
+    }
+
+    fn resolve(&self, path: &str) -> PathBuf {
+        match self.dir {
+            Some(dir) if Path::new(path).is_relative() => dir.join(path),
+            _ => PathBuf::from(path),
+        }
+    }
+}
+
+/// `v / |v|`, or `None` when `v` is zero (or so small that it cannot be
+/// normalised).
+fn unit(v: DVec3) -> Option<DVec3> {
+    let length = v.length();
+    let u = v / length;
+    (length > 0.0 && u.is_finite()).then_some(u)
+}
+
+fn fmt_vec(v: DVec3) -> String {
+    format!("({}, {}, {})", v.x, v.y, v.z)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn locator_walks_fields_and_elements_past_comments_and_strings() {
+        let text = "S(\n a: [ (b: \"x)]\"), /* b: ( */ (\n  // b: 0\n  b: 2) ],\n)";
+        let l = Locator::new(text);
+        // Element 1's field `b` is on line 4, column 3 (the comment on line 3
+        // and the bracket in the string do not count).
+        let steps = [Step::Field("a"), Step::Element(1), Step::Field("b")];
+        assert_eq!(l.find(&steps), Some((4, 3)));
+        assert_eq!(
+            l.find(&[Step::Field("a"), Step::Element(0), Step::Field("b")]),
+            Some((2, 8))
+        );
+        // A missing element falls back to the deepest place found: `a`.
+        assert_eq!(l.find(&[Step::Field("a"), Step::Element(5)]), Some((2, 2)));
+        assert_eq!(l.find(&[Step::Field("zz")]), None);
+    }
+}

@@ -1,0 +1,177 @@
+//! Scenes for `lapidary render --scene SCENE.ron`: a camera, stones placed in
+//! the world, a ground plane, lights and an environment.
+//!
+//! A scene file ([`spec`], units as written) is parsed and validated into
+//! the plain data below ([`compile`]): angles become directions and
+//! quaternions, relative paths are resolved against the scene file's
+//! folder, and each stone's shape has passed
+//! [`crate::geometry::Cabochon::new`]. Errors are [`crate::recipe::RecipeError`]s,
+//! `file:line:col: message`, naming the field and its allowed range.
+//!
+//! World space: z is up; lengths are scene units (millimetres, the unit of
+//! the gem recipes' object space).
+//!
+//! ```
+//! let scene = lapidary::scene::default_scene();
+//! assert_eq!(scene.stones.len(), 1);
+//! ```
+
+#![deny(missing_docs)]
+
+pub mod compile;
+pub mod spec;
+
+pub use compile::{default_scene, load_scene, parse_scene, DEFAULT_SCENE_SOURCE};
+
+use crate::brdf::Rgb;
+use crate::geometry::CabochonParams;
+use glam::{DQuat, DVec3};
+use std::path::PathBuf;
+
+/// Most stones one scene may hold (a bound on memory and BVH build time
+/// for a hand-written file; a typo like `1e9` copies cannot slip through).
+pub const MAX_STONES: usize = 1024;
+
+/// A validated scene, ready for the renderer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// The pinhole camera.
+    pub camera: Camera,
+    /// The stones, 1 to [`MAX_STONES`].
+    pub stones: Vec<StonePlacement>,
+    /// A horizontal ground plane, if any.
+    pub ground: Option<Ground>,
+    /// Lights besides the environment.
+    pub lights: Vec<LightSpec>,
+    /// What rays leaving the scene see.
+    pub environment: EnvironmentSpec,
+    /// The scene file (`None` for text parsed without one, e.g. the
+    /// built-in default).
+    pub path: Option<PathBuf>,
+}
+
+/// A pinhole camera in world space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// The eye.
+    pub position: DVec3,
+    /// The point at the image centre (≠ `position`).
+    pub look_at: DVec3,
+    /// Unit vector that should point up in the image: world +z, except when
+    /// the view is vertical (within 1e-9 rad), where z cannot define a frame
+    /// and a horizontal vector is used instead (for an orbit, the one the
+    /// view approaches as the elevation tends to ±90°). Not necessarily
+    /// perpendicular to the view direction: the renderer orthonormalises it.
+    pub up: DVec3,
+    /// Full vertical field of view, (0, 170) degrees.
+    pub vertical_fov_deg: f64,
+}
+
+/// One stone in the world.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StonePlacement {
+    /// `None`: the gem named on the command line; otherwise a built-in gem
+    /// name, or a path already resolved against the scene file's folder.
+    pub recipe: Option<String>,
+    /// The stone's geometry, already validated by
+    /// [`crate::geometry::Cabochon::new`].
+    pub shape: CabochonParams,
+    /// World position of the object-space origin (the girdle plane's centre).
+    pub position: DVec3,
+    /// Object → world rotation (applied before the translation):
+    /// `Rz · Ry · Rx`, i.e. about world x first, then y, then z.
+    pub rotation: DQuat,
+    /// Replaces the gem's own seed when `Some`.
+    pub seed: Option<u64>,
+}
+
+impl StonePlacement {
+    /// Maps an object-space point to world space: rotate, then translate.
+    pub fn to_world(&self, object_point: DVec3) -> DVec3 {
+        self.rotation * object_point + self.position
+    }
+}
+
+/// A horizontal ground plane `z = height`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Ground {
+    /// Its z.
+    pub height: f64,
+    /// A built-in material name, or a path resolved against the scene
+    /// file's folder.
+    pub material: String,
+}
+
+/// A light, with directions and frames computed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightSpec {
+    /// An isotropic point light: irradiance `intensity · cos θ / d²`.
+    Point {
+        /// Its position.
+        position: DVec3,
+        /// Radiant intensity per channel, ≥ 0.
+        intensity: Rgb,
+    },
+    /// A uniformly emitting sphere.
+    Sphere {
+        /// Its centre.
+        centre: DVec3,
+        /// Radius, > 0.
+        radius: f64,
+        /// Emitted radiance per channel, ≥ 0.
+        radiance: Rgb,
+    },
+    /// A one-sided rectangle emitting on the side of `normal`, spanning
+    /// `centre ± width/2 · u_axis ± height/2 · v_axis`.
+    Rect {
+        /// Its centre.
+        centre: DVec3,
+        /// Unit normal of the emitting side (towards the scene's `aim_at`).
+        normal: DVec3,
+        /// Unit axis along `width`: horizontal (⊥ world z) unless the
+        /// normal is vertical, then world x.
+        u_axis: DVec3,
+        /// Unit axis along `height`: `normal × u_axis`, so (u, v, normal)
+        /// is right-handed and orthonormal.
+        v_axis: DVec3,
+        /// Extent along `u_axis`, > 0.
+        width: f64,
+        /// Extent along `v_axis`, > 0.
+        height: f64,
+        /// Emitted radiance per channel, ≥ 0.
+        radiance: Rgb,
+    },
+    /// A distant disc: parallel light.
+    Sun {
+        /// Unit vector from the scene towards the sun.
+        direction: DVec3,
+        /// Apparent diameter, (0, 20] degrees.
+        angular_diameter_deg: f64,
+        /// Irradiance on a surface facing the sun, per channel, ≥ 0.
+        irradiance: Rgb,
+    },
+}
+
+/// The environment seen by rays that leave the scene.
+#[derive(Clone, Debug, PartialEq)]
+pub enum EnvironmentSpec {
+    /// The same radiance in every direction.
+    Constant(Rgb),
+    /// The renderer's built-in studio, scaled and turned about world z.
+    Studio {
+        /// Multiplier, ≥ 0.
+        intensity: f64,
+        /// Turn about world z, degrees.
+        rotation_deg: f64,
+    },
+    /// A latitude-longitude HDR/EXR image.
+    File {
+        /// The image path, resolved against the scene file's folder (its
+        /// existence is checked by the renderer).
+        path: PathBuf,
+        /// Turn about world z, degrees.
+        rotation_deg: f64,
+        /// Multiplier, ≥ 0.
+        intensity: f64,
+    },
+}
