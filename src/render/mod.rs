@@ -4,3 +4,6 @@
 //! compiled gems go in, linear radiance per pixel (plus AOVs) comes out.
 //! Every pixel is a pure function of (scene, gems, seed, settings), so the
 //! image is the same whatever the thread count.
+
+pub mod distribution;
+pub mod environment;
