@@ -156,9 +156,12 @@ impl Distribution1D {
         (x, pdf, i)
     }
 
-    /// Nudges `x` by ulps until [`Self::bin`] maps it to bin `i` (rounding
-    /// at `(i + 1)/n` could otherwise report the neighbouring bin).
-    fn snap_into_bin(&self, mut x: f64, i: usize) -> f64 {
+    /// Nudges `x` into `[0, 1)` and then by ulps until [`Self::bin`] maps it
+    /// to bin `i` (rounding at `(i + 1)/n` could otherwise report the
+    /// neighbouring bin).
+    fn snap_into_bin(&self, x: f64, i: usize) -> f64 {
+        // The last bin is closed by clamping in `bin`; keep x inside [0, 1).
+        let mut x = x.clamp(0.0, 1.0_f64.next_down());
         for _ in 0..8 {
             match self.bin(x).cmp(&i) {
                 std::cmp::Ordering::Equal => return x,
@@ -227,9 +230,12 @@ impl Distribution2D {
     /// conditional) and returns it with its density with respect to
     /// `du dv`, which equals [`Self::pdf`] at the returned point.
     pub fn sample(&self, u: [f64; 2]) -> (glam::DVec2, f64) {
-        let (v, pdf_v, row) = self.marginal.sample(u[1]);
-        let (x, pdf_u_given_v, _) = self.conditional[row].sample(u[0]);
-        (glam::DVec2::new(x, v), pdf_v * pdf_u_given_v)
+        let (v, _, row) = self.marginal.sample(u[1]);
+        let (x, _, col) = self.conditional[row].sample(u[0]);
+        // f / I directly, as in `pdf`: the product p(v) p(u|v) is the same
+        // number mathematically but not always to the last bit.
+        let pdf = self.conditional[row].func[col] / self.marginal.integral;
+        (glam::DVec2::new(x, v), pdf)
     }
 
     /// Density at `uv` with respect to `du dv`: `f[row][col] / I` with `I`

@@ -793,9 +793,8 @@ fn read_exr(path: &Path) -> Result<RgbTexels, EnvironmentError> {
         exr::error::Error::Io(io) => io_error(path, &io),
         other => decode(other.to_string()),
     })?;
-    let has = |h: &exr::meta::header::Header, name: &str| {
-        h.channels.list.iter().any(|c| c.name.eq(name))
-    };
+    let has =
+        |h: &exr::meta::header::Header, name: &str| h.channels.list.iter().any(|c| c.name.eq(name));
     let header = meta
         .headers
         .iter()
