@@ -112,11 +112,11 @@ pub fn prepare_scene(
     let environment = match environment_file {
         Some(path) => Environment::from_file(path, 0.0, 1.0).map_err(|e| e.to_string())?,
         None => match &scene.environment {
-            EnvironmentSpec::Constant(radiance) => Environment::constant(*radiance),
+            EnvironmentSpec::Constant(radiance) => Environment::try_constant(*radiance).map_err(|e| e.to_string())?,
             EnvironmentSpec::Studio {
                 intensity,
                 rotation_deg,
-            } => Environment::studio(*intensity, *rotation_deg),
+            } => Environment::try_studio(*intensity, *rotation_deg).map_err(|e| e.to_string())?,
             EnvironmentSpec::File {
                 path,
                 rotation_deg,

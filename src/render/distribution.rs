@@ -1,0 +1,280 @@
+//! Piecewise-constant 1-D and 2-D distributions for importance sampling
+//! (pbrt-v4, section A.5 "Sampling 1D functions" and "Piecewise-constant 2D
+//! distributions"; the environment light samples its texels with them).
+//!
+//! A [`Distribution1D`] over `n` equal bins of `[0, 1)` has density
+//! `p(x) = f[i] / I` in bin `i = ⌊x n⌋`, with `I = Σ f / n` the integral of
+//! the step function, and is sampled by inverting its CDF. A
+//! [`Distribution2D`] over a `width × height` grid factors the joint density
+//! into a marginal over rows and a conditional over the columns of each row,
+//! `p(u, v) = p(v) p(u | v) = f[row][col] / I`, so that sampling costs two
+//! binary searches (pbrt-v4 eq. A.12–A.13 / `PiecewiseConstant2D`).
+//!
+//! Everything is in `f64`, including the CDFs, so that a 1024 × 512
+//! environment map with a dynamic range of 10⁵ keeps its dim texels
+//! reachable. Bins of weight zero are never sampled and have pdf zero.
+
+/// Why a grid of weights cannot become a distribution.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DistributionError {
+    /// A grid with no cells, or a weight slice whose length does not match
+    /// the stated size.
+    #[error(
+        "distribution grid is {width}×{height} with {len} weights; it needs width ≥ 1, \
+         height ≥ 1 and exactly width × height weights"
+    )]
+    BadShape {
+        /// Columns requested.
+        width: usize,
+        /// Rows requested.
+        height: usize,
+        /// Weights given.
+        len: usize,
+    },
+    /// A NaN, infinite or negative weight.
+    #[error(
+        "distribution weight at column {x}, row {y} is {value}; weights must be finite and ≥ 0"
+    )]
+    BadWeight {
+        /// Column of the first bad weight.
+        x: usize,
+        /// Row of the first bad weight.
+        y: usize,
+        /// The refused value.
+        value: f64,
+    },
+    /// Every weight is zero, so there is nothing to sample.
+    #[error("distribution weights are all zero; at least one must be > 0")]
+    AllZero,
+}
+
+/// A piecewise-constant density over `n` equal bins of `[0, 1)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Distribution1D {
+    /// Non-negative bin weights `f[i]`.
+    func: Vec<f64>,
+    /// `cdf[i] = Σ_{j<i} f[j] / Σ f`, with `cdf[0] = 0` and `cdf[n] = 1`.
+    cdf: Vec<f64>,
+    /// `∫₀¹ f = Σ f / n` (zero only for the all-zero rows that
+    /// [`Distribution2D`] keeps and never samples).
+    integral: f64,
+}
+
+impl Distribution1D {
+    /// A distribution proportional to `weights` (bin `i` covers
+    /// `[i/n, (i+1)/n)`). Refuses an empty slice, a NaN, infinite or
+    /// negative weight, and all-zero weights.
+    pub fn new(weights: &[f64]) -> Result<Self, DistributionError> {
+        check_weights(weights, weights.len(), 1)?;
+        let d = Self::build(weights);
+        if d.integral > 0.0 {
+            Ok(d)
+        } else {
+            Err(DistributionError::AllZero)
+        }
+    }
+
+    /// Builds from already-checked weights; an all-zero row gets a uniform
+    /// CDF (it is never sampled, as its marginal weight is zero).
+    fn build(weights: &[f64]) -> Self {
+        let n = weights.len();
+        let mut cdf = Vec::with_capacity(n + 1);
+        cdf.push(0.0);
+        let mut running = 0.0;
+        for &w in weights {
+            running += w;
+            cdf.push(running);
+        }
+        let total = running;
+        if total > 0.0 {
+            for c in &mut cdf[1..] {
+                *c /= total;
+            }
+        } else {
+            for (i, c) in cdf.iter_mut().enumerate() {
+                *c = i as f64 / n as f64;
+            }
+        }
+        // Exactly 1 at the end, whatever the rounding of the running sum.
+        cdf[n] = 1.0;
+        Self {
+            func: weights.to_vec(),
+            cdf,
+            integral: total / n as f64,
+        }
+    }
+
+    /// Number of bins.
+    pub fn len(&self) -> usize {
+        self.func.len()
+    }
+
+    /// Always `false`: a distribution has at least one bin (kept for the
+    /// `len`/`is_empty` convention).
+    pub fn is_empty(&self) -> bool {
+        self.func.is_empty()
+    }
+
+    /// `∫₀¹ f(x) dx = Σ f / n`, the normalisation constant of the density.
+    pub fn integral(&self) -> f64 {
+        self.integral
+    }
+
+    /// The bin holding `x` (`⌊x n⌋`, clamped into `0..n`); the one rule that
+    /// both [`Self::sample`] and [`Self::pdf`] use, so they agree.
+    pub fn bin(&self, x: f64) -> usize {
+        let n = self.func.len();
+        ((x * n as f64).max(0.0) as usize).min(n - 1)
+    }
+
+    /// Inverts the CDF at `u ∈ [0, 1)`: returns the continuous point
+    /// `x ∈ [0, 1)`, its density `f[i] / I` and its bin `i`. Bins of zero
+    /// weight are never returned, and `self.bin(x) == i` always holds.
+    pub fn sample(&self, u: f64) -> (f64, f64, usize) {
+        let n = self.func.len();
+        // Clamp into [0, 1): the last bin of positive weight ends at a CDF of
+        // exactly 1, so any u < 1 lands in a bin of positive weight.
+        let u = if u.is_finite() {
+            u.clamp(0.0, 1.0_f64.next_down())
+        } else {
+            0.0
+        };
+        // Largest i with cdf[i] ≤ u; then cdf[i + 1] > u, so f[i] > 0.
+        let i = (self.cdf.partition_point(|&c| c <= u).max(1) - 1).min(n - 1);
+        let width = self.cdf[i + 1] - self.cdf[i];
+        let du = if width > 0.0 {
+            ((u - self.cdf[i]) / width).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        let x = self.snap_into_bin((i as f64 + du) / n as f64, i);
+        let pdf = if self.integral > 0.0 {
+            self.func[i] / self.integral
+        } else {
+            0.0
+        };
+        (x, pdf, i)
+    }
+
+    /// Nudges `x` into `[0, 1)` and then by ulps until [`Self::bin`] maps it
+    /// to bin `i` (rounding at `(i + 1)/n` could otherwise report the
+    /// neighbouring bin).
+    fn snap_into_bin(&self, x: f64, i: usize) -> f64 {
+        // The last bin is closed by clamping in `bin`; keep x inside [0, 1).
+        let mut x = x.clamp(0.0, 1.0_f64.next_down());
+        for _ in 0..8 {
+            match self.bin(x).cmp(&i) {
+                std::cmp::Ordering::Equal => return x,
+                std::cmp::Ordering::Greater => x = x.next_down(),
+                std::cmp::Ordering::Less => x = x.next_up(),
+            }
+        }
+        // Unreachable for n < 2⁵²; the bin centre is always safe.
+        (i as f64 + 0.5) / self.func.len() as f64
+    }
+
+    /// Density at `x` with respect to length on `[0, 1)`; zero outside it.
+    pub fn pdf(&self, x: f64) -> f64 {
+        if !(0.0..1.0).contains(&x) || self.integral <= 0.0 {
+            return 0.0;
+        }
+        self.func[self.bin(x)] / self.integral
+    }
+}
+
+/// A piecewise-constant density over `[0, 1)²` from a `width × height` grid
+/// of weights: column `⌊u·width⌋`, row `⌊v·height⌋`, row-major storage.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Distribution2D {
+    /// One distribution over the columns of each row, `p(u | v)`.
+    conditional: Vec<Distribution1D>,
+    /// The distribution of rows, weighted by each row's integral, `p(v)`.
+    marginal: Distribution1D,
+}
+
+impl Distribution2D {
+    /// A distribution proportional to `weights[row * width + col]`. Refuses
+    /// an empty grid, a length other than `width × height`, any NaN,
+    /// infinite or negative weight (naming its column and row) and an
+    /// all-zero grid.
+    pub fn new(weights: &[f64], width: usize, height: usize) -> Result<Self, DistributionError> {
+        check_weights(weights, width, height)?;
+        let conditional: Vec<Distribution1D> = weights
+            .chunks_exact(width)
+            .map(Distribution1D::build)
+            .collect();
+        let row_integrals: Vec<f64> = conditional.iter().map(|c| c.integral).collect();
+        let marginal = Distribution1D::build(&row_integrals);
+        if marginal.integral > 0.0 {
+            Ok(Self {
+                conditional,
+                marginal,
+            })
+        } else {
+            Err(DistributionError::AllZero)
+        }
+    }
+
+    /// Number of columns (bins along `u`).
+    pub fn width(&self) -> usize {
+        self.conditional[0].len()
+    }
+
+    /// Number of rows (bins along `v`).
+    pub fn height(&self) -> usize {
+        self.marginal.len()
+    }
+
+    /// Draws a point `(u, v) ∈ [0, 1)²` from two uniform numbers (`u[1]`
+    /// picks the row from the marginal, `u[0]` the column from that row's
+    /// conditional) and returns it with its density with respect to
+    /// `du dv`, which equals [`Self::pdf`] at the returned point.
+    pub fn sample(&self, u: [f64; 2]) -> (glam::DVec2, f64) {
+        let (v, _, row) = self.marginal.sample(u[1]);
+        let (x, _, col) = self.conditional[row].sample(u[0]);
+        // f / I directly, as in `pdf`: the product p(v) p(u|v) is the same
+        // number mathematically but not always to the last bit.
+        let pdf = self.conditional[row].func[col] / self.marginal.integral;
+        (glam::DVec2::new(x, v), pdf)
+    }
+
+    /// Density at `uv` with respect to `du dv`: `f[row][col] / I` with `I`
+    /// the mean weight; zero outside `[0, 1)²` and for non-finite input.
+    pub fn pdf(&self, uv: glam::DVec2) -> f64 {
+        if !(0.0..1.0).contains(&uv.x) || !(0.0..1.0).contains(&uv.y) {
+            return 0.0;
+        }
+        let row = &self.conditional[self.marginal.bin(uv.y)];
+        // p(v) p(u|v) = (I_row / I) (f / I_row) = f / I.
+        row.func[row.bin(uv.x)] / self.marginal.integral
+    }
+
+    /// Probability of the whole cell `(col, row)`: its weight over the sum
+    /// of all weights (what a histogram of samples should find there).
+    pub fn cell_probability(&self, col: usize, row: usize) -> f64 {
+        let (w, h) = (self.width(), self.height());
+        if col >= w || row >= h {
+            return 0.0;
+        }
+        self.conditional[row].func[col] / (self.marginal.integral * (w * h) as f64)
+    }
+}
+
+/// Checks shape and values: `width × height` finite, non-negative weights.
+fn check_weights(weights: &[f64], width: usize, height: usize) -> Result<(), DistributionError> {
+    if width == 0 || height == 0 || width.checked_mul(height) != Some(weights.len()) {
+        return Err(DistributionError::BadShape {
+            width,
+            height,
+            len: weights.len(),
+        });
+    }
+    if let Some(i) = weights.iter().position(|w| !(w.is_finite() && *w >= 0.0)) {
+        return Err(DistributionError::BadWeight {
+            x: i % width,
+            y: i / width,
+            value: weights[i],
+        });
+    }
+    Ok(())
+}

@@ -1,0 +1,821 @@
+//! Environment lighting: radiance arriving from infinitely far away, from a
+//! constant colour, the built-in "studio" or an equirectangular HDR/EXR map,
+//! importance-sampled by luminance for next-event estimation with MIS.
+//!
+//! # Conventions
+//!
+//! * World **z is up**. A direction `ω` is a unit vector pointing *away*
+//!   from the shading point, towards the environment.
+//! * Spherical angles: `θ = acos(ω_z) ∈ [0, π]` from the zenith and
+//!   `φ = atan2(ω_y, ω_x) ∈ [0, 2π)` counter-clockwise from +x seen from
+//!   above.
+//! * A map is turned by `rotation_deg` about +z: a positive rotation turns
+//!   the environment counter-clockwise seen from above, so the map's own
+//!   azimuth is `φ_map = φ − rotation`. Map texel column `u = φ_map / 2π`,
+//!   row `v = θ / π`: column 0 starts at the map's +x, **row 0 is straight
+//!   up**, the last row straight down (the usual lat-long layout of HDR
+//!   panoramas, top row = sky).
+//! * Radiance is piecewise constant: a direction gets the texel it falls in
+//!   (no filtering), exactly the function the sampling density follows, so
+//!   `pdf(ω) > 0` wherever `radiance(ω) > 0` (except at the two poles, a set
+//!   of measure zero, where the pdf is reported as 0).
+//! * Sampling (pbrt-v4 §12.5.2, `ImageInfiniteLight`): a
+//!   [`Distribution2D`] over texels with weight `luminance × ΔΩ_texel /
+//!   Δu Δv`, so the density per solid angle follows luminance. The
+//!   change of variables `dω = sinθ dθ dφ = 2π² sinθ du dv` gives the
+//!   solid-angle density `p(ω) = p(u, v) / (2π² sinθ)`.
+//! * [`Environment::Constant`] is sampled uniformly over the sphere,
+//!   `p(ω) = 1/4π`.
+//! * `intensity` multiplies the radiance (it is baked into the texels).
+//!
+//! [`Environment::sample`] returns exactly [`Environment::radiance`] and
+//! [`Environment::pdf`] of the direction it returns (the integrator's MIS
+//! weights rely on it).
+
+use std::f64::consts::{FRAC_1_PI, PI, TAU};
+use std::fs::File;
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+
+use glam::{DVec2, DVec3};
+
+use super::distribution::{Distribution2D, DistributionError};
+use crate::brdf::Rgb;
+
+/// Largest accepted map width in texels (a 16K panorama).
+pub const MAX_MAP_WIDTH: usize = 16384;
+/// Largest accepted map height in texels.
+pub const MAX_MAP_HEIGHT: usize = 8192;
+/// Width of the baked studio map: 0.35° texels keep soft-box edges crisp.
+pub const STUDIO_WIDTH: usize = 1024;
+/// Height of the baked studio map.
+pub const STUDIO_HEIGHT: usize = 512;
+
+/// Approximate bytes held per texel while loading a map: decoded f32 RGB
+/// (12), f64 radiance (24), sampling weight, conditional weight and CDF (24).
+const BYTES_PER_TEXEL: usize = 60;
+
+/// Name used in errors for maps that come from memory, not from a file.
+const IN_MEMORY: &str = "<in-memory environment map>";
+
+/// Why an environment cannot be built or loaded. Every message names the
+/// file (or says the map came from memory) and what would be accepted.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EnvironmentError {
+    /// The file does not exist.
+    #[error("environment map {}: file not found", .path.display())]
+    NotFound {
+        /// The path as given.
+        path: PathBuf,
+    },
+    /// The file exists but could not be opened or read (permissions, a
+    /// directory, an I/O failure).
+    #[error("environment map {}: cannot read the file: {message}", .path.display())]
+    Io {
+        /// The path as given.
+        path: PathBuf,
+        /// The operating system's reason.
+        message: String,
+    },
+    /// The bytes are not a valid image of the format its extension claims.
+    #[error("environment map {}: corrupt or unreadable {format} data: {message}", .path.display())]
+    Decode {
+        /// The path as given.
+        path: PathBuf,
+        /// "Radiance HDR" or "OpenEXR".
+        format: &'static str,
+        /// The decoder's reason.
+        message: String,
+    },
+    /// Neither `.hdr` nor `.exr`.
+    #[error(
+        "environment map {}: unsupported file type `{extension}`; allowed: .hdr (Radiance RGBE) \
+         or .exr (OpenEXR), equirectangular",
+        .path.display()
+    )]
+    UnsupportedExtension {
+        /// The path as given.
+        path: PathBuf,
+        /// The extension found (empty when there is none).
+        extension: String,
+    },
+    /// A map with no texels.
+    #[error("environment map {origin}: image is {width}×{height} texels; it must be at least 1×1")]
+    Empty {
+        /// The file path, or a note that the map came from memory.
+        origin: String,
+        /// Width found.
+        width: usize,
+        /// Height found.
+        height: usize,
+    },
+    /// A map beyond [`MAX_MAP_WIDTH`] × [`MAX_MAP_HEIGHT`].
+    #[error(
+        "environment map {origin}: image is {width}×{height} texels, larger than the \
+         {MAX_MAP_WIDTH}×{MAX_MAP_HEIGHT} limit; loading it would need about {mebibytes} MiB \
+         of memory (downscale it first)"
+    )]
+    TooLarge {
+        /// The file path, or a note that the map came from memory.
+        origin: String,
+        /// Width found.
+        width: usize,
+        /// Height found.
+        height: usize,
+        /// Memory the map and its sampling tables would take.
+        mebibytes: u64,
+    },
+    /// Texel data whose length is not width × height.
+    #[error("environment map {origin}: {len} texels given for a {width}×{height} map")]
+    WrongTexelCount {
+        /// The file path, or a note that the map came from memory.
+        origin: String,
+        /// Width stated.
+        width: usize,
+        /// Height stated.
+        height: usize,
+        /// Texels given.
+        len: usize,
+    },
+    /// A NaN, infinite or negative radiance value.
+    #[error(
+        "environment map {origin}: texel at x = {x}, y = {y} (column, row from the top-left) is \
+         ({}, {}, {}); radiance must be finite and ≥ 0 in every channel",
+        .value.x, .value.y, .value.z
+    )]
+    BadTexel {
+        /// The file path, or a note that the map came from memory.
+        origin: String,
+        /// Column of the first bad texel.
+        x: usize,
+        /// Row of the first bad texel (0 = top = straight up).
+        y: usize,
+        /// Its radiance (after `intensity`).
+        value: Rgb,
+    },
+    /// An out-of-range parameter (`intensity`, `rotation_deg`, `radiance`).
+    #[error("environment `{field}` = {value} is out of range: {allowed}")]
+    Parameter {
+        /// The parameter's name.
+        field: &'static str,
+        /// The refused value (the first bad component for colours).
+        value: f64,
+        /// What would have been accepted.
+        allowed: &'static str,
+    },
+}
+
+/// One direction drawn from an [`Environment`], for next-event estimation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EnvironmentSample {
+    /// Unit world direction towards the environment.
+    pub direction: DVec3,
+    /// `Environment::radiance(direction)`.
+    pub radiance: Rgb,
+    /// `Environment::pdf(direction)`, per unit solid angle, > 0.
+    pub pdf: f64,
+}
+
+/// Light from infinitely far away: a constant colour or a map.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Environment {
+    /// The same radiance from every direction (a white furnace when 1).
+    Constant(Rgb),
+    /// An equirectangular map (from a file, or the baked studio).
+    Map(EnvironmentMap),
+}
+
+impl Environment {
+    /// The same `radiance` from every direction. Negative or non-finite
+    /// components become 0 (use [`Environment::try_constant`] to refuse
+    /// them instead).
+    pub fn constant(radiance: Rgb) -> Self {
+        let clean = |c: f64| if c.is_finite() && c > 0.0 { c } else { 0.0 };
+        Environment::Constant(Rgb::new(
+            clean(radiance.x),
+            clean(radiance.y),
+            clean(radiance.z),
+        ))
+    }
+
+    /// [`Environment::constant`], refusing negative or non-finite
+    /// components with an error.
+    pub fn try_constant(radiance: Rgb) -> Result<Self, EnvironmentError> {
+        for c in radiance.to_array() {
+            if !(c.is_finite() && c >= 0.0) {
+                return Err(EnvironmentError::Parameter {
+                    field: "radiance",
+                    value: c,
+                    allowed: "every component finite and ≥ 0",
+                });
+            }
+        }
+        Ok(Environment::Constant(radiance))
+    }
+
+    /// The built-in studio (the default lighting of every render), its
+    /// radiance scaled by `intensity` and turned by `rotation_deg` about +z,
+    /// baked at [`STUDIO_WIDTH`] × [`STUDIO_HEIGHT`]. See [`studio_radiance`]
+    /// for the layout. A non-finite rotation becomes 0° and a negative or
+    /// non-finite intensity 0 (use [`Environment::try_studio`] to refuse
+    /// them instead).
+    pub fn studio(intensity: f64, rotation_deg: f64) -> Self {
+        let intensity = if intensity.is_finite() && intensity > 0.0 {
+            intensity
+        } else {
+            0.0
+        };
+        let rotation_deg = if rotation_deg.is_finite() {
+            rotation_deg
+        } else {
+            0.0
+        };
+        Environment::Map(EnvironmentMap::bake_studio(intensity, rotation_deg))
+    }
+
+    /// [`Environment::studio`], refusing a negative or non-finite
+    /// intensity and a non-finite rotation with an error.
+    pub fn try_studio(intensity: f64, rotation_deg: f64) -> Result<Self, EnvironmentError> {
+        check_intensity(intensity)?;
+        check_rotation(rotation_deg)?;
+        Ok(Environment::Map(EnvironmentMap::bake_studio(
+            intensity,
+            rotation_deg,
+        )))
+    }
+
+    /// Loads an equirectangular `.hdr` (Radiance RGBE, via the `image`
+    /// crate) or `.exr` (the first layer with R, G, B channels, via the `exr`
+    /// crate; alpha is ignored), scales it by `intensity` and turns it by
+    /// `rotation_deg`. Every failure is an [`EnvironmentError`] naming the
+    /// file: missing, unreadable, corrupt, wrong extension, empty, larger
+    /// than [`MAX_MAP_WIDTH`] × [`MAX_MAP_HEIGHT`], or a NaN, infinite or
+    /// negative texel.
+    pub fn from_file(
+        path: &Path,
+        rotation_deg: f64,
+        intensity: f64,
+    ) -> Result<Self, EnvironmentError> {
+        check_intensity(intensity)?;
+        check_rotation(rotation_deg)?;
+        let (width, height, rgb) = read_map_file(path)?;
+        let origin = path.display().to_string();
+        let texels = rgb
+            .into_iter()
+            .map(|[r, g, b]| Rgb::new(r as f64, g as f64, b as f64) * intensity)
+            .collect();
+        let map = EnvironmentMap::from_texels(origin, width, height, texels, rotation_deg)?;
+        Ok(Environment::Map(map))
+    }
+
+    /// Radiance arriving from the unit world `direction` (black for a zero
+    /// or non-finite direction).
+    pub fn radiance(&self, direction: DVec3) -> Rgb {
+        match self {
+            Environment::Constant(c) => {
+                if direction.is_finite() && direction != DVec3::ZERO {
+                    *c
+                } else {
+                    Rgb::ZERO
+                }
+            }
+            Environment::Map(map) => map.radiance(direction),
+        }
+    }
+
+    /// Draws a direction with density proportional to luminance (a map)
+    /// or uniform over the sphere (a constant). `None` for a map that is
+    /// black everywhere, and, with probability ~1e−16, when rounding puts
+    /// the direction on a pole or across a texel edge into a black texel.
+    pub fn sample(&self, u: [f64; 2]) -> Option<EnvironmentSample> {
+        match self {
+            Environment::Constant(c) => {
+                // Uniform sphere (pbrt-v4 eq. A.15): z = 1 − 2u₀, φ = 2πu₁.
+                let z = 1.0 - 2.0 * u[0];
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let (s, co) = (TAU * u[1]).sin_cos();
+                Some(EnvironmentSample {
+                    direction: DVec3::new(r * co, r * s, z),
+                    radiance: *c,
+                    pdf: 0.25 * FRAC_1_PI,
+                })
+            }
+            Environment::Map(map) => map.sample(u),
+        }
+    }
+
+    /// Density of [`Environment::sample`] per unit solid angle at the unit
+    /// world `direction`.
+    pub fn pdf(&self, direction: DVec3) -> f64 {
+        match self {
+            Environment::Constant(_) => 0.25 * FRAC_1_PI,
+            Environment::Map(map) => map.pdf(direction),
+        }
+    }
+}
+
+/// An equirectangular radiance map with its luminance sampling tables
+/// (conventions in the module documentation).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnvironmentMap {
+    width: usize,
+    height: usize,
+    /// Row-major, row 0 straight up, radiance already times intensity.
+    texels: Vec<Rgb>,
+    rotation_deg: f64,
+    rotation_rad: f64,
+    /// `None` when every texel is black (nothing to sample).
+    distribution: Option<Distribution2D>,
+}
+
+impl EnvironmentMap {
+    /// A map from row-major `texels` (row 0 straight up, column 0 at the
+    /// map's +x), turned by `rotation_deg` about +z. Refuses an empty or
+    /// oversized grid, a texel count other than `width × height`, a
+    /// NaN/infinite/negative texel and a non-finite rotation.
+    pub fn new(
+        width: usize,
+        height: usize,
+        texels: Vec<Rgb>,
+        rotation_deg: f64,
+    ) -> Result<Self, EnvironmentError> {
+        check_rotation(rotation_deg)?;
+        check_size(IN_MEMORY, width, height)?;
+        Self::from_texels(IN_MEMORY.to_string(), width, height, texels, rotation_deg)
+    }
+
+    /// Validates texels and builds the sampling distribution.
+    fn from_texels(
+        origin: String,
+        width: usize,
+        height: usize,
+        texels: Vec<Rgb>,
+        rotation_deg: f64,
+    ) -> Result<Self, EnvironmentError> {
+        check_size(&origin, width, height)?;
+        if texels.len() != width * height {
+            return Err(EnvironmentError::WrongTexelCount {
+                origin,
+                width,
+                height,
+                len: texels.len(),
+            });
+        }
+        if let Some(i) = texels
+            .iter()
+            .position(|t| !(t.is_finite() && t.min_element() >= 0.0))
+        {
+            return Err(EnvironmentError::BadTexel {
+                origin,
+                x: i % width,
+                y: i / width,
+                value: texels[i],
+            });
+        }
+        // Weight = luminance × (texel solid angle / texel uv area), so the
+        // density per solid angle follows luminance (pbrt-v4 §12.5.2 uses
+        // sinθ at the texel centre; the exact band area is used here).
+        let mut weights = Vec::with_capacity(width * height);
+        for row in 0..height {
+            let band = row_solid_angle(row, height) / (TAU / width as f64);
+            let per_uv = band * height as f64;
+            for t in &texels[row * width..(row + 1) * width] {
+                weights.push(luminance(*t) * per_uv);
+            }
+        }
+        let distribution = match Distribution2D::new(&weights, width, height) {
+            Ok(d) => Some(d),
+            Err(DistributionError::AllZero) => None,
+            // Shape and values were checked above; a weight can still
+            // overflow for texels near f64::MAX.
+            Err(DistributionError::BadWeight { x, y, .. }) => {
+                return Err(EnvironmentError::BadTexel {
+                    origin,
+                    x,
+                    y,
+                    value: texels[y * width + x],
+                })
+            }
+            Err(DistributionError::BadShape { len, .. }) => {
+                return Err(EnvironmentError::WrongTexelCount {
+                    origin,
+                    width,
+                    height,
+                    len,
+                })
+            }
+        };
+        Ok(Self {
+            width,
+            height,
+            texels,
+            rotation_deg,
+            rotation_rad: rotation_deg.to_radians(),
+            distribution,
+        })
+    }
+
+    /// Bakes [`studio_radiance`] with 4 × 4 samples per texel, so that the
+    /// soft-box edges are anti-aliased over one 0.35° texel.
+    fn bake_studio(intensity: f64, rotation_deg: f64) -> Self {
+        const SUB: usize = 4;
+        let (w, h) = (STUDIO_WIDTH, STUDIO_HEIGHT);
+        let mut texels = Vec::with_capacity(w * h);
+        for row in 0..h {
+            for col in 0..w {
+                let mut sum = Rgb::ZERO;
+                for sy in 0..SUB {
+                    let v = (row as f64 + (sy as f64 + 0.5) / SUB as f64) / h as f64;
+                    for sx in 0..SUB {
+                        let u = (col as f64 + (sx as f64 + 0.5) / SUB as f64) / w as f64;
+                        sum += studio_radiance(spherical_direction(PI * v, TAU * u));
+                    }
+                }
+                texels.push(sum * (intensity / (SUB * SUB) as f64));
+            }
+        }
+        Self::from_texels("<studio>".to_string(), w, h, texels, rotation_deg)
+            .expect("the studio's texels are finite and non-negative")
+    }
+
+    /// Columns (azimuth bins).
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Rows (polar bins; row 0 straight up).
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// The rotation about +z this map was built with, in degrees.
+    pub fn rotation_deg(&self) -> f64 {
+        self.rotation_deg
+    }
+
+    /// Radiance of texel (`col`, `row`), intensity included; black outside
+    /// the map.
+    pub fn texel(&self, col: usize, row: usize) -> Rgb {
+        if col < self.width && row < self.height {
+            self.texels[row * self.width + col]
+        } else {
+            Rgb::ZERO
+        }
+    }
+
+    /// Map coordinates `(u, v) ∈ [0, 1)²` of a world direction (after
+    /// undoing the rotation); `None` for a zero or non-finite direction.
+    pub fn direction_to_uv(&self, direction: DVec3) -> Option<DVec2> {
+        let len = direction.length();
+        if !(len.is_finite() && len > 0.0) {
+            return None;
+        }
+        let theta = (direction.z / len).clamp(-1.0, 1.0).acos();
+        let phi_map = (direction.y.atan2(direction.x) - self.rotation_rad).rem_euclid(TAU);
+        // rem_euclid may round up to exactly 2π; keep u < 1.
+        let u = (phi_map / TAU).min(1.0_f64.next_down());
+        let v = (theta * FRAC_1_PI).min(1.0_f64.next_down());
+        Some(DVec2::new(u, v))
+    }
+
+    /// Unit world direction of map coordinates `uv` (θ = πv, φ = 2πu +
+    /// rotation).
+    pub fn uv_to_direction(&self, uv: DVec2) -> DVec3 {
+        spherical_direction(PI * uv.y, TAU * uv.x + self.rotation_rad)
+    }
+
+    /// Radiance from the unit world `direction`: the texel it falls in.
+    pub fn radiance(&self, direction: DVec3) -> Rgb {
+        match self.direction_to_uv(direction) {
+            Some(uv) => {
+                let col = ((uv.x * self.width as f64) as usize).min(self.width - 1);
+                let row = ((uv.y * self.height as f64) as usize).min(self.height - 1);
+                self.texels[row * self.width + col]
+            }
+            None => Rgb::ZERO,
+        }
+    }
+
+    /// Solid-angle density of [`Self::sample`]: `p(u, v) / (2π² sinθ)`.
+    pub fn pdf(&self, direction: DVec3) -> f64 {
+        let (Some(dist), Some(uv)) = (&self.distribution, self.direction_to_uv(direction)) else {
+            return 0.0;
+        };
+        let sin_theta = (PI * uv.y).sin();
+        if sin_theta <= 0.0 {
+            return 0.0;
+        }
+        dist.pdf(uv) / (2.0 * PI * PI * sin_theta)
+    }
+
+    /// Draws a direction with density ∝ luminance per solid angle; radiance
+    /// and pdf are those of the returned direction (see [`Environment::sample`]).
+    pub fn sample(&self, u: [f64; 2]) -> Option<EnvironmentSample> {
+        let dist = self.distribution.as_ref()?;
+        let (uv, _) = dist.sample(u);
+        let direction = self.uv_to_direction(uv);
+        // Re-derive both from the direction: the trigonometric round trip may
+        // move a point on a texel edge into its neighbour, and the MIS
+        // weights need radiance and pdf of the very direction returned.
+        let pdf = self.pdf(direction);
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        Some(EnvironmentSample {
+            direction,
+            radiance: self.radiance(direction),
+            pdf,
+        })
+    }
+}
+
+/// Rec. 709 / sRGB luminance of linear RGB, the importance of a texel.
+pub fn luminance(c: Rgb) -> f64 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// Unit vector of polar angle `theta` (from +z) and azimuth `phi` (from +x).
+fn spherical_direction(theta: f64, phi: f64) -> DVec3 {
+    let (st, ct) = theta.sin_cos();
+    let (sp, cp) = phi.sin_cos();
+    DVec3::new(st * cp, st * sp, ct)
+}
+
+/// Solid angle of the band of row `row` of `height`:
+/// `2π (cos θ₀ − cos θ₁)` with `θ = π row / height`.
+fn row_solid_angle(row: usize, height: usize) -> f64 {
+    let t0 = PI * row as f64 / height as f64;
+    let t1 = PI * (row + 1) as f64 / height as f64;
+    TAU * (t0.cos() - t1.cos())
+}
+
+// ---------------------------------------------------------------------------
+// The built-in studio.
+// ---------------------------------------------------------------------------
+
+/// Radiance of the grey dome at the zenith.
+const STUDIO_ZENITH: f64 = 0.25;
+/// Radiance of the dome at the horizon (linear in `cosθ` up to the zenith).
+const STUDIO_HORIZON: f64 = 0.10;
+/// Radiance of the dark floor below the horizon.
+const STUDIO_FLOOR: f64 = 0.03;
+
+/// A rectangular soft box, a flat emitter seen from the origin: a direction
+/// is inside when its gnomonic projection onto the plane facing
+/// `(azimuth_deg, elevation_deg)` lies within `±tan(width_deg/2)` across and
+/// `±tan(height_deg/2)` up, so its edges are straight lines in a mirror.
+struct SoftBox {
+    azimuth_deg: f64,
+    elevation_deg: f64,
+    width_deg: f64,
+    height_deg: f64,
+    radiance: Rgb,
+}
+
+/// The studio's lights, in map coordinates (rotation 0). "Front" is −y
+/// (azimuth −90°): a camera at −y looking towards +y has −x on its left
+/// and +x on its right. `rotation_deg` turns the whole set.
+const STUDIO_BOXES: [SoftBox; 3] = [
+    // Key: a large box high in front-left (azimuth −135°, elevation 50°),
+    // 44° × 30°, radiance 12, slightly warm. Makes the main window
+    // highlight on the upper left of a dome.
+    SoftBox {
+        azimuth_deg: -135.0,
+        elevation_deg: 50.0,
+        width_deg: 44.0,
+        height_deg: 30.0,
+        radiance: Rgb::new(12.0, 11.6, 11.0),
+    },
+    // Strip: a tall narrow box on the right (azimuth −15°, elevation 25°),
+    // 8° × 40° (from 5° to 45° elevation), radiance 8, neutral. A thin
+    // vertical rim highlight on the right flank.
+    SoftBox {
+        azimuth_deg: -15.0,
+        elevation_deg: 25.0,
+        width_deg: 8.0,
+        height_deg: 40.0,
+        radiance: Rgb::new(8.0, 8.0, 8.0),
+    },
+    // Fill: a weak wide box behind (azimuth +90°, elevation 30°), 60° × 20°,
+    // radiance 2.5, slightly cool. Lifts the back edge of the stone.
+    SoftBox {
+        azimuth_deg: 90.0,
+        elevation_deg: 30.0,
+        width_deg: 60.0,
+        height_deg: 20.0,
+        radiance: Rgb::new(2.4, 2.5, 2.7),
+    },
+];
+
+/// Radiance of the unrotated studio in direction `d` (unit, z up): a grey
+/// dome from [`STUDIO_HORIZON`] at the horizon to [`STUDIO_ZENITH`] at the
+/// zenith (linear in `cosθ`), a [`STUDIO_FLOOR`] floor below the horizon,
+/// and the soft boxes of `STUDIO_BOXES` (key front-left, strip right, fill
+/// behind; positions, sizes and radiances are documented there) replacing
+/// the dome where they are.
+pub fn studio_radiance(d: DVec3) -> Rgb {
+    for b in &STUDIO_BOXES {
+        if soft_box_contains(b, d) {
+            return b.radiance;
+        }
+    }
+    let level = if d.z >= 0.0 {
+        STUDIO_HORIZON + (STUDIO_ZENITH - STUDIO_HORIZON) * d.z
+    } else {
+        STUDIO_FLOOR
+    };
+    Rgb::splat(level)
+}
+
+/// Whether direction `d` sees the soft box `b` (gnomonic projection test).
+fn soft_box_contains(b: &SoftBox, d: DVec3) -> bool {
+    let centre = spherical_direction(
+        (90.0 - b.elevation_deg).to_radians(),
+        b.azimuth_deg.to_radians(),
+    );
+    let t = d.dot(centre);
+    if t <= 0.0 {
+        return false;
+    }
+    // Horizontal and "up" axes of the box plane (the box is never at the
+    // zenith, so z × centre is not zero).
+    let across = DVec3::Z.cross(centre).normalize();
+    let up = centre.cross(across);
+    let (x, y) = (d.dot(across) / t, d.dot(up) / t);
+    x.abs() <= (0.5 * b.width_deg).to_radians().tan()
+        && y.abs() <= (0.5 * b.height_deg).to_radians().tan()
+}
+
+// ---------------------------------------------------------------------------
+// Files and checks.
+// ---------------------------------------------------------------------------
+
+fn check_intensity(intensity: f64) -> Result<(), EnvironmentError> {
+    if intensity.is_finite() && intensity >= 0.0 {
+        Ok(())
+    } else {
+        Err(EnvironmentError::Parameter {
+            field: "intensity",
+            value: intensity,
+            allowed: "finite and ≥ 0",
+        })
+    }
+}
+
+fn check_rotation(rotation_deg: f64) -> Result<(), EnvironmentError> {
+    if rotation_deg.is_finite() {
+        Ok(())
+    } else {
+        Err(EnvironmentError::Parameter {
+            field: "rotation_deg",
+            value: rotation_deg,
+            allowed: "any finite angle in degrees",
+        })
+    }
+}
+
+/// Refuses empty maps and maps beyond the size limit, before any texel
+/// memory is allocated.
+fn check_size(origin: &str, width: usize, height: usize) -> Result<(), EnvironmentError> {
+    if width == 0 || height == 0 {
+        return Err(EnvironmentError::Empty {
+            origin: origin.to_string(),
+            width,
+            height,
+        });
+    }
+    if width > MAX_MAP_WIDTH || height > MAX_MAP_HEIGHT {
+        let bytes = (width as u128) * (height as u128) * BYTES_PER_TEXEL as u128;
+        return Err(EnvironmentError::TooLarge {
+            origin: origin.to_string(),
+            width,
+            height,
+            mebibytes: u64::try_from(bytes.div_ceil(1 << 20)).unwrap_or(u64::MAX),
+        });
+    }
+    Ok(())
+}
+
+/// Width, height and row-major RGB texels (row 0 at the top) of a `.hdr`
+/// or `.exr` file.
+type RgbTexels = (usize, usize, Vec<[f32; 3]>);
+
+/// Reads a map file by extension, turning every failure (a decoder panic
+/// included) into an error naming the path.
+fn read_map_file(path: &Path) -> Result<RgbTexels, EnvironmentError> {
+    let extension = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    let reader: fn(&Path) -> Result<RgbTexels, EnvironmentError> = match extension.as_str() {
+        "hdr" => read_hdr,
+        "exr" => read_exr,
+        _ => {
+            return Err(EnvironmentError::UnsupportedExtension {
+                path: path.to_path_buf(),
+                extension: if extension.is_empty() {
+                    "(none)".to_string()
+                } else {
+                    format!(".{extension}")
+                },
+            })
+        }
+    };
+    match std::fs::metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(EnvironmentError::NotFound {
+                path: path.to_path_buf(),
+            })
+        }
+        Err(e) => return Err(io_error(path, &e)),
+        Ok(m) if m.is_dir() => {
+            return Err(EnvironmentError::Io {
+                path: path.to_path_buf(),
+                message: "it is a directory, not an image file".to_string(),
+            })
+        }
+        Ok(_) => {}
+    }
+    // Decoders of untrusted files have panicked on malformed input before;
+    // a panic here must still come back as an error naming the file.
+    std::panic::catch_unwind(|| reader(path)).unwrap_or_else(|_| {
+        Err(EnvironmentError::Decode {
+            path: path.to_path_buf(),
+            format: if extension == "hdr" {
+                "Radiance HDR"
+            } else {
+                "OpenEXR"
+            },
+            message: "the decoder failed on malformed data".to_string(),
+        })
+    })
+}
+
+fn io_error(path: &Path, e: &std::io::Error) -> EnvironmentError {
+    EnvironmentError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+/// Radiance RGBE through the `image` crate; the size is checked from the
+/// header before the texels are decoded.
+fn read_hdr(path: &Path) -> Result<RgbTexels, EnvironmentError> {
+    use image::ImageDecoder;
+    let decode = |message: String| EnvironmentError::Decode {
+        path: path.to_path_buf(),
+        format: "Radiance HDR",
+        message,
+    };
+    let file = File::open(path).map_err(|e| io_error(path, &e))?;
+    let decoder = image::codecs::hdr::HdrDecoder::new(BufReader::new(file))
+        .map_err(|e| decode(e.to_string()))?;
+    let (w, h) = decoder.dimensions();
+    let (width, height) = (w as usize, h as usize);
+    check_size(&path.display().to_string(), width, height)?;
+    let image = image::DynamicImage::from_decoder(decoder)
+        .map_err(|e| decode(e.to_string()))?
+        .into_rgb32f();
+    let texels = image.pixels().map(|p| p.0).collect();
+    Ok((width, height, texels))
+}
+
+/// OpenEXR through the `exr` crate: the first layer with R, G and B
+/// channels, largest resolution level; its size is checked from the header
+/// before the texels are decoded.
+fn read_exr(path: &Path) -> Result<RgbTexels, EnvironmentError> {
+    let decode = |message: String| EnvironmentError::Decode {
+        path: path.to_path_buf(),
+        format: "OpenEXR",
+        message,
+    };
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| match e {
+        exr::error::Error::Io(io) => io_error(path, &io),
+        other => decode(other.to_string()),
+    })?;
+    let has =
+        |h: &exr::meta::header::Header, name: &str| h.channels.list.iter().any(|c| c.name.eq(name));
+    let header = meta
+        .headers
+        .iter()
+        .find(|h| has(h, "R") && has(h, "G") && has(h, "B"))
+        .ok_or_else(|| decode("no layer has R, G and B channels".to_string()))?;
+    let (width, height) = (header.layer_size.width(), header.layer_size.height());
+    check_size(&path.display().to_string(), width, height)?;
+    let image = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |size, _| (size.width(), vec![[0.0f32; 3]; size.area()]),
+        |(w, texels): &mut (usize, Vec<[f32; 3]>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            texels[pos.y() * *w + pos.x()] = [r, g, b];
+        },
+    )
+    .map_err(|e| decode(e.to_string()))?;
+    let (w, texels) = image.layer_data.channel_data.pixels;
+    let h = texels.len().checked_div(w).unwrap_or(0);
+    if (w, h) != (width, height) {
+        return Err(decode(format!(
+            "the header says {width}×{height} but the first RGB layer is {w}×{h}"
+        )));
+    }
+    Ok((width, height, texels))
+}

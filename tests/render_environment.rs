@@ -1,0 +1,641 @@
+//! Environment lighting: the piecewise-constant distributions it samples
+//! with, its sampling densities, its integrals against exact texel sums, the
+//! rotation convention, and loading `.hdr` / `.exr` files (good and bad).
+
+mod common;
+
+use std::f64::consts::{PI, TAU};
+use std::path::PathBuf;
+
+use glam::{DVec2, DVec3};
+use lapidary::brdf::Rgb;
+use lapidary::render::distribution::{Distribution1D, Distribution2D, DistributionError};
+use lapidary::render::environment::{
+    luminance, Environment, EnvironmentError, EnvironmentMap, STUDIO_HEIGHT, STUDIO_WIDTH,
+};
+use lapidary::sampling::Rng;
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+/// Unit vector from polar angle θ (from +z) and azimuth φ (from +x), in
+/// degrees; written here, independently of the library.
+fn dir_deg(theta_deg: f64, phi_deg: f64) -> DVec3 {
+    let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
+    DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
+}
+
+/// A 6 × 4 grid with a zero cell, a dominant cell and a 1:50 range.
+const GRID_W: usize = 6;
+const GRID_H: usize = 4;
+const GRID: [f64; GRID_W * GRID_H] = [
+    1.0, 2.0, 0.0, 4.0, 1.0, 1.0, //
+    0.5, 0.5, 0.5, 0.5, 0.5, 0.5, //
+    3.0, 25.0, 1.0, 1.0, 2.0, 1.0, //
+    0.0, 0.0, 0.0, 0.0, 0.0, 7.0, //
+];
+
+#[test]
+fn distribution_2d_histogram_matches_weights_chi_square() {
+    let dist = Distribution2D::new(&GRID, GRID_W, GRID_H).unwrap();
+    let total: f64 = GRID.iter().sum();
+    // Each cell split 2 × 2, so uniformity inside a cell is tested too.
+    let (bw, bh) = (2 * GRID_W, 2 * GRID_H);
+    let mut counts = vec![0u64; bw * bh];
+    let n = 400_000;
+    let mut rng = Rng::new(7, 0);
+    for _ in 0..n {
+        let (uv, pdf) = dist.sample([rng.next_f64(), rng.next_f64()]);
+        assert!((0.0..1.0).contains(&uv.x) && (0.0..1.0).contains(&uv.y));
+        assert!(pdf > 0.0);
+        let (bx, by) = ((uv.x * bw as f64) as usize, (uv.y * bh as f64) as usize);
+        counts[by * bw + bx] += 1;
+    }
+    // Expected: the cell's share of the total weight, a quarter per sub-cell.
+    let mut chi2 = 0.0;
+    let mut dof = 0;
+    for by in 0..bh {
+        for bx in 0..bw {
+            let w = GRID[(by / 2) * GRID_W + bx / 2];
+            let expected = n as f64 * w / total / 4.0;
+            let observed = counts[by * bw + bx] as f64;
+            if w == 0.0 {
+                assert_eq!(observed, 0.0, "sample in zero-weight cell ({bx}, {by})");
+                continue;
+            }
+            chi2 += (observed - expected).powi(2) / expected;
+            dof += 1;
+        }
+    }
+    let p = ChiSquared::new((dof - 1) as f64).unwrap().sf(chi2);
+    assert!(p > 1e-4, "chi2 = {chi2} with {} dof, p = {p}", dof - 1);
+}
+
+#[test]
+fn distribution_2d_sample_pdf_agree_and_integrate_to_one() {
+    let dist = Distribution2D::new(&GRID, GRID_W, GRID_H).unwrap();
+    let mean: f64 = GRID.iter().sum::<f64>() / GRID.len() as f64;
+    // The density of a cell is its weight over the mean weight.
+    for row in 0..GRID_H {
+        for col in 0..GRID_W {
+            let centre = DVec2::new(
+                (col as f64 + 0.5) / GRID_W as f64,
+                (row as f64 + 0.5) / GRID_H as f64,
+            );
+            let want = GRID[row * GRID_W + col] / mean;
+            assert!((dist.pdf(centre) - want).abs() < 1e-12 * want.max(1.0));
+        }
+    }
+    // Midpoint rule with 5 × 5 points per cell: exact for a step function.
+    let (nx, ny) = (5 * GRID_W, 5 * GRID_H);
+    let mut integral = 0.0;
+    for j in 0..ny {
+        for i in 0..nx {
+            let uv = DVec2::new((i as f64 + 0.5) / nx as f64, (j as f64 + 0.5) / ny as f64);
+            integral += dist.pdf(uv) / (nx * ny) as f64;
+        }
+    }
+    assert!((integral - 1.0).abs() < 1e-12, "∫ pdf = {integral}");
+    // Outside the unit square there is no density.
+    assert_eq!(dist.pdf(DVec2::new(1.0, 0.5)), 0.0);
+    assert_eq!(dist.pdf(DVec2::new(0.5, -1e-9)), 0.0);
+    // sample() reports the pdf of the point it returns, including
+    // u values at the edges of [0, 1).
+    let mut rng = Rng::new(3, 1);
+    let mut us: Vec<[f64; 2]> = (0..20_000)
+        .map(|_| [rng.next_f64(), rng.next_f64()])
+        .collect();
+    us.extend([
+        [0.0, 0.0],
+        [1.0_f64.next_down(), 1.0_f64.next_down()],
+        [0.5, 0.0],
+    ]);
+    for u in us {
+        let (uv, pdf) = dist.sample(u);
+        assert_eq!(pdf, dist.pdf(uv), "u = {u:?} → uv = {uv}");
+        assert!(pdf > 0.0);
+    }
+}
+
+#[test]
+fn distribution_1d_inverts_its_cdf() {
+    // Weights 1, 3 on [0, ½), [½, 1): density ½ then 3/2; the CDF reaches ¼
+    // at x = ½, so u = ¼ + ¾·t lands at x = ½ + t/2.
+    let d = Distribution1D::new(&[1.0, 3.0]).unwrap();
+    assert_eq!(d.integral(), 2.0);
+    let (x, pdf, bin) = d.sample(0.625);
+    assert_eq!(bin, 1);
+    assert!((x - 0.75).abs() < 1e-15 && (pdf - 1.5).abs() < 1e-15);
+    let (x, pdf, bin) = d.sample(0.125);
+    assert_eq!(bin, 0);
+    assert!((x - 0.25).abs() < 1e-15 && (pdf - 0.5).abs() < 1e-15);
+}
+
+#[test]
+fn distribution_refuses_bad_grids() {
+    assert_eq!(
+        Distribution2D::new(&[0.0; 6], 3, 2),
+        Err(DistributionError::AllZero)
+    );
+    let mut grid = [1.0; 6];
+    grid[4] = f64::NAN;
+    let err = Distribution2D::new(&grid, 3, 2).unwrap_err();
+    assert!(
+        matches!(err, DistributionError::BadWeight { x: 1, y: 1, .. }),
+        "{err}"
+    );
+    grid[4] = f64::INFINITY;
+    assert!(Distribution2D::new(&grid, 3, 2).is_err());
+    grid[4] = -1.0;
+    let msg = Distribution2D::new(&grid, 3, 2).unwrap_err().to_string();
+    assert!(
+        msg.contains("column 1, row 1") && msg.contains("≥ 0"),
+        "{msg}"
+    );
+    assert!(matches!(
+        Distribution2D::new(&[1.0; 5], 3, 2),
+        Err(DistributionError::BadShape { .. })
+    ));
+    assert!(Distribution2D::new(&[], 0, 0).is_err());
+    assert_eq!(
+        Distribution1D::new(&[0.0, 0.0]),
+        Err(DistributionError::AllZero)
+    );
+}
+
+/// An 8 × 4 hand-made map: a dim sky, a black texel, a bright texel
+/// (col 2, row 1) and a coloured floor, rotated by 30°.
+fn small_map(rotation_deg: f64) -> EnvironmentMap {
+    let (w, h) = (8, 4);
+    let mut texels = Vec::new();
+    for row in 0..h {
+        for col in 0..w {
+            let base = match row {
+                0 => Rgb::new(0.3, 0.4, 0.6),
+                1 => Rgb::splat(0.2 + 0.05 * col as f64),
+                2 => Rgb::new(0.05, 0.1, 0.02),
+                _ => Rgb::new(0.01, 0.01, 0.01),
+            };
+            texels.push(base);
+        }
+    }
+    texels[w + 2] = Rgb::new(40.0, 30.0, 20.0);
+    texels[2 * w + 5] = Rgb::ZERO;
+    EnvironmentMap::new(w, h, texels, rotation_deg).unwrap()
+}
+
+#[test]
+fn sample_returns_radiance_and_pdf_of_its_direction() {
+    let envs = [
+        Environment::studio(1.0, 20.0),
+        Environment::Map(small_map(30.0)),
+        Environment::constant(Rgb::new(0.5, 0.6, 0.7)),
+    ];
+    for env in &envs {
+        let mut rng = Rng::new(11, 2);
+        for _ in 0..5_000 {
+            let s = env
+                .sample([rng.next_f64(), rng.next_f64()])
+                .expect("a lit environment always samples");
+            assert!((s.direction.length() - 1.0).abs() < 1e-12);
+            assert_eq!(s.radiance, env.radiance(s.direction));
+            assert_eq!(s.pdf, env.pdf(s.direction));
+            assert!(s.pdf > 0.0 && s.pdf.is_finite());
+        }
+    }
+}
+
+#[test]
+fn map_sampling_matches_its_pdf_chi_square() {
+    // The χ² harness of tests/common integrates the pdf in (cosθ, φ) cells;
+    // inside a texel this density varies as 1/sinθ (uniform in uv, eq.
+    // p(ω) = p(u, v) / 2π² sinθ), singular at the poles, and texel edges
+    // in θ are jumps, which makes that quadrature slow and inexact. Here the
+    // histogram is regular in (θ, φ) instead, with each texel split 2 × 2
+    // and bin edges turned with the map. Since dω = sinθ dθ dφ, the
+    // expected probability of a bin is ∫ p(ω) sinθ dθ dφ, and p(ω) sinθ is
+    // constant on a texel, so the midpoint rule is exact.
+    let rotation_deg = 30.0;
+    let map = small_map(rotation_deg);
+    let env = Environment::Map(map.clone());
+    let (bw, bh) = (2 * map.width(), 2 * map.height());
+    let (d_phi, d_theta) = (TAU / bw as f64, PI / bh as f64);
+    let rot = rotation_deg.to_radians();
+    let mut expected = vec![0.0; bw * bh];
+    for by in 0..bh {
+        let theta = (by as f64 + 0.5) * d_theta;
+        for bx in 0..bw {
+            let phi = rot + (bx as f64 + 0.5) * d_phi;
+            let d = DVec3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            );
+            expected[by * bw + bx] = env.pdf(d) * theta.sin() * d_theta * d_phi;
+        }
+    }
+    let total: f64 = expected.iter().sum();
+    assert!((total - 1.0).abs() < 1e-12, "∫ p dω = {total}");
+
+    let n = 300_000;
+    let mut counts = vec![0u64; bw * bh];
+    let mut rng = Rng::new(5, 3);
+    for _ in 0..n {
+        let s = env.sample([rng.next_f64(), rng.next_f64()]).unwrap();
+        let theta = s.direction.z.clamp(-1.0, 1.0).acos();
+        let phi = (s.direction.y.atan2(s.direction.x) - rot).rem_euclid(TAU);
+        let by = ((theta / d_theta) as usize).min(bh - 1);
+        let bx = ((phi / d_phi) as usize).min(bw - 1);
+        counts[by * bw + bx] += 1;
+    }
+    let (mut chi2, mut cells) = (0.0, 0);
+    for (&o, &p) in counts.iter().zip(&expected) {
+        let e = p * n as f64;
+        if p == 0.0 {
+            assert_eq!(o, 0, "sample in a black texel");
+            continue;
+        }
+        assert!(e >= 5.0, "every lit bin expects enough samples");
+        chi2 += (o as f64 - e).powi(2) / e;
+        cells += 1;
+    }
+    let p_value = ChiSquared::new((cells - 1) as f64).unwrap().sf(chi2);
+    assert!(
+        p_value > 1e-4,
+        "chi2 = {chi2}, {} dof, p = {p_value}",
+        cells - 1
+    );
+}
+
+#[test]
+fn constant_environment_is_uniform() {
+    let env = Environment::constant(Rgb::new(1.0, 2.0, 3.0));
+    for d in [DVec3::Z, -DVec3::Z, dir_deg(70.0, 200.0)] {
+        assert_eq!(env.pdf(d), 1.0 / (4.0 * PI));
+        assert_eq!(env.radiance(d), Rgb::new(1.0, 2.0, 3.0));
+    }
+    let integral = common::chi2::integrate_pdf_sphere(|d| env.pdf(d), 4, 8);
+    assert!((integral - 1.0).abs() < 1e-12);
+    let outcome = common::chi2::chi2_directions(
+        |u| env.sample([u[0], u[1]]).map(|s| s.direction),
+        |d| env.pdf(d),
+        100_000,
+        10,
+        20,
+        9,
+    );
+    assert!(outcome.passes(1e-4), "{outcome}");
+    // Negative or NaN radiance is refused by the checked constructor.
+    assert!(Environment::try_constant(Rgb::new(1.0, -1.0, 0.0)).is_err());
+    assert!(Environment::try_constant(Rgb::new(f64::NAN, 0.0, 0.0)).is_err());
+}
+
+/// Solid angle of texel row `row` of `h` clipped to the upper hemisphere,
+/// times cosθ: `Δφ ∫ cosθ sinθ dθ = Δφ (sin²θ₁ − sin²θ₀) / 2`.
+fn row_cosine_weight(row: usize, h: usize, w: usize) -> f64 {
+    let t0 = PI * row as f64 / h as f64;
+    let t1 = (PI * (row + 1) as f64 / h as f64).min(PI / 2.0);
+    if t0 >= PI / 2.0 {
+        return 0.0;
+    }
+    TAU / w as f64 * 0.5 * (t1.sin().powi(2) - t0.sin().powi(2))
+}
+
+/// Solid angle of one texel of row `row`: `Δφ (cosθ₀ − cosθ₁)`.
+fn texel_solid_angle(row: usize, h: usize, w: usize) -> f64 {
+    let t0 = PI * row as f64 / h as f64;
+    let t1 = PI * (row + 1) as f64 / h as f64;
+    TAU / w as f64 * (t0.cos() - t1.cos())
+}
+
+/// Exact ∫ L dω and ∫ L max(cosθ, 0) dω of a map (luminance), summed over
+/// texels. Valid for an unrotated or rotated map alike: rotation about z
+/// changes neither.
+fn exact_integrals(map: &EnvironmentMap) -> (f64, f64) {
+    let (w, h) = (map.width(), map.height());
+    let (mut total, mut irradiance) = (0.0, 0.0);
+    for row in 0..h {
+        let (sa, cw) = (texel_solid_angle(row, h, w), row_cosine_weight(row, h, w));
+        for col in 0..w {
+            let y = luminance(map.texel(col, row));
+            total += y * sa;
+            irradiance += y * cw;
+        }
+    }
+    (total, irradiance)
+}
+
+/// Importance-sampled estimates (mean, standard error) of ∫ L dω and of
+/// ∫ L max(cosθ, 0) dω.
+fn estimates(env: &Environment, n: usize, seed: u64) -> [(f64, f64); 2] {
+    let mut rng = Rng::new(seed, 0);
+    let mut sums = [[0.0f64; 2]; 2];
+    for _ in 0..n {
+        let s = env.sample([rng.next_f64(), rng.next_f64()]).unwrap();
+        let f = luminance(s.radiance) / s.pdf;
+        let g = f * s.direction.z.max(0.0);
+        for (acc, x) in sums.iter_mut().zip([f, g]) {
+            acc[0] += x;
+            acc[1] += x * x;
+        }
+    }
+    sums.map(|[s, s2]| {
+        let mean = s / n as f64;
+        let var = (s2 / n as f64 - mean * mean).max(0.0);
+        (mean, (var / n as f64).sqrt())
+    })
+}
+
+fn assert_estimates_match(env: &Environment, map: &EnvironmentMap, n: usize) {
+    let (total, irradiance) = exact_integrals(map);
+    let [(t_est, t_se), (e_est, e_se)] = estimates(env, n, 17);
+    assert!(
+        (t_est - total).abs() <= 4.0 * t_se + 1e-9 * total,
+        "∫L dω: estimate {t_est} ± {t_se}, exact {total}"
+    );
+    assert!(
+        (e_est - irradiance).abs() <= 4.0 * e_se + 1e-9 * irradiance,
+        "irradiance: estimate {e_est} ± {e_se}, exact {irradiance}"
+    );
+}
+
+#[test]
+fn small_map_monte_carlo_matches_texel_sums() {
+    let map = small_map(30.0);
+    assert_estimates_match(&Environment::Map(map.clone()), &map, 100_000);
+}
+
+#[test]
+fn studio_monte_carlo_matches_texel_sums_and_pdf_integrates_to_one() {
+    let env = Environment::studio(1.0, 0.0);
+    let Environment::Map(map) = &env else {
+        panic!("the studio is a map")
+    };
+    assert_eq!((map.width(), map.height()), (STUDIO_WIDTH, STUDIO_HEIGHT));
+    assert_estimates_match(&env, map, 100_000);
+
+    // ∫ p dω = ∫∫ p(θ, φ) sinθ dθ dφ by the midpoint rule on a grid that
+    // is not aligned with the texels (error ~ texel edges / grid).
+    let (nt, np) = (1500, 2000);
+    let mut integral = 0.0;
+    for i in 0..nt {
+        let theta = PI * (i as f64 + 0.5) / nt as f64;
+        let band = theta.sin() * (PI / nt as f64) * (TAU / np as f64);
+        for j in 0..np {
+            let phi = TAU * (j as f64 + 0.5) / np as f64;
+            let d = DVec3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            );
+            integral += env.pdf(d) * band;
+        }
+    }
+    assert!((integral - 1.0).abs() < 2e-3, "∫ p dω = {integral}");
+}
+
+#[test]
+fn studio_has_dome_floor_and_bright_key() {
+    let env = Environment::studio(1.0, 0.0);
+    // Straight down is the dark floor, just above the horizon the dome is
+    // dimmer than at the zenith (gradient), no box at the zenith.
+    let floor = env.radiance(dir_deg(170.0, 10.0));
+    let zenith = env.radiance(dir_deg(1.0, 0.0));
+    let horizon = env.radiance(dir_deg(88.0, 180.0));
+    assert!(floor.max_element() < 0.05, "floor {floor}");
+    assert!(zenith.x > horizon.x && horizon.x > floor.x);
+    // The key box is documented at azimuth −135°, elevation 50° (θ = 40°).
+    let key = env.radiance(dir_deg(40.0, -135.0));
+    assert!(key.min_element() >= 5.0, "key {key}");
+    // Intensity scales radiance linearly.
+    let bright = Environment::studio(2.0, 0.0);
+    assert!((bright.radiance(dir_deg(40.0, -135.0)) - 2.0 * key).length() < 1e-12);
+    // Most of the light's power comes from the boxes: the key is sampled far
+    // more often than the dome around it.
+    assert!(env.pdf(dir_deg(40.0, -135.0)) > 20.0 * env.pdf(dir_deg(40.0, 45.0)));
+}
+
+#[test]
+fn rotation_turns_the_map_counter_clockwise_from_above() {
+    // Only texel (col 2, row 1) is lit: map azimuth [90°, 135°), polar
+    // angle [45°, 90°). Rotated by +90° it must appear at world azimuth
+    // [180°, 225°).
+    let (w, h) = (8, 4);
+    let mut texels = vec![Rgb::ZERO; w * h];
+    texels[w + 2] = Rgb::new(5.0, 5.0, 5.0);
+    let unrotated = Environment::Map(EnvironmentMap::new(w, h, texels.clone(), 0.0).unwrap());
+    let rotated = Environment::Map(EnvironmentMap::new(w, h, texels, 90.0).unwrap());
+    assert_eq!(unrotated.radiance(dir_deg(67.5, 112.5)), Rgb::splat(5.0));
+    assert_eq!(rotated.radiance(dir_deg(67.5, 112.5)), Rgb::ZERO);
+    assert_eq!(rotated.radiance(dir_deg(67.5, 202.5)), Rgb::splat(5.0));
+    assert_eq!(rotated.radiance(dir_deg(67.5, -157.5)), Rgb::splat(5.0));
+    assert_eq!(rotated.radiance(dir_deg(30.0, 202.5)), Rgb::ZERO);
+    // Every sample comes from the lit texel, where it now is.
+    let mut rng = Rng::new(1, 1);
+    for _ in 0..2_000 {
+        let s = rotated.sample([rng.next_f64(), rng.next_f64()]).unwrap();
+        let phi = s
+            .direction
+            .y
+            .atan2(s.direction.x)
+            .rem_euclid(TAU)
+            .to_degrees();
+        let theta = s.direction.z.acos().to_degrees();
+        assert!((180.0..225.0).contains(&phi), "φ = {phi}");
+        assert!((45.0..=90.0).contains(&theta), "θ = {theta}");
+    }
+    // The same holds for the studio: the key box moves with the rotation.
+    let studio = Environment::studio(1.0, 60.0);
+    assert!(studio.radiance(dir_deg(40.0, -75.0)).min_element() >= 5.0);
+    assert!(studio.radiance(dir_deg(40.0, -135.0)).max_element() < 1.0);
+}
+
+#[test]
+fn black_map_samples_nothing() {
+    let env = Environment::Map(EnvironmentMap::new(4, 2, vec![Rgb::ZERO; 8], 0.0).unwrap());
+    assert!(env.sample([0.3, 0.7]).is_none());
+    assert_eq!(env.pdf(DVec3::Z), 0.0);
+    assert_eq!(env.radiance(dir_deg(45.0, 45.0)), Rgb::ZERO);
+}
+
+#[test]
+fn in_memory_map_errors_name_the_problem() {
+    let mut texels = vec![Rgb::ONE; 8];
+    texels[6] = Rgb::new(0.0, f64::NAN, 0.0);
+    let msg = EnvironmentMap::new(4, 2, texels, 0.0)
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("x = 2, y = 1"), "{msg}");
+    let err = EnvironmentMap::new(0, 2, vec![], 0.0).unwrap_err();
+    assert!(matches!(err, EnvironmentError::Empty { .. }), "{err}");
+    let err = EnvironmentMap::new(4, 2, vec![Rgb::ONE; 7], 0.0).unwrap_err();
+    assert!(
+        matches!(err, EnvironmentError::WrongTexelCount { .. }),
+        "{err}"
+    );
+    let err = EnvironmentMap::new(20_000, 10, vec![], 0.0).unwrap_err();
+    assert!(err.to_string().contains("16384×8192"), "{err}");
+    let err = Environment::try_studio(-1.0, 0.0).unwrap_err().to_string();
+    assert!(err.contains("intensity") && err.contains("≥ 0"), "{err}");
+    assert!(Environment::try_studio(1.0, f64::INFINITY).is_err());
+}
+
+/// A fresh directory under the system temp dir, unique to this process and
+/// test (removed at the end of the test).
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(tag: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!(
+            "lapidary-env-{tag}-{}-{:x}",
+            std::process::id(),
+            lapidary::sampling::mix64(tag.len() as u64 ^ std::process::id() as u64)
+        ));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        TempDir(dir)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Texel values of the 4 × 2 test image: exact in RGBE (one shared
+/// exponent, 8-bit mantissas) and in f32.
+fn test_texel(col: usize, row: usize) -> [f32; 3] {
+    let table = [
+        [1.0, 0.5, 0.25],
+        [2.0, 2.0, 2.0],
+        [0.5, 0.25, 0.125],
+        [4.0, 1.0, 0.5],
+        [0.0, 0.0, 0.0],
+        [8.0, 4.0, 2.0],
+        [0.25, 0.25, 0.5],
+        [1.0, 1.0, 1.0],
+    ];
+    table[row * 4 + col]
+}
+
+/// Direction through the centre of texel (col, row) of a 4 × 2 map turned
+/// by `rotation_deg`: θ = 90°·(row + ½), φ = 90°·(col + ½) + rotation.
+fn texel_centre(col: usize, row: usize, rotation_deg: f64) -> DVec3 {
+    dir_deg(
+        90.0 * (row as f64 + 0.5),
+        90.0 * (col as f64 + 0.5) + rotation_deg,
+    )
+}
+
+fn check_loaded(env: &Environment, rotation_deg: f64, intensity: f64) {
+    for row in 0..2 {
+        for col in 0..4 {
+            let [r, g, b] = test_texel(col, row);
+            let want = Rgb::new(r as f64, g as f64, b as f64) * intensity;
+            let got = env.radiance(texel_centre(col, row, rotation_deg));
+            assert_eq!(got, want, "texel ({col}, {row})");
+        }
+    }
+}
+
+fn write_hdr(path: &std::path::Path, w: usize, h: usize, f: impl Fn(usize, usize) -> [f32; 3]) {
+    let pixels: Vec<image::Rgb<f32>> = (0..h)
+        .flat_map(|row| (0..w).map(move |col| (col, row)))
+        .map(|(col, row)| image::Rgb(f(col, row)))
+        .collect();
+    let file = std::fs::File::create(path).unwrap();
+    image::codecs::hdr::HdrEncoder::new(std::io::BufWriter::new(file))
+        .encode(&pixels, w, h)
+        .unwrap();
+}
+
+#[test]
+fn loads_hdr_and_exr_files() {
+    let dir = TempDir::new("load");
+    let hdr = dir.0.join("tiny.hdr");
+    write_hdr(&hdr, 4, 2, test_texel);
+    let env = Environment::from_file(&hdr, 0.0, 1.0).unwrap();
+    check_loaded(&env, 0.0, 1.0);
+    let env = Environment::from_file(&hdr, 45.0, 3.0).unwrap();
+    check_loaded(&env, 45.0, 3.0);
+
+    let exr_path = dir.0.join("tiny.exr");
+    exr::prelude::write_rgba_file(&exr_path, 4, 2, |x, y| {
+        let [r, g, b] = test_texel(x, y);
+        (r, g, b, 1.0f32)
+    })
+    .unwrap();
+    let env = Environment::from_file(&exr_path, -30.0, 0.5).unwrap();
+    check_loaded(&env, -30.0, 0.5);
+    // Upper-case extensions are the same formats.
+    let upper = dir.0.join("TINY.EXR");
+    std::fs::copy(&exr_path, &upper).unwrap();
+    assert!(Environment::from_file(&upper, 0.0, 1.0).is_ok());
+}
+
+fn error_text(path: &std::path::Path) -> String {
+    let err = Environment::from_file(path, 0.0, 1.0)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains(&path.display().to_string()),
+        "message does not name the file: {err}"
+    );
+    err
+}
+
+#[test]
+fn bad_files_give_errors_naming_the_file() {
+    let dir = TempDir::new("bad");
+    let missing = dir.0.join("missing.hdr");
+    assert!(error_text(&missing).contains("not found"));
+
+    for name in ["corrupt.hdr", "corrupt.exr"] {
+        let path = dir.0.join(name);
+        std::fs::write(&path, b"this is not an image at all\n\0\x01\x02").unwrap();
+        let err = error_text(&path);
+        assert!(err.contains("corrupt"), "{err}");
+    }
+    // A valid header promising more scanlines than the file holds.
+    let truncated = dir.0.join("truncated.hdr");
+    std::fs::write(
+        &truncated,
+        b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 4\n\x80\x80",
+    )
+    .unwrap();
+    assert!(error_text(&truncated).contains("corrupt"));
+
+    let png = dir.0.join("sky.png");
+    std::fs::write(&png, b"\x89PNG").unwrap();
+    let err = error_text(&png);
+    assert!(
+        err.contains(".png") && err.contains(".hdr") && err.contains(".exr"),
+        "{err}"
+    );
+
+    // A header claiming 20000 × 10000 texels: refused before decoding.
+    let huge = dir.0.join("huge.hdr");
+    std::fs::write(
+        &huge,
+        b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 10000 +X 20000\n",
+    )
+    .unwrap();
+    let err = error_text(&huge);
+    assert!(err.contains("16384×8192") && err.contains("MiB"), "{err}");
+
+    // NaN and negative texels (EXR stores raw floats; RGBE cannot).
+    for (name, bad) in [("nan.exr", f32::NAN), ("negative.exr", -1.0)] {
+        let path = dir.0.join(name);
+        exr::prelude::write_rgba_file(&path, 4, 2, move |x, y| {
+            let g = if (x, y) == (3, 1) { bad } else { 1.0 };
+            (1.0f32, g, 1.0f32, 1.0f32)
+        })
+        .unwrap();
+        let err = error_text(&path);
+        assert!(err.contains("x = 3, y = 1"), "{err}");
+    }
+
+    // A directory with an allowed extension is not a file.
+    let subdir = dir.0.join("folder.hdr");
+    std::fs::create_dir(&subdir).unwrap();
+    assert!(error_text(&subdir).contains("directory"));
+}
