@@ -33,7 +33,15 @@ fn files_in(dir: &PathBuf) -> Vec<String> {
 fn the_default_gem_renders_with_no_arguments_but_the_output() {
     let dir = scratch("default");
     let png = dir.join("gem.png");
-    let out = lapidary(&["render", "-o", png.to_str().unwrap(), "--size", "48", "--spp", "2"]);
+    let out = lapidary(&[
+        "render",
+        "-o",
+        png.to_str().unwrap(),
+        "--size",
+        "48",
+        "--spp",
+        "2",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let img = image::open(&png).unwrap().to_rgb8();
     assert_eq!((img.width(), img.height()), (48, 48));
@@ -49,7 +57,11 @@ fn the_default_gem_renders_with_no_arguments_but_the_output() {
         }
     }
     assert!(g > r && g > b, "centre is not green: r {r} g {g} b {b}");
-    assert!(stderr(&out).contains("Mrays/s"), "no speed summary: {}", stderr(&out));
+    assert!(
+        stderr(&out).contains("Mrays/s"),
+        "no speed summary: {}",
+        stderr(&out)
+    );
 }
 
 #[test]
@@ -59,7 +71,16 @@ fn thread_count_does_not_change_a_single_byte() {
     let four = dir.join("four.png");
     for (path, threads) in [(&one, "1"), (&four, "4")] {
         let out = lapidary(&[
-            "render", "-o", path.to_str().unwrap(), "--size", "32", "--spp", "3", "--threads", threads, "-q",
+            "render",
+            "-o",
+            path.to_str().unwrap(),
+            "--size",
+            "32",
+            "--spp",
+            "3",
+            "--threads",
+            threads,
+            "-q",
         ]);
         assert!(out.status.success(), "{}", stderr(&out));
     }
@@ -72,7 +93,18 @@ fn the_seed_changes_the_noise() {
     let a = dir.join("a.png");
     let b = dir.join("b.png");
     for (path, seed) in [(&a, "1"), (&b, "2")] {
-        let out = lapidary(&["render", "-o", path.to_str().unwrap(), "--size", "24", "--spp", "1", "--seed", seed, "-q"]);
+        let out = lapidary(&[
+            "render",
+            "-o",
+            path.to_str().unwrap(),
+            "--size",
+            "24",
+            "--spp",
+            "1",
+            "--seed",
+            seed,
+            "-q",
+        ]);
         assert!(out.status.success(), "{}", stderr(&out));
     }
     assert_ne!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
@@ -82,16 +114,42 @@ fn the_seed_changes_the_noise() {
 fn an_exr_reads_back_with_rgba_and_every_aov_layer() {
     let dir = scratch("exr");
     let exr = dir.join("gem.exr");
-    let out = lapidary(&["render", "-o", exr.to_str().unwrap(), "--width", "20", "--height", "12", "--spp", "2", "-q"]);
+    let out = lapidary(&[
+        "render",
+        "-o",
+        exr.to_str().unwrap(),
+        "--width",
+        "20",
+        "--height",
+        "12",
+        "--spp",
+        "2",
+        "-q",
+    ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let image = lapidary::output::exr::read_exr(&exr).unwrap();
     assert_eq!((image.width, image.height), (20, 12));
     let names: Vec<&str> = image.channels.iter().map(|c| c.name.as_str()).collect();
     for wanted in [
-        "R", "G", "B", "A", "albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z", "depth.Z",
-        "surface_cell", "glitter", "material_id",
+        "R",
+        "G",
+        "B",
+        "A",
+        "albedo.R",
+        "albedo.G",
+        "albedo.B",
+        "normal.X",
+        "normal.Y",
+        "normal.Z",
+        "depth.Z",
+        "surface_cell",
+        "glitter",
+        "material_id",
     ] {
-        assert!(names.contains(&wanted), "missing channel {wanted} in {names:?}");
+        assert!(
+            names.contains(&wanted),
+            "missing channel {wanted} in {names:?}"
+        );
     }
     // The default scene has a ground under the stone: every pixel sees a
     // surface, the ground has material id 1 and the stone ids ≥ 2.
@@ -113,24 +171,56 @@ fn bad_settings_are_refused_before_any_work_and_leave_no_file() {
     let dir = scratch("bad");
     let png = dir.join("x.png");
     let p = png.to_str().unwrap();
+    let (jpg, missing, hdr, ron) = (
+        dir.join("x.jpg"),
+        dir.join("missing/x.png"),
+        dir.join("nope.hdr"),
+        dir.join("nope.ron"),
+    );
+    let (jpg, missing, hdr, ron) = (
+        jpg.to_str().unwrap(),
+        missing.to_str().unwrap(),
+        hdr.to_str().unwrap(),
+        ron.to_str().unwrap(),
+    );
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (vec!["render", "-o", p, "--size", "0"], "allowed 1 to"),
         (vec!["render", "-o", p, "--spp", "0"], "--spp 0"),
-        (vec!["render", "-o", p, "--width", "30000", "--height", "30000"], "GiB"),
+        (
+            vec!["render", "-o", p, "--width", "30000", "--height", "30000"],
+            "GiB",
+        ),
         (vec!["render", "-o", p, "--threads", "0"], "--threads 0"),
-        (vec!["render", "-o", dir.join("x.jpg").to_str().unwrap(), "--size", "8"], ".png or .exr"),
-        (vec!["render", "no-such-gem", "-o", p, "--size", "8"], "no-such-gem"),
-        (vec!["render", "-o", dir.join("missing/x.png").to_str().unwrap(), "--size", "8"], "missing"),
-        (vec!["render", "-o", p, "--size", "8", "--env", dir.join("nope.hdr").to_str().unwrap()], "nope.hdr"),
-        (vec!["render", "-o", p, "--size", "8", "--scene", dir.join("nope.ron").to_str().unwrap()], "nope.ron"),
+        (vec!["render", "-o", jpg, "--size", "8"], ".png or .exr"),
+        (
+            vec!["render", "no-such-gem", "-o", p, "--size", "8"],
+            "no-such-gem",
+        ),
+        (vec!["render", "-o", missing, "--size", "8"], "missing"),
+        (
+            vec!["render", "-o", p, "--size", "8", "--env", hdr],
+            "nope.hdr",
+        ),
+        (
+            vec!["render", "-o", p, "--size", "8", "--scene", ron],
+            "nope.ron",
+        ),
     ];
     for (args, needle) in cases {
         let out = lapidary(&args);
         assert_eq!(out.status.code(), Some(1), "{args:?}: {}", stderr(&out));
-        assert!(stderr(&out).contains(needle), "{args:?}: message lacks {needle:?}: {}", stderr(&out));
+        assert!(
+            stderr(&out).contains(needle),
+            "{args:?}: message lacks {needle:?}: {}",
+            stderr(&out)
+        );
         assert!(!stderr(&out).contains("panicked"), "{args:?}");
     }
-    assert!(files_in(&dir).is_empty(), "left behind: {:?}", files_in(&dir));
+    assert!(
+        files_in(&dir).is_empty(),
+        "left behind: {:?}",
+        files_in(&dir)
+    );
 }
 
 #[test]
@@ -139,15 +229,39 @@ fn a_corrupt_environment_or_scene_is_an_error_naming_the_file() {
     let hdr = dir.join("broken.hdr");
     std::fs::write(&hdr, b"#?RADIANCE\nthis is not an image").unwrap();
     let scene = dir.join("scene.ron");
-    std::fs::write(&scene, "Scene(camera: Orbit(target: (0, 0, 0), distance: -5.0))").unwrap();
+    std::fs::write(
+        &scene,
+        "Scene(camera: Orbit(target: (0, 0, 0), distance: -5.0))",
+    )
+    .unwrap();
     let png = dir.join("x.png");
     for args in [
-        vec!["render", "-o", png.to_str().unwrap(), "--size", "8", "--env", hdr.to_str().unwrap()],
-        vec!["render", "-o", png.to_str().unwrap(), "--size", "8", "--scene", scene.to_str().unwrap()],
+        vec![
+            "render",
+            "-o",
+            png.to_str().unwrap(),
+            "--size",
+            "8",
+            "--env",
+            hdr.to_str().unwrap(),
+        ],
+        vec![
+            "render",
+            "-o",
+            png.to_str().unwrap(),
+            "--size",
+            "8",
+            "--scene",
+            scene.to_str().unwrap(),
+        ],
     ] {
         let out = lapidary(&args);
         assert_eq!(out.status.code(), Some(1), "{args:?}: {}", stderr(&out));
-        let named = if args.contains(&"--env") { "broken.hdr" } else { "scene.ron" };
+        let named = if args.contains(&"--env") {
+            "broken.hdr"
+        } else {
+            "scene.ron"
+        };
         assert!(stderr(&out).contains(named), "{}", stderr(&out));
     }
     assert!(!png.exists());

@@ -63,7 +63,12 @@ pub struct RenderArgs {
     #[arg(long, value_name = "FILE")]
     env: Option<PathBuf>,
     /// Exposure in stops applied before tone mapping (PNG only).
-    #[arg(long, value_name = "EV", default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "EV",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     exposure: f64,
     /// Tone curve for PNG output.
     #[arg(long, value_enum, default_value_t = TonemapArg::Filmic)]
@@ -135,7 +140,10 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
         return Err(format!("--spp {}: allowed 1 to {MAX_SPP}", args.spp));
     }
     if args.bounces > MAX_BOUNCES {
-        return Err(format!("--bounces {}: allowed 0 to {MAX_BOUNCES}", args.bounces));
+        return Err(format!(
+            "--bounces {}: allowed 0 to {MAX_BOUNCES}",
+            args.bounces
+        ));
     }
     if args.threads == Some(0) || args.threads.is_some_and(|t| t > 1024) {
         return Err(format!(
@@ -144,7 +152,10 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
         ));
     }
     if !args.exposure.is_finite() || args.exposure.abs() > 64.0 {
-        return Err(format!("--exposure {}: allowed −64 to 64 stops", args.exposure));
+        return Err(format!(
+            "--exposure {}: allowed −64 to 64 stops",
+            args.exposure
+        ));
     }
     let needed = memory_needed(width, height);
     let available = memory_available();
@@ -193,8 +204,10 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     let bar = if !quiet && std::io::stderr().is_terminal() {
         let bar = ProgressBar::new(u64::from(width) * u64::from(height));
         bar.set_style(
-            ProgressStyle::with_template("{bar:40} {percent:>3}% {elapsed_precise} eta {eta} {msg}")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            ProgressStyle::with_template(
+                "{bar:40} {percent:>3}% {elapsed_precise} eta {eta} {msg}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
         Some(bar)
     } else {

@@ -80,7 +80,10 @@ pub fn prepare_scene(
     let mut stones = Vec::with_capacity(scene.stones.len());
     for stone in &scene.stones {
         let key = (
-            stone.recipe.clone().unwrap_or_else(|| default_gem.to_string()),
+            stone
+                .recipe
+                .clone()
+                .unwrap_or_else(|| default_gem.to_string()),
             stone.seed,
         );
         let gem = match keys.iter().position(|k| *k == key) {
@@ -112,7 +115,9 @@ pub fn prepare_scene(
     let environment = match environment_file {
         Some(path) => Environment::from_file(path, 0.0, 1.0).map_err(|e| e.to_string())?,
         None => match &scene.environment {
-            EnvironmentSpec::Constant(radiance) => Environment::try_constant(*radiance).map_err(|e| e.to_string())?,
+            EnvironmentSpec::Constant(radiance) => {
+                Environment::try_constant(*radiance).map_err(|e| e.to_string())?
+            }
             EnvironmentSpec::Studio {
                 intensity,
                 rotation_deg,
@@ -121,7 +126,8 @@ pub fn prepare_scene(
                 path,
                 rotation_deg,
                 intensity,
-            } => Environment::from_file(path, *rotation_deg, *intensity).map_err(|e| e.to_string())?,
+            } => Environment::from_file(path, *rotation_deg, *intensity)
+                .map_err(|e| e.to_string())?,
         },
     };
     Ok(RenderScene {
@@ -181,5 +187,12 @@ pub fn light_from_spec(spec: &LightSpec) -> Light {
 /// The scene camera on a film of `width × height` pixels.
 pub fn camera_for(scene: &Scene, width: u32, height: u32) -> PinholeCamera {
     let c = &scene.camera;
-    PinholeCamera::new(c.position, c.look_at, c.up, c.vertical_fov_deg, width, height)
+    PinholeCamera::new(
+        c.position,
+        c.look_at,
+        c.up,
+        c.vertical_fov_deg,
+        width,
+        height,
+    )
 }
