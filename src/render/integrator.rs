@@ -202,6 +202,11 @@ impl RenderScene {
                 radiance += throughput * self.environment.radiance(direction) * weight;
                 break;
             };
+            if bounce > self.max_bounces {
+                // This last segment only collected MIS-weighted emission
+                // for the previous vertex's BRDF strategy.
+                break;
+            }
             let wo_world = -direction;
             let Some(shading) = self.shade(&hit, wo_world) else {
                 break;
@@ -258,9 +263,6 @@ impl RenderScene {
                     albedo: sample.map_or(Rgb::ZERO, |s| s.weight()),
                     ..shading.first_hit
                 };
-            }
-            if bounce >= self.max_bounces {
-                break;
             }
             let Some(sample) = sample else {
                 break;

@@ -1,0 +1,148 @@
+//! Direct light from every light kind onto a white Lambert floor, against
+//! closed forms: the reflected radiance is E/π for irradiance E, whatever
+//! the viewing direction. BRDF sampling and light sampling are combined by
+//! MIS in the integrator, so these also check that the weights sum to one.
+
+use std::f64::consts::PI;
+
+use glam::{DQuat, DVec3};
+use lapidary::brdf::Rgb;
+use lapidary::geometry::{Cabochon, CabochonParams};
+use lapidary::recipe::compile::{compile_material, MaterialSource};
+use lapidary::recipe::parse_material;
+use lapidary::render::camera::PinholeCamera;
+use lapidary::render::environment::Environment;
+use lapidary::render::film::{render, FilmSettings};
+use lapidary::render::integrator::RenderScene;
+use lapidary::render::lights::Light;
+use lapidary::render::prepare::compile_gem_source;
+use lapidary::render::world::{StoneInstance, World};
+
+fn white_lambert() -> lapidary::brdf::LayeredBrdf {
+    let text = "Material(layers: [], base: Diffuse(colour: (1, 1, 1)))";
+    let m = parse_material("test", text).unwrap();
+    let source = MaterialSource {
+        path: "test".into(),
+        name: "white".into(),
+        text: text.into(),
+    };
+    compile_material(&source, &m).unwrap()
+}
+
+/// Radiance of the floor point at the origin seen from an oblique camera
+/// (the mean over a 3 × 3 block of pixels around the film centre).
+fn floor_radiance(lights: Vec<Light>, stones: Vec<StoneInstance>, spp: u32) -> f64 {
+    let gems = if stones.is_empty() {
+        vec![]
+    } else {
+        let text = r#"Gem(materials: {"m": Material(layers: [], base: Diffuse(colour: (0.5, 0.5, 0.5)))}, surface: "m")"#;
+        vec![compile_gem_source("test", text, None, 2).unwrap().0]
+    };
+    let scene = RenderScene {
+        world: World::new(stones, Some(0.0)),
+        gems,
+        ground_brdf: Some(white_lambert()),
+        lights,
+        environment: Environment::constant(Rgb::ZERO),
+        max_bounces: 0,
+    };
+    // Narrow field: the 3 × 3 block sees the floor within 0.01 of the origin.
+    let camera = PinholeCamera::new(DVec3::new(-30.0, 0.0, 40.0), DVec3::ZERO, DVec3::Z, 0.05, 9, 9);
+    let settings = FilmSettings {
+        width: 9,
+        height: 9,
+        samples_per_pixel: spp,
+        seed: 3,
+    };
+    let film = render(&scene, &camera, &settings, &|_| {});
+    let mut sum = 0.0;
+    for y in 3..6 {
+        for x in 3..6 {
+            sum += f64::from(film.rgb[y * 9 + x][1]);
+        }
+    }
+    sum / 9.0
+}
+
+fn assert_close(got: f64, expected: f64, tolerance: f64, what: &str) {
+    assert!(
+        (got - expected).abs() <= tolerance * expected,
+        "{what}: rendered {got}, closed form {expected}"
+    );
+}
+
+#[test]
+fn a_point_light_follows_the_inverse_square_and_cosine_laws() {
+    // I = 100 at (3, 0, 4): d = 5, cosθ = 4/5, E = I cosθ / d² = 3.2.
+    let light = Light::Point {
+        position: DVec3::new(3.0, 0.0, 4.0),
+        intensity: Rgb::splat(100.0),
+    };
+    assert_close(floor_radiance(vec![light], vec![], 4), 3.2 / PI, 1e-4, "point light");
+}
+
+#[test]
+fn a_sphere_light_gives_pi_l_sin2() {
+    // A sphere of radiance L and radius r at distance d on the normal:
+    // E = π L (r/d)² (a disc of angular radius asin(r/d)).
+    let light = Light::Sphere {
+        centre: DVec3::new(0.0, 0.0, 10.0),
+        radius: 2.0,
+        radiance: Rgb::splat(5.0),
+    };
+    let expected = PI * 5.0 * 0.04 / PI;
+    assert_close(floor_radiance(vec![light], vec![], 256), expected, 0.02, "sphere light");
+}
+
+#[test]
+fn a_square_soft_box_gives_its_form_factor() {
+    // A square of half-side a at height h facing down, centred above the
+    // point: four corner rectangles, each with form factor
+    // F = (1/2π)[X/√(1+X²)·atan(Y/√(1+X²)) + Y/√(1+Y²)·atan(X/√(1+Y²))],
+    // X = Y = a/h; E = π L · 4F.
+    let (a, h, l) = (3.0_f64, 6.0_f64, 4.0_f64);
+    let x = a / h;
+    let s = (1.0 + x * x).sqrt();
+    let f_corner = (2.0 * x / s * (x / s).atan()) / (2.0 * PI);
+    let expected = PI * l * 4.0 * f_corner / PI;
+    let light = Light::Rect {
+        centre: DVec3::new(0.0, 0.0, h),
+        normal: -DVec3::Z,
+        u_axis: DVec3::X,
+        v_axis: DVec3::Y,
+        width: 2.0 * a,
+        height: 2.0 * a,
+        radiance: Rgb::splat(l),
+    };
+    assert_close(floor_radiance(vec![light], vec![], 256), expected, 0.02, "soft box");
+}
+
+#[test]
+fn a_sun_gives_its_irradiance_times_the_cosine() {
+    // Elevation 30°: cosθ = sin 30° = 1/2; E = 2 · 1/2 = 1.
+    let direction = DVec3::new(30f64.to_radians().cos(), 0.0, 0.5);
+    let sun = Light::sun(direction, 0.53, Rgb::splat(2.0));
+    assert_close(floor_radiance(vec![sun], vec![], 64), 1.0 / PI, 0.01, "sun");
+}
+
+#[test]
+fn a_stone_between_the_light_and_the_floor_casts_a_shadow() {
+    // The light at (20, 0, 2) is seen from the origin through (10, 0, 1),
+    // inside a 10 × 8 × 4.5 stone centred at x = 10.
+    let light = Light::Point {
+        position: DVec3::new(20.0, 0.0, 2.0),
+        intensity: Rgb::splat(100.0),
+    };
+    let stone = StoneInstance {
+        cabochon: Cabochon::new(CabochonParams::default()).unwrap(),
+        rotation: DQuat::IDENTITY,
+        position: DVec3::new(10.0, 0.0, 0.5),
+        gem: 0,
+    };
+    let lit = floor_radiance(vec![light.clone()], vec![], 1);
+    // Unshadowed: E = I cosθ / d² with d² = 404, cosθ = 2/√404.
+    let expected = 100.0 * (2.0 / 404f64.sqrt()) / 404.0 / PI;
+    assert_close(lit, expected, 1e-3, "unshadowed floor");
+    let shadowed = floor_radiance(vec![light], vec![stone], 1);
+    assert_eq!(shadowed, 0.0, "shadowed floor");
+}
