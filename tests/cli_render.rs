@@ -266,3 +266,55 @@ fn a_corrupt_environment_or_scene_is_an_error_naming_the_file() {
     }
     assert!(!png.exists());
 }
+
+fn exr_f32(image: &lapidary::output::exr::ExrImage, name: &str) -> Vec<f32> {
+    match &image
+        .channels
+        .iter()
+        .find(|c| c.name == name)
+        .unwrap_or_else(|| panic!("no {name}"))
+        .data
+    {
+        lapidary::output::exr::ChannelData::F32(v) => v.clone(),
+        lapidary::output::exr::ChannelData::U32(_) => panic!("{name} is not F32"),
+    }
+}
+
+#[test]
+fn ambient_occlusion_is_an_extra_layer_that_leaves_the_beauty_alone() {
+    let dir = scratch("ao");
+    let plain = dir.join("plain.exr");
+    let with_ao = dir.join("ao.exr");
+    for (path, extra) in [(&plain, vec![]), (&with_ao, vec!["--ao", "6"])] {
+        let mut args = vec![
+            "render",
+            "-o",
+            path.to_str().unwrap(),
+            "--size",
+            "24",
+            "--spp",
+            "4",
+            "-q",
+        ];
+        args.extend(extra);
+        let out = lapidary(&args);
+        assert!(out.status.success(), "{}", stderr(&out));
+    }
+    let plain = lapidary::output::exr::read_exr(&plain).unwrap();
+    let with_ao = lapidary::output::exr::read_exr(&with_ao).unwrap();
+    for c in ["R", "G", "B"] {
+        assert_eq!(
+            exr_f32(&plain, c),
+            exr_f32(&with_ao, c),
+            "beauty channel {c} changed"
+        );
+    }
+    assert!(!plain.channels.iter().any(|c| c.name == "ao"));
+    let ao = exr_f32(&with_ao, "ao");
+    assert!(ao.iter().all(|a| (0.0..=1.0).contains(a)));
+    // The ground far from the stone is open sky (the frame corners), the
+    // ground where the stone meets it is enclosed.
+    assert_eq!(ao[0], 1.0, "top-left corner sees only sky");
+    let min = ao.iter().cloned().fold(1.0, f32::min);
+    assert!(min < 0.75, "nowhere occluded (min {min})");
+}

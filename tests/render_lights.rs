@@ -45,9 +45,17 @@ fn floor_radiance(lights: Vec<Light>, stones: Vec<StoneInstance>, spp: u32) -> f
         lights,
         environment: Environment::constant(Rgb::ZERO),
         max_bounces: 0,
+        ambient_occlusion: None,
     };
     // Narrow field: the 3 × 3 block sees the floor within 0.01 of the origin.
-    let camera = PinholeCamera::new(DVec3::new(-30.0, 0.0, 40.0), DVec3::ZERO, DVec3::Z, 0.05, 9, 9);
+    let camera = PinholeCamera::new(
+        DVec3::new(-30.0, 0.0, 40.0),
+        DVec3::ZERO,
+        DVec3::Z,
+        0.05,
+        9,
+        9,
+    );
     let settings = FilmSettings {
         width: 9,
         height: 9,
@@ -78,7 +86,12 @@ fn a_point_light_follows_the_inverse_square_and_cosine_laws() {
         position: DVec3::new(3.0, 0.0, 4.0),
         intensity: Rgb::splat(100.0),
     };
-    assert_close(floor_radiance(vec![light], vec![], 4), 3.2 / PI, 1e-4, "point light");
+    assert_close(
+        floor_radiance(vec![light], vec![], 4),
+        3.2 / PI,
+        1e-4,
+        "point light",
+    );
 }
 
 #[test]
@@ -91,7 +104,12 @@ fn a_sphere_light_gives_pi_l_sin2() {
         radiance: Rgb::splat(5.0),
     };
     let expected = PI * 5.0 * 0.04 / PI;
-    assert_close(floor_radiance(vec![light], vec![], 256), expected, 0.02, "sphere light");
+    assert_close(
+        floor_radiance(vec![light], vec![], 256),
+        expected,
+        0.02,
+        "sphere light",
+    );
 }
 
 #[test]
@@ -114,7 +132,12 @@ fn a_square_soft_box_gives_its_form_factor() {
         height: 2.0 * a,
         radiance: Rgb::splat(l),
     };
-    assert_close(floor_radiance(vec![light], vec![], 256), expected, 0.02, "soft box");
+    assert_close(
+        floor_radiance(vec![light], vec![], 256),
+        expected,
+        0.02,
+        "soft box",
+    );
 }
 
 #[test]

@@ -76,6 +76,11 @@ pub struct RenderArgs {
     /// Bounces after the first hit (0: direct light only).
     #[arg(long, value_name = "N", default_value_t = 4)]
     bounces: u32,
+    /// Ambient occlusion within DIST scene units (mm), as the appendix
+    /// shader gathers it: adds an `ao` layer to EXR output; a PNG shows the
+    /// occlusion itself (white: open, black: enclosed) instead of the beauty.
+    #[arg(long, value_name = "DIST")]
+    ao: Option<f64>,
     /// No progress bar and no summary.
     #[arg(long, short = 'q')]
     quiet: bool,
@@ -157,6 +162,13 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
             args.exposure
         ));
     }
+    if let Some(distance) = args.ao {
+        if !(distance.is_finite() && distance > 0.0) {
+            return Err(format!(
+                "--ao {distance}: must be a positive distance in scene units (mm)"
+            ));
+        }
+    }
     let needed = memory_needed(width, height);
     let available = memory_available();
     if needed > available {
@@ -186,7 +198,8 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         }
     };
     let started = Instant::now();
-    let render_scene = prepare_scene(&scene, gem, args.env.as_deref(), args.bounces, &report)?;
+    let mut render_scene = prepare_scene(&scene, gem, args.env.as_deref(), args.bounces, &report)?;
+    render_scene.ambient_occlusion = args.ao;
     let camera = camera_for(&scene, width, height);
     let settings = FilmSettings {
         width,
@@ -229,18 +242,32 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         Format::Png => {
             let transform = DisplayTransform {
                 exposure_ev: args.exposure,
-                curve: match args.tonemap {
-                    TonemapArg::Filmic => ToneCurve::Filmic,
-                    TonemapArg::Linear => ToneCurve::Linear,
+                // Occlusion is a fraction: shown linearly, 1 as white.
+                curve: match (args.tonemap, args.ao) {
+                    (_, Some(_)) | (TonemapArg::Linear, None) => ToneCurve::Linear,
+                    (TonemapArg::Filmic, None) => ToneCurve::Filmic,
                 },
                 dither_seed: args.seed,
             };
-            let image = transform.encode(&film.rgb, width, height);
+            let ao_grey: Vec<[f32; 3]>;
+            let pixels = if args.ao.is_some() {
+                ao_grey = film.ao.iter().map(|a| [*a, *a, *a]).collect();
+                &ao_grey
+            } else {
+                &film.rgb
+            };
+            let image = transform.encode(pixels, width, height);
             lapidary::output::write_png(&args.output, &image).map_err(|e| e.to_string())?;
         }
         Format::Exr => {
-            write_exr(&args.output, width, height, &exr_channels(&film))
-                .map_err(|e| e.to_string())?;
+            let mut channels = exr_channels(&film);
+            if args.ao.is_some() {
+                channels.push(ExrChannel {
+                    name: "ao".to_string(),
+                    data: ChannelData::F32(film.ao.clone()),
+                });
+            }
+            write_exr(&args.output, width, height, &channels).map_err(|e| e.to_string())?;
         }
     }
     if film.stats.bad_samples > 0 {

@@ -29,8 +29,9 @@ pub struct FilmSettings {
 }
 
 /// Bytes of film memory per pixel (RGBA, albedo, normal, depth, cell,
-/// glitter, material id as f32/u32, plus the 8-bit image).
-pub const FILM_BYTES_PER_PIXEL: u64 = 4 * (4 + 3 + 3 + 1 + 1 + 1 + 1) + 3;
+/// glitter, material id, ambient occlusion as f32/u32, plus the 8-bit
+/// image).
+pub const FILM_BYTES_PER_PIXEL: u64 = 4 * (4 + 3 + 3 + 1 + 1 + 1 + 1 + 1) + 3;
 
 /// The rendered film: linear radiance and the AOVs, row-major from the top.
 #[derive(Clone, Debug, PartialEq)]
@@ -58,6 +59,8 @@ pub struct Film {
     /// Material id of the pixel's first sample (0 background, 1 ground,
     /// 2… the stones' materials).
     pub material_id: Vec<u32>,
+    /// Mean unoccluded fraction (ambient occlusion; all 1 when it is off).
+    pub ao: Vec<f32>,
     /// Statistics of the render.
     pub stats: RenderStats,
 }
@@ -84,6 +87,7 @@ struct Row {
     surface_cell: Vec<u32>,
     glitter: Vec<f32>,
     material_id: Vec<u32>,
+    ao: Vec<f32>,
     stats: RenderStats,
 }
 
@@ -111,6 +115,7 @@ fn render_row(scene: &RenderScene, camera: &PinholeCamera, settings: &FilmSettin
         surface_cell: Vec::with_capacity(w),
         glitter: Vec::with_capacity(w),
         material_id: Vec::with_capacity(w),
+        ao: Vec::with_capacity(w),
         stats: RenderStats::default(),
     };
     let spp = settings.samples_per_pixel;
@@ -121,6 +126,7 @@ fn render_row(scene: &RenderScene, camera: &PinholeCamera, settings: &FilmSettin
         let mut normal = DVec3::ZERO;
         let (mut depth_sum, mut hits, mut glints) = (0.0, 0u32, 0u32);
         let (mut cell, mut material) = (0, 0);
+        let mut unoccluded = 0.0;
         for s in 0..spp {
             let mut stream = SampleStream::new(settings.seed, pixel_index, s);
             let [fx, fy] = stream.next_2d();
@@ -135,6 +141,7 @@ fn render_row(scene: &RenderScene, camera: &PinholeCamera, settings: &FilmSettin
             } else {
                 row.stats.bad_samples += 1;
             }
+            unoccluded += first.unoccluded;
             if s == 0 {
                 cell = first.surface_cell;
                 material = first.material_id;
@@ -162,6 +169,7 @@ fn render_row(scene: &RenderScene, camera: &PinholeCamera, settings: &FilmSettin
         row.surface_cell.push(cell);
         row.glitter.push((f64::from(glints) / n) as f32);
         row.material_id.push(material);
+        row.ao.push((unoccluded / n) as f32);
     }
     row
 }
@@ -194,6 +202,7 @@ pub fn render(
         surface_cell: Vec::with_capacity(pixels),
         glitter: Vec::with_capacity(pixels),
         material_id: Vec::with_capacity(pixels),
+        ao: Vec::with_capacity(pixels),
         stats: RenderStats::default(),
     };
     for row in rows {
@@ -205,6 +214,7 @@ pub fn render(
         film.surface_cell.extend(row.surface_cell);
         film.glitter.extend(row.glitter);
         film.material_id.extend(row.material_id);
+        film.ao.extend(row.ao);
         film.stats.traced_rays += row.stats.traced_rays;
         film.stats.shadow_rays += row.stats.shadow_rays;
         film.stats.bad_samples += row.stats.bad_samples;

@@ -14,6 +14,7 @@ use crate::render::environment::Environment;
 use crate::render::lights::Light;
 use crate::render::sampler::SampleStream;
 use crate::render::world::{Surface, SurfaceHit, World, RAY_OFFSET};
+use crate::sampling::cosine_hemisphere;
 use crate::texture::pattern::Pattern;
 
 /// Length in texture space of one scene unit: recipes write cell sizes in
@@ -45,6 +46,10 @@ pub struct RenderScene {
     pub environment: Environment,
     /// Bounces after the first hit (0: direct light only).
     pub max_bounces: u32,
+    /// `Some(distance)`: estimate ambient occlusion at the first hit with one
+    /// cosine-distributed ray of that length per sample, as the appendix
+    /// shader's `gather` does (written to the `ao` AOV).
+    pub ambient_occlusion: Option<f64>,
 }
 
 /// `material_id` AOV values: 0 is the background, 1 the ground, stones'
@@ -69,6 +74,10 @@ pub struct FirstHit {
     pub glitter: bool,
     /// See [`MATERIAL_ID_GROUND`].
     pub material_id: u32,
+    /// 1 if the ambient-occlusion ray escaped, 0 if it was blocked (its
+    /// mean is the unoccluded, cosine-weighted fraction of the hemisphere);
+    /// 1 when ambient occlusion is off or nothing was hit.
+    pub unoccluded: f64,
 }
 
 /// Ray counts of one path, for the rays/s report.
@@ -176,7 +185,10 @@ impl RenderScene {
     ) -> (Rgb, FirstHit) {
         let mut radiance = Rgb::ZERO;
         let mut throughput = Rgb::ONE;
-        let mut first = FirstHit::default();
+        let mut first = FirstHit {
+            unoccluded: 1.0,
+            ..FirstHit::default()
+        };
         // Where the previous BRDF sample came from and its pdf (None for
         // the camera ray, whose emitters count in full).
         let mut previous: Option<(DVec3, f64)> = None;
@@ -261,6 +273,7 @@ impl RenderScene {
                     depth: hit.t,
                     normal: shading.frame.n,
                     albedo: sample.map_or(Rgb::ZERO, |s| s.weight()),
+                    unoccluded: self.unoccluded(&hit, point, stream, counts),
                     ..shading.first_hit
                 };
             }
@@ -281,6 +294,30 @@ impl RenderScene {
             bounce += 1;
         }
         (radiance, first)
+    }
+
+    /// One ambient-occlusion ray around the geometric normal (1 escaped,
+    /// 0 blocked within the distance), from a side stream so the beauty
+    /// image does not depend on the option.
+    fn unoccluded(
+        &self,
+        hit: &SurfaceHit,
+        point: DVec3,
+        stream: &SampleStream,
+        counts: &mut RayCounts,
+    ) -> f64 {
+        let Some(distance) = self.ambient_occlusion else {
+            return 1.0;
+        };
+        let mut rng = stream.side_stream(0xa0);
+        let local = cosine_hemisphere(rng.next_f64(), rng.next_f64());
+        let direction = Frame::new(hit.normal).to_world(local);
+        counts.shadow += 1;
+        if self.world.occluded(point, direction, distance) {
+            0.0
+        } else {
+            1.0
+        }
     }
 
     /// The nearest light surface along the ray before `t_max` (the sun only

@@ -137,6 +137,7 @@ pub fn prepare_scene(
         lights: scene.lights.iter().map(light_from_spec).collect(),
         environment,
         max_bounces,
+        ambient_occlusion: None,
     })
 }
 

@@ -56,6 +56,13 @@ impl SampleStream {
         self.tail.next_f64()
     }
 
+    /// An independent generator for optional work (ambient occlusion) whose
+    /// numbers must not shift the main stream: turning the option on leaves
+    /// the beauty image unchanged.
+    pub fn side_stream(&self, salt: u64) -> Rng {
+        Rng::new(mix64(self.pixel_seed ^ salt), u64::from(self.sample_index))
+    }
+
     /// Three numbers for a BRDF sample: a Sobol pair and one more.
     pub fn next_3d(&mut self) -> [f64; 3] {
         let [a, b] = self.next_2d();
