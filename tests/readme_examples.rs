@@ -34,3 +34,12 @@ fn readme_gem_example_compiles() {
     assert!(gem.pattern.glitter().is_some());
     assert_eq!(gem.map_names.len(), 2);
 }
+
+#[test]
+fn readme_scene_example_parses_with_its_two_stones_and_three_lights() {
+    let text = block_starting(&readme(), "Scene(\n    camera: Orbit");
+    let scene = lapidary::scene::parse_scene(&text, None).unwrap();
+    assert_eq!(scene.stones.len(), 2);
+    assert_eq!(scene.lights.len(), 3);
+    assert_eq!(scene.stones[0].recipe.as_deref(), Some("lavender-lepidolite"));
+}
