@@ -41,5 +41,8 @@ fn readme_scene_example_parses_with_its_two_stones_and_three_lights() {
     let scene = lapidary::scene::parse_scene(&text, None).unwrap();
     assert_eq!(scene.stones.len(), 2);
     assert_eq!(scene.lights.len(), 3);
-    assert_eq!(scene.stones[0].recipe.as_deref(), Some("lavender-lepidolite"));
+    assert_eq!(
+        scene.stones[0].recipe.as_deref(),
+        Some("lavender-lepidolite")
+    );
 }
