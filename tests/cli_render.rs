@@ -318,3 +318,27 @@ fn ambient_occlusion_is_an_extra_layer_that_leaves_the_beauty_alone() {
     let min = ao.iter().cloned().fold(1.0, f32::min);
     assert!(min < 0.75, "nowhere occluded (min {min})");
 }
+
+#[test]
+fn ctrl_c_stops_a_long_render_promptly_and_writes_nothing() {
+    let dir = scratch("interrupt");
+    let png = dir.join("long.png");
+    // About a minute of work on two cores if it were not interrupted.
+    let child = Command::new(env!("CARGO_BIN_EXE_lapidary"))
+        .args(["render", "-o", png.to_str().unwrap(), "--size", "512", "--spp", "128", "-q"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(2500));
+    let status = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(stderr(&out).contains("interrupted"), "{}", stderr(&out));
+    assert!(files_in(&dir).is_empty(), "left behind: {:?}", files_in(&dir));
+    // Exit 1 with "interrupted" and no file means the render stopped
+    // before it finished (a finished render exits 0 and writes the PNG).
+}

@@ -2,13 +2,15 @@
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use lapidary::output::exr::{write_exr, ChannelData, ExrChannel};
 use lapidary::output::tonemap::{DisplayTransform, ToneCurve};
 use lapidary::recipe::library::DEFAULT_GEM;
-use lapidary::render::film::{render, Film, FilmSettings, FILM_BYTES_PER_PIXEL};
+use lapidary::render::film::{render_cancellable, Film, FilmSettings, FILM_BYTES_PER_PIXEL};
 use lapidary::render::prepare::{camera_for, prepare_scene};
 use lapidary::scene::{default_scene, load_scene};
 
@@ -16,6 +18,8 @@ use lapidary::scene::{default_scene, load_scene};
 pub const MAX_SIDE_PX: u32 = 32_768;
 /// Most samples per pixel accepted.
 pub const MAX_SPP: u32 = 1 << 20;
+/// Default of `--max-memory`, GiB.
+pub const DEFAULT_MAX_MEMORY_GIB: f64 = 4.0;
 /// Most bounces accepted.
 pub const MAX_BOUNCES: u32 = 64;
 
@@ -81,6 +85,10 @@ pub struct RenderArgs {
     /// occlusion itself (white: open, black: enclosed) instead of the beauty.
     #[arg(long, value_name = "DIST")]
     ao: Option<f64>,
+    /// Largest film memory to allow, in GiB (default 4); the render is
+    /// refused up front above it, and always above the memory available.
+    #[arg(long, value_name = "GIB", default_value_t = DEFAULT_MAX_MEMORY_GIB)]
+    max_memory: f64,
     /// No progress bar and no summary.
     #[arg(long, short = 'q')]
     quiet: bool,
@@ -107,8 +115,8 @@ fn output_format(path: &Path) -> Result<Format, String> {
     }
 }
 
-/// Memory the render needs, in bytes: the film and its rows (assembled
-/// from per-row buffers, so twice the film at the peak).
+/// Memory the render needs, in bytes: the film, and as much again for the
+/// output encoder's buffers at the end.
 fn memory_needed(width: u32, height: u32) -> u64 {
     2 * u64::from(width) * u64::from(height) * FILM_BYTES_PER_PIXEL
 }
@@ -169,7 +177,20 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
             ));
         }
     }
+    if !(args.max_memory.is_finite() && args.max_memory > 0.0) {
+        return Err(format!(
+            "--max-memory {}: must be a positive number of GiB",
+            args.max_memory
+        ));
+    }
     let needed = memory_needed(width, height);
+    if gib(needed) > args.max_memory {
+        return Err(format!(
+            "a {width} × {height} render needs {:.2} GiB of memory for its film, above the --max-memory limit of {} GiB; raise it or use a smaller --size",
+            gib(needed),
+            args.max_memory
+        ));
+    }
     let available = memory_available();
     if needed > available {
         return Err(format!(
@@ -185,6 +206,15 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
 pub fn run(args: RenderArgs) -> Result<(), String> {
     let format = output_format(&args.output)?;
     let (width, height) = check_settings(&args)?;
+    let interrupted = Arc::new(AtomicBool::new(false));
+    {
+        let flag = Arc::clone(&interrupted);
+        // Ctrl-C (from here on) stops the render at the next band and nothing is written;
+        // if a handler cannot be installed, Ctrl-C keeps its default (the
+        // process dies before writing, which also leaves no file).
+        let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+    }
+
     lapidary::output::check_writable(&args.output).map_err(|e| e.to_string())?;
     let scene = match &args.scene {
         Some(path) => load_scene(path).map_err(|e| e.to_string())?,
@@ -228,16 +258,28 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     };
     let tracing = Instant::now();
     let film = pool.install(|| {
-        render(&render_scene, &camera, &settings, &|pixels| {
-            if let Some(bar) = &bar {
-                bar.inc(pixels);
-            }
-        })
+        render_cancellable(
+            &render_scene,
+            &camera,
+            &settings,
+            &|pixels| {
+                if let Some(bar) = &bar {
+                    bar.inc(pixels);
+                }
+            },
+            &interrupted,
+        )
     });
     let seconds = tracing.elapsed().as_secs_f64();
     if let Some(bar) = &bar {
         bar.finish_and_clear();
     }
+    let Some(film) = film else {
+        return Err(format!(
+            "interrupted: the render stopped and {} was not written",
+            args.output.display()
+        ));
+    };
     match format {
         Format::Png => {
             let transform = DisplayTransform {

@@ -8,6 +8,8 @@
 //! the filter, all weights are 1), which keeps pixels independent.
 
 use glam::DVec3;
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use rayon::prelude::*;
 
 use crate::brdf::Rgb;
@@ -30,7 +32,7 @@ pub struct FilmSettings {
 
 /// Bytes of film memory per pixel (RGBA, albedo, normal, depth, cell,
 /// glitter, material id, ambient occlusion as f32/u32, plus the 8-bit
-/// image).
+/// image); the output encoders need about as much again at the end.
 pub const FILM_BYTES_PER_PIXEL: u64 = 4 * (4 + 3 + 3 + 1 + 1 + 1 + 1 + 1) + 3;
 
 /// The rendered film: linear radiance and the AOVs, row-major from the top.
@@ -174,6 +176,11 @@ fn render_row(scene: &RenderScene, camera: &PinholeCamera, settings: &FilmSettin
     row
 }
 
+/// Rows rendered per parallel band: the film grows band by band, so the
+/// per-row buffers never hold more than this many rows (memory stays near
+/// one film), and a cancellation is noticed within a band.
+pub const ROWS_PER_BAND: u32 = 32;
+
 /// Renders the film on the current rayon pool. `progress` is called with
 /// each finished row's number of pixels (from any thread, in any order).
 pub fn render(
@@ -182,14 +189,20 @@ pub fn render(
     settings: &FilmSettings,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Film {
-    let rows: Vec<Row> = (0..settings.height)
-        .into_par_iter()
-        .map(|y| {
-            let row = render_row(scene, camera, settings, y);
-            progress(u64::from(settings.width));
-            row
-        })
-        .collect();
+    let never = AtomicBool::new(false);
+    render_cancellable(scene, camera, settings, progress, &never)
+        .expect("a render that cannot be cancelled finishes")
+}
+
+/// [`render`], stopping early (returning None) once `cancel` is set, e.g.
+/// by Ctrl-C. Rows already started finish; no partial film is returned.
+pub fn render_cancellable(
+    scene: &RenderScene,
+    camera: &PinholeCamera,
+    settings: &FilmSettings,
+    progress: &(dyn Fn(u64) + Sync),
+    cancel: &AtomicBool,
+) -> Option<Film> {
     let pixels = settings.width as usize * settings.height as usize;
     let mut film = Film {
         width: settings.width,
@@ -205,19 +218,40 @@ pub fn render(
         ao: Vec::with_capacity(pixels),
         stats: RenderStats::default(),
     };
-    for row in rows {
-        film.rgb.extend(row.rgb);
-        film.alpha.extend(row.alpha);
-        film.albedo.extend(row.albedo);
-        film.normal.extend(row.normal);
-        film.depth.extend(row.depth);
-        film.surface_cell.extend(row.surface_cell);
-        film.glitter.extend(row.glitter);
-        film.material_id.extend(row.material_id);
-        film.ao.extend(row.ao);
-        film.stats.traced_rays += row.stats.traced_rays;
-        film.stats.shadow_rays += row.stats.shadow_rays;
-        film.stats.bad_samples += row.stats.bad_samples;
+    let band = ROWS_PER_BAND.max(4 * rayon::current_num_threads() as u32);
+    let mut first_row = 0;
+    while first_row < settings.height {
+        let end = (first_row + band).min(settings.height);
+        let rows: Vec<Option<Row>> = (first_row..end)
+            .into_par_iter()
+            .map(|y| {
+                if cancel.load(Ordering::Relaxed) {
+                    return None;
+                }
+                let row = render_row(scene, camera, settings, y);
+                progress(u64::from(settings.width));
+                Some(row)
+            })
+            .collect();
+        for row in rows {
+            let row = row?;
+            film.rgb.extend(row.rgb);
+            film.alpha.extend(row.alpha);
+            film.albedo.extend(row.albedo);
+            film.normal.extend(row.normal);
+            film.depth.extend(row.depth);
+            film.surface_cell.extend(row.surface_cell);
+            film.glitter.extend(row.glitter);
+            film.material_id.extend(row.material_id);
+            film.ao.extend(row.ao);
+            film.stats.traced_rays += row.stats.traced_rays;
+            film.stats.shadow_rays += row.stats.shadow_rays;
+            film.stats.bad_samples += row.stats.bad_samples;
+        }
+        if cancel.load(Ordering::Relaxed) {
+            return None;
+        }
+        first_row = end;
     }
-    film
+    Some(film)
 }
