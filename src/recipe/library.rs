@@ -108,8 +108,13 @@ pub fn builtin_material_names() -> impl Iterator<Item = &'static str> {
     BUILTIN_MATERIALS.iter().map(|(n, _)| *n)
 }
 
-/// (name, RON source) of every gem recipe in `gem-recipes/`.
+/// (name, RON source) of every gem recipe in `gem-recipes/`, sorted by name.
 pub const BUILTIN_GEMS: &[(&str, &str)] = &[
+    (
+        "blue-goldstone",
+        include_str!("../../gem-recipes/blue-goldstone.ron"),
+    ),
+    ("goldstone", include_str!("../../gem-recipes/goldstone.ron")),
     (
         "green-aventurine",
         include_str!("../../gem-recipes/green-aventurine.ron"),
@@ -118,6 +123,19 @@ pub const BUILTIN_GEMS: &[(&str, &str)] = &[
         "lavender-lepidolite",
         include_str!("../../gem-recipes/lavender-lepidolite.ron"),
     ),
+    (
+        "patterned-sunstone",
+        include_str!("../../gem-recipes/patterned-sunstone.ron"),
+    ),
+    (
+        "pink-sunstone",
+        include_str!("../../gem-recipes/pink-sunstone.ron"),
+    ),
+    (
+        "raspberry-aventurine",
+        include_str!("../../gem-recipes/raspberry-aventurine.ron"),
+    ),
+    ("sunstone", include_str!("../../gem-recipes/sunstone.ron")),
 ];
 
 /// The gem `lapidary render` draws when no recipe is named.
