@@ -285,6 +285,30 @@ pub fn validate_text(
     }
 }
 
+/// An error placed where only whitespace and comments follow: say that
+/// the file ends there, since RON's own message ("expected `(`") does not.
+fn with_truncation_hint(mut e: RecipeError, text: &str) -> RecipeError {
+    let Some((line, col)) = e.position else {
+        return e;
+    };
+    let line_start: usize = text
+        .split_inclusive('\n')
+        .take(line - 1)
+        .map(str::len)
+        .sum();
+    let offset = text[line_start.min(text.len())..]
+        .char_indices()
+        .nth(col.saturating_sub(1))
+        .map_or(text.len(), |(i, _)| line_start + i);
+    let rest = &text[offset.min(text.len())..];
+    if first_code_offset(rest) >= rest.len() {
+        e.message.push_str(
+            " (the file ends here: is it cut short, or is a closing `)`, `]` or `}` missing?)",
+        );
+    }
+    e
+}
+
 /// Validate one command-line argument (a file or a built-in name); returns
 /// the display path and the success summary, or the error.
 pub fn validate_one(spec: &str) -> Result<(String, String), RecipeError> {
@@ -293,7 +317,8 @@ pub fn validate_one(spec: &str) -> Result<(String, String), RecipeError> {
         let name = Path::new(spec)
             .file_stem()
             .map_or(spec.to_string(), |s| s.to_string_lossy().into_owned());
-        let summary = validate_text(spec, Some(Path::new(spec)), &name, &text)?;
+        let summary = validate_text(spec, Some(Path::new(spec)), &name, &text)
+            .map_err(|e| with_truncation_hint(e, &text))?;
         return Ok((spec.to_string(), summary));
     }
     let builtin = |prefix: &str| format!("builtin:{prefix}");
