@@ -25,7 +25,10 @@ fn ron_blocks(doc: &str) -> Vec<(usize, String)> {
             }
         }
     }
-    assert!(current.is_none(), "an unclosed ```ron block in docs/recipes.md");
+    assert!(
+        current.is_none(),
+        "an unclosed ```ron block in docs/recipes.md"
+    );
     blocks
 }
 
@@ -83,7 +86,10 @@ fn every_ron_block_parses_as_what_it_claims() {
         }
     }
     // The page promises a minimal and a full example of each kind.
-    assert!(counts.iter().all(|&n| n >= 2), "examples per kind (material, gem, scene): {counts:?}");
+    assert!(
+        counts.iter().all(|&n| n >= 2),
+        "examples per kind (material, gem, scene): {counts:?}"
+    );
 }
 
 #[test]
@@ -104,7 +110,10 @@ fn the_full_examples_write_every_documented_field() {
             }
         }
     }
-    assert!(missing.is_empty(), "fields never written in an example: {missing:?}");
+    assert!(
+        missing.is_empty(),
+        "fields never written in an example: {missing:?}"
+    );
 }
 
 #[test]

@@ -49,8 +49,8 @@ fn first_code_offset(text: &str) -> usize {
             i += 1;
         } else if rest.starts_with("//") {
             i += rest.find('\n').map_or(rest.len(), |e| e + 1);
-        } else if rest.starts_with("/*") {
-            i += rest[2..].find("*/").map_or(rest.len(), |e| e + 4);
+        } else if let Some(body) = rest.strip_prefix("/*") {
+            i += body.find("*/").map_or(rest.len(), |e| e + 4);
         } else if rest.starts_with("#!") {
             i += rest.find(']').map_or(rest.len(), |e| e + 1);
         } else if rest.starts_with('\u{feff}') {
