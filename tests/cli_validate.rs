@@ -159,7 +159,13 @@ fn a_value_of_the_wrong_type_names_its_field() {
     let dir = scratch("type");
     // A string where the IOR number goes (line 7).
     let gem = GOOD_GEM.replace("ior: 1.5", "ior: \"1.5\"");
-    broken(&dir, "type.ron", &gem, Some(7), &["ior"]);
+    broken(
+        &dir,
+        "type.ron",
+        &gem,
+        Some(7),
+        &["`ior`", "a number such as 1.5"],
+    );
 }
 
 #[test]

@@ -136,19 +136,31 @@ fn rename_gem(text: &str, name: &str) -> String {
 /// The header comment of a new recipe: its origin and the next commands.
 fn header(name: &str, template: &str, kind: &str, path: &Path, is_gem: bool) -> String {
     let file = path.display();
-    let next = if is_gem {
-        format!("//   lapidary render {file} -o {name}.png     # render it on a cabochon\n")
+    let mut commands = vec![(
+        format!("lapidary validate {file}"),
+        "check every field and name",
+    )];
+    if is_gem {
+        commands.push((
+            format!("lapidary render {file} -o {name}.png"),
+            "render it on a cabochon",
+        ));
     } else {
-        format!(
-            "//   lapidary brdf {file} -o {name}.png       # polar plots of its BRDF\n\
-             //   lapidary classify {file}                 # its section 3.4 class\n"
-        )
-    };
+        commands.push((
+            format!("lapidary brdf {file} -o {name}.png"),
+            "polar plots of its BRDF",
+        ));
+        commands.push((format!("lapidary classify {file}"), "its section 3.4 class"));
+    }
+    let width = commands.iter().map(|(c, _)| c.len()).max().unwrap_or(0);
+    let lines: String = commands
+        .iter()
+        .map(|(command, why)| format!("//   {command:<width$}  # {why}\n"))
+        .collect();
     format!(
         "// {name}: a {kind} started from the built-in {kind} `{template}`\n\
          // (`lapidary new {name} --from {template}`). Edit it, then:\n\
-         //   lapidary validate {file}                 # check every field and name\n\
-         {next}\
+         {lines}\
          // Every field, its unit, default and range: docs/recipes.md.\n\
          // The template's own notes follow.\n\n"
     )

@@ -285,9 +285,24 @@ pub fn validate_text(
     }
 }
 
-/// An error placed where only whitespace and comments follow: say that
-/// the file ends there, since RON's own message ("expected `(`") does not.
+/// Plainer words for RON's type errors, and, for an error placed where
+/// only whitespace and comments follow, that the file ends there (RON's own
+/// message, "expected `(`", does not say so).
 fn with_truncation_hint(mut e: RecipeError, text: &str) -> RecipeError {
+    // RON's type errors say what it expected in its own words; add what
+    // to write.
+    for (ron_says, allowed) in [
+        ("Expected float", "a number such as 1.5, without quotes"),
+        (
+            "Expected integer",
+            "a whole number such as 4, without quotes",
+        ),
+        ("Expected string", "a name in double quotes"),
+    ] {
+        if e.message.ends_with(ron_says) {
+            e.message.push_str(&format!("; allowed: {allowed}"));
+        }
+    }
     let Some((line, col)) = e.position else {
         return e;
     };
