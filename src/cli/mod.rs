@@ -3,7 +3,9 @@
 mod brdf;
 mod catalogue;
 mod maps;
+mod new;
 mod render;
+mod validate;
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -33,6 +35,18 @@ enum Command {
     /// Render a gem (default: green-aventurine) on a cabochon in a scene
     /// (default: the studio scene), to PNG or EXR.
     Render(render::RenderArgs),
+    /// Check gem recipes, material files, scene files or built-in names:
+    /// prints `file:line:col: message` per error, `file: ok (…)` per valid
+    /// input; exit status 1 when any has an error.
+    Validate {
+        /// RON files (gem, material or scene, told apart by their top-level
+        /// `Gem(`, `Material(` or `Scene(`) or built-in names.
+        #[arg(required = true, value_name = "RECIPE")]
+        recipes: Vec<String>,
+    },
+    /// Start a new recipe NAME.ron from a built-in gem or material, with a
+    /// header saying how to validate and render it.
+    New(new::NewArgs),
 }
 
 /// Arguments of `lapidary maps`.
@@ -108,6 +122,8 @@ pub fn run() -> i32 {
         Command::List => catalogue::list(),
         Command::Maps(args) => maps::run(args),
         Command::Render(args) => render::run(args),
+        Command::Validate { recipes } => validate::run(&recipes),
+        Command::New(args) => new::run(args),
     };
     match result {
         Ok(()) => 0,

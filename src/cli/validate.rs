@@ -1,0 +1,423 @@
+//! `lapidary validate RECIPE...`: check gem recipes, material files, scene
+//! files and built-in names the way the renderer would read them, and print
+//! `file:line:col: message` for each error or `file: ok (…)` for each valid
+//! input.
+//!
+//! A file's kind is its RON top-level struct name (`Gem(`, `Material(`,
+//! `Scene(`), read after comments and whitespace. Validation runs the same
+//! parse and compile steps as `lapidary render` (the gem's pattern tree, and
+//! every material compiled with `multiple_scattering` off, which skips the
+//! slow compensation tables but none of the checks), so semantic errors —
+//! unknown names, weights summing to zero, maps that contain themselves —
+//! are caught here and not at render time.
+
+use lapidary::recipe::compile::{
+    compile_material, locate_material, names_a_file, parse_material, read_ron_file, MaterialSource,
+};
+use lapidary::recipe::error::{did_you_mean, line_col_of_offset, RecipeError};
+use lapidary::recipe::gem::{load_gem_source, parse_gem, CompiledGem};
+use lapidary::recipe::library::{
+    builtin_gem_names, builtin_gem_source, builtin_material_names, builtin_material_source,
+};
+use lapidary::recipe::material::{BaseSpec, Material};
+use lapidary::scene::spec::SceneSpec;
+use lapidary::scene::{parse_scene, DEFAULT_SCENE_SOURCE};
+use std::path::Path;
+
+/// Name under which `validate` accepts the built-in studio scene.
+pub const BUILTIN_SCENE_NAME: &str = "studio";
+
+/// What a RON file holds, by its top-level struct name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RecipeKind {
+    /// `Gem(…)`: a gem recipe (section 4.3.1).
+    Gem,
+    /// `Material(…)`: a layered material (section 4.1).
+    Material,
+    /// `Scene(…)`: a scene for `lapidary render --scene`.
+    Scene,
+}
+
+/// Byte offset of the first character of `text` that is not whitespace, a
+/// `//` or `/* */` comment, or a RON `#![enable(…)]` attribute.
+fn first_code_offset(text: &str) -> usize {
+    let bytes = text.as_bytes();
+    let mut i = 0;
+    while i < bytes.len() {
+        let rest = &text[i..];
+        if bytes[i].is_ascii_whitespace() {
+            i += 1;
+        } else if rest.starts_with("//") {
+            i += rest.find('\n').map_or(rest.len(), |e| e + 1);
+        } else if let Some(body) = rest.strip_prefix("/*") {
+            i += body.find("*/").map_or(rest.len(), |e| e + 4);
+        } else if rest.starts_with("#!") {
+            i += rest.find(']').map_or(rest.len(), |e| e + 1);
+        } else if rest.starts_with('\u{feff}') {
+            i += '\u{feff}'.len_utf8();
+        } else {
+            break;
+        }
+    }
+    i
+}
+
+/// The kind of RON file `text` is, from its top-level struct name; an
+/// error at the first token says what was expected otherwise.
+pub fn recipe_kind(path: &str, text: &str) -> Result<RecipeKind, RecipeError> {
+    const EXPECTED: &str =
+        "expected a recipe starting with `Gem(`, `Material(` or `Scene(` (after comments)";
+    let start = first_code_offset(text);
+    if start >= text.len() {
+        let what = if text.trim().is_empty() {
+            "the file is empty"
+        } else {
+            "the file holds only comments"
+        };
+        return Err(RecipeError::whole_file(path, format!("{what}; {EXPECTED}")));
+    }
+    let word: String = text[start..]
+        .chars()
+        .take_while(|c| c.is_alphanumeric() || *c == '_')
+        .collect();
+    let kind = match word.as_str() {
+        "Gem" => Some(RecipeKind::Gem),
+        "Material" => Some(RecipeKind::Material),
+        "Scene" => Some(RecipeKind::Scene),
+        _ => None,
+    };
+    match kind {
+        Some(kind) => Ok(kind),
+        None => {
+            let (line, col) = line_col_of_offset(text, start);
+            let found = if word.is_empty() {
+                text[start..]
+                    .chars()
+                    .next()
+                    .map_or(String::new(), |c| c.to_string())
+            } else {
+                word.clone()
+            };
+            let hint = did_you_mean(&word, ["Gem", "Material", "Scene"])
+                .filter(|_| !word.is_empty())
+                .map(|s| format!(" (did you mean `{s}`?)"))
+                .unwrap_or_default();
+            Err(RecipeError::at(
+                path,
+                line,
+                col,
+                format!("found `{found}`{hint}; {EXPECTED}"),
+            ))
+        }
+    }
+}
+
+/// Compile material `name` of a gem with `multiple_scattering` off. An
+/// inline material is compiled against the gem text from its definition
+/// `"name":` on, so that its errors point into its own `Layer(`s; the
+/// position is then shifted back to the whole file.
+fn compile_gem_material(
+    path: &str,
+    text: &str,
+    name: &str,
+    material: &Material,
+) -> Result<(), RecipeError> {
+    let quoted = format!("\"{name}\"");
+    let definition = text
+        .match_indices(&quoted)
+        .find(|(i, _)| text[i + quoted.len()..].trim_start().starts_with(':'))
+        .map(|(i, _)| i);
+    let (base, from) = match definition {
+        Some(offset) => (line_col_of_offset(text, offset), offset),
+        None => ((1, 1), 0),
+    };
+    let source = MaterialSource {
+        path: path.to_string(),
+        name: name.to_string(),
+        text: text[from..].to_string(),
+    };
+    let mut m = material.clone();
+    m.multiple_scattering = false;
+    compile_material(&source, &m).map(drop).map_err(|mut e| {
+        if let Some((line, col)) = e.position {
+            e.position = Some(if line == 1 {
+                (base.0, base.1 + col - 1)
+            } else {
+                (base.0 + line - 1, col)
+            });
+        }
+        e
+    })
+}
+
+/// Validate a gem recipe: parse, compile the pattern, compile every
+/// material it uses.
+fn validate_gem(path: &str, text: &str) -> Result<String, RecipeError> {
+    let gem: CompiledGem = parse_gem(path, text)?;
+    for (name, material) in &gem.materials {
+        if gem.spec.materials.contains_key(name) {
+            compile_gem_material(path, text, name, material)?;
+        } else {
+            // A library material: its own text, under its own name.
+            let source = locate_material(name)?;
+            let mut m = material.clone();
+            m.multiple_scattering = false;
+            compile_material(&source, &m)?;
+        }
+    }
+    let plural = |n: usize, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
+    Ok(format!(
+        "ok (gem \"{}\", {}, {}{})",
+        gem.name,
+        plural(gem.materials.len(), "material"),
+        plural(gem.map_names.len(), "map"),
+        if gem.spec.glitter.is_some() {
+            ", glitter"
+        } else {
+            ""
+        }
+    ))
+}
+
+/// Validate a material file: parse and compile (without the compensation
+/// tables).
+fn validate_material(path: &str, name: &str, text: &str) -> Result<String, RecipeError> {
+    let mut material = parse_material(path, text)?;
+    material.multiple_scattering = false;
+    let source = MaterialSource {
+        path: path.to_string(),
+        name: name.to_string(),
+        text: text.to_string(),
+    };
+    compile_material(&source, &material)?;
+    let base = match material.base {
+        BaseSpec::Diffuse { .. } => "Diffuse",
+        BaseSpec::Conductor { .. } => "Conductor",
+        BaseSpec::Black => "Black",
+    };
+    let layers = material.layers.len();
+    Ok(format!(
+        "ok (material, {layers} layer{}, {base} base)",
+        if layers == 1 { "" } else { "s" }
+    ))
+}
+
+/// A referenced gem or material of a scene that does not load, reported at
+/// the place the scene names it, with the inner error after it.
+fn reference_error(
+    path: &str,
+    text: &str,
+    written: &str,
+    what: &str,
+    inner: RecipeError,
+) -> RecipeError {
+    RecipeError::at_text(
+        path,
+        text,
+        &format!("\"{written}\""),
+        format!("{what} `{written}` does not load: {inner}"),
+    )
+}
+
+/// Validate a scene file: parse and compile it, then check that every gem
+/// and the ground material it names exist and validate.
+fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<String, RecipeError> {
+    let scene = parse_scene(text, file).map_err(|mut e| {
+        e.path = path.to_string();
+        e
+    })?;
+    // The names as written (the compiled scene holds resolved paths).
+    let spec: SceneSpec = ron::from_str(text)
+        .map_err(|e| RecipeError::whole_file(path, format!("cannot re-read: {e}")))?;
+    for (stone, written) in scene.stones.iter().zip(&spec.stones) {
+        if let (Some(resolved), Some(written)) = (&stone.recipe, &written.recipe) {
+            let (gem_path, gem_text) = load_gem_source(resolved)
+                .map_err(|e| reference_error(path, text, written, "gem", e))?;
+            let kind = recipe_kind(&gem_path, &gem_text)
+                .map_err(|e| reference_error(path, text, written, "gem", e))?;
+            if kind != RecipeKind::Gem {
+                return Err(RecipeError::at_text(
+                    path,
+                    text,
+                    &format!("\"{written}\""),
+                    format!("`recipe` `{written}` is a {kind:?} file; allowed: a gem recipe (`Gem(`) or a built-in gem"),
+                ));
+            }
+            validate_gem(&gem_path, &gem_text)
+                .map_err(|e| reference_error(path, text, written, "gem", e))?;
+        }
+    }
+    if let (Some(ground), Some(written)) = (&scene.ground, &spec.ground) {
+        let check = || -> Result<String, RecipeError> {
+            let source = locate_material(&ground.material)?;
+            validate_material(&source.path, &source.name, &source.text)
+        };
+        check()
+            .map_err(|e| reference_error(path, text, &written.material, "ground material", e))?;
+    }
+    let n = scene.stones.len();
+    let l = scene.lights.len();
+    Ok(format!(
+        "ok (scene, {n} stone{}, {l} light{}{})",
+        if n == 1 { "" } else { "s" },
+        if l == 1 { "" } else { "s" },
+        if scene.ground.is_some() {
+            ", ground"
+        } else {
+            ""
+        }
+    ))
+}
+
+/// Validate one text of known display path; `file` is the file on disk
+/// (for a scene's relative paths), `None` for built-ins and texts not yet
+/// written (`lapidary new`).
+pub fn validate_text(
+    path: &str,
+    file: Option<&Path>,
+    name: &str,
+    text: &str,
+) -> Result<String, RecipeError> {
+    match recipe_kind(path, text)? {
+        RecipeKind::Gem => validate_gem(path, text),
+        RecipeKind::Material => validate_material(path, name, text),
+        RecipeKind::Scene => validate_scene(path, file, text),
+    }
+}
+
+/// Plainer words for RON's type errors, and, for an error placed where
+/// only whitespace and comments follow, that the file ends there (RON's own
+/// message, "expected `(`", does not say so).
+fn with_truncation_hint(mut e: RecipeError, text: &str) -> RecipeError {
+    // RON's type errors say what it expected in its own words; add what
+    // to write.
+    for (ron_says, allowed) in [
+        ("Expected float", "a number such as 1.5, without quotes"),
+        (
+            "Expected integer",
+            "a whole number such as 4, without quotes",
+        ),
+        ("Expected string", "a name in double quotes"),
+    ] {
+        if e.message.ends_with(ron_says) {
+            e.message.push_str(&format!("; allowed: {allowed}"));
+        }
+    }
+    let Some((line, col)) = e.position else {
+        return e;
+    };
+    let line_start: usize = text
+        .split_inclusive('\n')
+        .take(line - 1)
+        .map(str::len)
+        .sum();
+    let offset = text[line_start.min(text.len())..]
+        .char_indices()
+        .nth(col.saturating_sub(1))
+        .map_or(text.len(), |(i, _)| line_start + i);
+    let rest = &text[offset.min(text.len())..];
+    if first_code_offset(rest) >= rest.len() {
+        e.message.push_str(
+            " (the file ends here: is it cut short, or is a closing `)`, `]` or `}` missing?)",
+        );
+    }
+    e
+}
+
+/// Validate one command-line argument (a file or a built-in name); returns
+/// the display path and the success summary, or the error.
+pub fn validate_one(spec: &str) -> Result<(String, String), RecipeError> {
+    if names_a_file(spec) {
+        let text = read_ron_file(spec, "recipe (gem, material or scene)")?;
+        let name = Path::new(spec)
+            .file_stem()
+            .map_or(spec.to_string(), |s| s.to_string_lossy().into_owned());
+        let summary = validate_text(spec, Some(Path::new(spec)), &name, &text)
+            .map_err(|e| with_truncation_hint(e, &text))?;
+        return Ok((spec.to_string(), summary));
+    }
+    let builtin = |prefix: &str| format!("builtin:{prefix}");
+    if let Some(text) = builtin_gem_source(spec) {
+        let path = builtin(spec);
+        return validate_gem(&path, text).map(|s| (path, s));
+    }
+    if let Some(text) = builtin_material_source(spec) {
+        let path = builtin(spec);
+        return validate_material(&path, spec, text).map(|s| (path, s));
+    }
+    if spec == BUILTIN_SCENE_NAME {
+        let path = builtin(spec);
+        return validate_scene(&path, None, DEFAULT_SCENE_SOURCE).map(|s| (path, s));
+    }
+    let names: Vec<&str> = builtin_gem_names()
+        .chain(builtin_material_names())
+        .chain([BUILTIN_SCENE_NAME])
+        .collect();
+    let hint = did_you_mean(spec, names.iter().copied())
+        .map(|s| format!(" (did you mean `{s}`?)"))
+        .unwrap_or_default();
+    Err(RecipeError::whole_file(
+        spec,
+        format!(
+            "no such file and no built-in gem, material or scene of that name{hint}; built-in: {}",
+            names.join(", ")
+        ),
+    ))
+}
+
+/// Run `lapidary validate`: one line per input, on stdout for valid ones
+/// and stderr for errors; fails when any input has an error.
+pub fn run(recipes: &[String]) -> Result<(), String> {
+    let mut failed = 0;
+    for spec in recipes {
+        match validate_one(spec) {
+            Ok((path, summary)) => super::emit(&format!("{path}: {summary}")),
+            Err(e) => {
+                eprintln!("{e}");
+                failed += 1;
+            }
+        }
+    }
+    if failed == 0 {
+        Ok(())
+    } else {
+        Err(format!(
+            "{failed} of {} input{} ha{} errors",
+            recipes.len(),
+            if recipes.len() == 1 { "" } else { "s" },
+            if failed == 1 { "s" } else { "ve" }
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_kind_is_read_after_comments_and_whitespace() {
+        let text = "// a note: Material(\n/* Scene( */\n  Gem(surface: \"gold\")";
+        assert_eq!(recipe_kind("t", text), Ok(RecipeKind::Gem));
+        assert_eq!(
+            recipe_kind("t", "#![enable(implicit_some)]\nScene()"),
+            Ok(RecipeKind::Scene)
+        );
+    }
+
+    #[test]
+    fn an_unnamed_top_level_struct_is_located_and_explained() {
+        let e = recipe_kind("t.ron", "// x\n  (base: Black)").unwrap_err();
+        assert_eq!(e.position, Some((2, 3)));
+        assert!(e.message.contains("`Gem(`"), "{e}");
+        let e = recipe_kind("t.ron", "Materail(base: Black)").unwrap_err();
+        assert!(e.message.contains("did you mean `Material`"), "{e}");
+    }
+
+    #[test]
+    fn an_empty_file_says_so() {
+        let e = recipe_kind("t.ron", " \n").unwrap_err();
+        assert!(e.message.contains("empty"), "{e}");
+        let e = recipe_kind("t.ron", "// only\n").unwrap_err();
+        assert!(e.message.contains("only comments"), "{e}");
+    }
+}

@@ -1,0 +1,531 @@
+//! `lapidary validate` and `lapidary new`: the built-in recipes pass, and
+//! recipes broken the way a new user breaks them fail with exit status 1
+//! and a message naming the file, the place, the field and what is allowed.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn lapidary(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lapidary"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("lapidary-validate-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// A minimal valid gem whose one map is `tiles`; the broken recipes below
+/// are small edits of it, so each has exactly one mistake.
+const GOOD_GEM: &str = r#"// a two-material gem
+Gem(
+    name: "good",
+    seed: 3,
+    materials: {
+        "lilac": Material(
+            layers: [Layer(ior: 1.5, roughness_deg: 2.0)],
+            base: Diffuse(colour: (0.4, 0.3, 0.5)),
+        ),
+    },
+    maps: {
+        "tiles": SurfaceMap(cell_size: 0.1, entries: [
+            (material: "lilac", weight: 2.0),
+            (material: "gold"),
+        ]),
+    },
+    surface: "tiles",
+)
+"#;
+
+/// Write `contents` to `dir/name` and validate it; returns (exit code,
+/// stdout, stderr).
+fn validate_file(dir: &Path, name: &str, contents: &[u8]) -> (i32, String, String) {
+    let path = dir.join(name);
+    std::fs::write(&path, contents).unwrap();
+    let out = lapidary(&["validate", path.to_str().unwrap()]);
+    (
+        out.status.code().unwrap_or(-1),
+        text(&out.stdout),
+        text(&out.stderr),
+    )
+}
+
+/// `GOOD_GEM` with one edit, validated: must fail with every `expected`
+/// fragment in the message, which starts `file:line:col:` at `line` (1-based,
+/// when the mistake has a place) and names the file.
+fn broken(dir: &Path, name: &str, contents: &str, line: Option<usize>, expected: &[&str]) {
+    let (code, _, err) = validate_file(dir, name, contents.as_bytes());
+    assert_eq!(code, 1, "{name}: exit {code}, stderr: {err}");
+    assert!(!err.contains("panicked"), "{name} panicked: {err}");
+    let file = dir.join(name).display().to_string();
+    assert!(err.contains(&file), "{name}: the file is not named: {err}");
+    if let Some(line) = line {
+        let prefix = format!("{file}:{line}:");
+        assert!(err.contains(&prefix), "{name}: expected {prefix}…: {err}");
+    }
+    for fragment in expected {
+        assert!(err.contains(fragment), "{name}: no `{fragment}` in: {err}");
+    }
+}
+
+#[test]
+fn every_builtin_and_every_recipe_file_validates() {
+    let mut args = vec!["validate".to_string()];
+    for dir in ["gem-recipes", "gem-recipes/materials", "gem-recipes/scenes"] {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join(dir);
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "ron") {
+                args.push(path.display().to_string());
+            }
+        }
+    }
+    let files = args.len() - 1;
+    // Built-in names: both gems, a material and the studio scene.
+    for name in ["green-aventurine", "lavender-lepidolite", "brass", "studio"] {
+        args.push(name.to_string());
+    }
+    let out = lapidary(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{}{}", stdout, text(&out.stderr));
+    // 2 gems + 24 materials + 1 scene on disk at the time of writing.
+    assert!(files >= 27, "only {files} recipe files found");
+    assert_eq!(stdout.lines().count(), args.len() - 1, "{stdout}");
+    assert!(stdout.lines().all(|l| l.contains(": ok (")), "{stdout}");
+    assert!(
+        stdout.contains("builtin:lavender-lepidolite: ok (gem \"lavender-lepidolite\""),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn the_good_gem_is_reported_with_its_name_and_material_count() {
+    let dir = scratch("good");
+    let (code, out, err) = validate_file(&dir, "good.ron", GOOD_GEM.as_bytes());
+    assert_eq!(code, 0, "{err}");
+    // Two materials: the inline `lilac` and the library `gold`; one map.
+    assert!(
+        out.contains("ok (gem \"good\", 2 materials, 1 map)"),
+        "{out}"
+    );
+}
+
+#[test]
+fn field_typos_get_a_did_you_mean_at_their_line() {
+    let dir = scratch("typo");
+    // Line 7: `rougness_deg` in the layer.
+    let typo = GOOD_GEM.replace("roughness_deg: 2.0", "rougness_deg: 2.0");
+    broken(
+        &dir,
+        "typo.ron",
+        &typo,
+        Some(7),
+        &["rougness_deg", "did you mean `roughness_deg`"],
+    );
+    // A gem-level field: `sufrace` (line 17).
+    let typo = GOOD_GEM.replace("surface:", "sufrace:");
+    broken(
+        &dir,
+        "gemtypo.ron",
+        &typo,
+        Some(17),
+        &["sufrace", "did you mean `surface`"],
+    );
+}
+
+#[test]
+fn a_missing_surface_is_named() {
+    let dir = scratch("missing");
+    let gem = GOOD_GEM.replace("    surface: \"tiles\",\n", "");
+    broken(
+        &dir,
+        "nosurface.ron",
+        &gem,
+        None,
+        &["missing field `surface`"],
+    );
+}
+
+#[test]
+fn a_value_of_the_wrong_type_names_its_field() {
+    let dir = scratch("type");
+    // A string where the IOR number goes (line 7).
+    let gem = GOOD_GEM.replace("ior: 1.5", "ior: \"1.5\"");
+    broken(
+        &dir,
+        "type.ron",
+        &gem,
+        Some(7),
+        &["`ior`", "a number such as 1.5"],
+    );
+}
+
+#[test]
+fn unknown_material_and_map_names_suggest_the_close_one() {
+    let dir = scratch("names");
+    // `lilak` for `lilac` on line 13.
+    let gem = GOOD_GEM.replace("(material: \"lilac\"", "(material: \"lilak\"");
+    broken(
+        &dir,
+        "material.ron",
+        &gem,
+        Some(13),
+        &["unknown material `lilak`", "did you mean `lilac`"],
+    );
+    // `tyles` for the map `tiles` as surface (line 17).
+    let gem = GOOD_GEM.replace("surface: \"tiles\"", "surface: \"tyles\"");
+    broken(
+        &dir,
+        "surface.ron",
+        &gem,
+        Some(17),
+        &["`tyles`", "did you mean `tiles`"],
+    );
+    // A library name with a typo: `gould` (line 14).
+    let gem = GOOD_GEM.replace("(material: \"gold\")", "(material: \"gould\")");
+    broken(
+        &dir,
+        "library.ron",
+        &gem,
+        Some(14),
+        &["unknown material `gould`", "did you mean `gold`"],
+    );
+}
+
+#[test]
+fn out_of_range_numbers_give_the_allowed_range() {
+    let dir = scratch("ranges");
+    // IOR 0.5 (below vacuum's 1), line 7.
+    let gem = GOOD_GEM.replace("ior: 1.5", "ior: 0.5");
+    broken(
+        &dir,
+        "ior.ron",
+        &gem,
+        Some(7),
+        &["`ior` = 0.5", "1 <= ior <= 5"],
+    );
+    // Roughness 95°: slopes are below 90°.
+    let gem = GOOD_GEM.replace("roughness_deg: 2.0", "roughness_deg: 95");
+    broken(
+        &dir,
+        "rough.ron",
+        &gem,
+        Some(7),
+        &["`roughness_deg` = 95", "0 <= roughness_deg < 90"],
+    );
+    // A negative thickness.
+    let gem = GOOD_GEM.replace("roughness_deg: 2.0", "roughness_deg: 2.0, thickness: -1.0");
+    broken(
+        &dir,
+        "thick.ron",
+        &gem,
+        Some(7),
+        &["`thickness` = -1", "thickness >= 0"],
+    );
+    // NaN is a number RON accepts but no field does.
+    let gem = GOOD_GEM.replace("cell_size: 0.1", "cell_size: NaN");
+    broken(
+        &dir,
+        "nan.ron",
+        &gem,
+        Some(12),
+        &["`cell_size` = NaN", "cell_size > 0"],
+    );
+    // A colour channel above 1 (a diffuse base reflects at most all light).
+    let gem = GOOD_GEM.replace("(0.4, 0.3, 0.5)", "(0.4, 1.3, 0.5)");
+    broken(
+        &dir,
+        "colour.ron",
+        &gem,
+        Some(8),
+        &["`colour`", "0 <= colour <= 1"],
+    );
+}
+
+#[test]
+fn weights_that_sum_to_zero_are_refused_at_the_map() {
+    let dir = scratch("weights");
+    let gem = GOOD_GEM
+        .replace("weight: 2.0", "weight: 0.0")
+        .replace("(material: \"gold\")", "(material: \"gold\", weight: 0.0)");
+    // Reported at the map's definition `"tiles":` on line 12.
+    broken(
+        &dir,
+        "weights.ron",
+        &gem,
+        Some(12),
+        &["`tiles`", "sum to 0", "at least one > 0"],
+    );
+}
+
+#[test]
+fn maps_containing_themselves_are_refused_directly_and_through_another() {
+    let dir = scratch("cycles");
+    let gem = GOOD_GEM.replace("(material: \"gold\")", "(map: \"tiles\")");
+    broken(
+        &dir,
+        "self.ron",
+        &gem,
+        Some(12),
+        &["`tiles` contains itself directly"],
+    );
+    let gem = GOOD_GEM.replace(
+        "(material: \"gold\")",
+        "(map: \"other\")]),\n        \"other\": SurfaceMap(cell_size: 0.2, entries: [(map: \"tiles\")",
+    );
+    broken(
+        &dir,
+        "through.ron",
+        &gem,
+        None,
+        &["contains itself through", "other → tiles"],
+    );
+}
+
+#[test]
+fn a_material_problem_inside_a_gem_points_at_that_material() {
+    let dir = scratch("layer");
+    // A layer with both `ior` and `varnish`: only the compile step sees it.
+    let gem = GOOD_GEM.replace("ior: 1.5,", "ior: 1.5, varnish: \"ice\",");
+    broken(
+        &dir,
+        "layer.ron",
+        &gem,
+        Some(7),
+        &["exactly one of `ior`, `reflectivity` or `varnish`"],
+    );
+    // A material file naming an unknown metal.
+    let material = "Material(\n    base: Conductor(metal: \"sliver\"),\n)\n";
+    broken(
+        &dir,
+        "metal.ron",
+        material,
+        Some(2),
+        &["unknown metal `sliver`", "did you mean `silver`"],
+    );
+}
+
+#[test]
+fn broken_files_name_the_file_and_what_was_expected() {
+    let dir = scratch("files");
+    // Truncated in the middle of the maps.
+    let cut = &GOOD_GEM[..GOOD_GEM.find("(material: \"gold\")").unwrap()];
+    broken(
+        &dir,
+        "truncated.ron",
+        cut,
+        Some(13),
+        &["the file ends here"],
+    );
+    // Not UTF-8 (a Latin-1 `é` in a comment).
+    let mut bytes = b"// caf\xe9\n".to_vec();
+    bytes.extend_from_slice(GOOD_GEM.as_bytes());
+    let (code, _, err) = validate_file(&dir, "latin1.ron", &bytes);
+    assert_eq!(code, 1);
+    assert!(
+        err.contains("latin1.ron") && err.contains("not UTF-8"),
+        "{err}"
+    );
+    // Empty, and no top-level struct name.
+    broken(
+        &dir,
+        "empty.ron",
+        "",
+        None,
+        &["empty", "`Gem(`", "`Material(`", "`Scene(`"],
+    );
+    broken(
+        &dir,
+        "anonymous.ron",
+        "// note\n(base: Black)\n",
+        Some(2),
+        &["found `(`", "`Gem(`"],
+    );
+    // A directory.
+    let out = lapidary(&["validate", dir.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(
+        err.contains(dir.to_str().unwrap()) && err.contains("is a directory"),
+        "{err}"
+    );
+    // A missing file.
+    let missing = dir.join("missing.ron");
+    let out = lapidary(&["validate", missing.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("missing.ron") && err.contains("cannot read"),
+        "{err}"
+    );
+}
+
+/// A valid scene naming the built-in gem and ground material.
+const GOOD_SCENE: &str = r#"Scene(
+    camera: Orbit(target: (0.0, 0.0, 1.0), distance: 40.0, elevation_deg: 30.0, azimuth_deg: 0.0, vertical_fov_deg: 25.0),
+    stones: [
+        Stone(
+            recipe: Some("green-aventurine"),
+            shape: Cabochon(outline: Oval, length: 10.0, width: 8.0),
+        ),
+    ],
+    ground: Some(Ground(height: 0.0, material: "teflon")),
+)
+"#;
+
+#[test]
+fn scenes_are_checked_with_the_gems_and_materials_they_name() {
+    let dir = scratch("scene");
+    let (code, out, err) = validate_file(&dir, "good-scene.ron", GOOD_SCENE.as_bytes());
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("ok (scene, 1 stone, 0 lights, ground)"),
+        "{out}"
+    );
+    // A stone of negative length (line 6).
+    let scene = GOOD_SCENE.replace("length: 10.0", "length: -10.0");
+    broken(&dir, "length.ron", &scene, Some(6), &["length", "> 0"]);
+    // A stone naming a gem with a typo.
+    let scene = GOOD_SCENE.replace("\"green-aventurine\"", "\"green-aventurin\"");
+    broken(
+        &dir,
+        "gemname.ron",
+        &scene,
+        Some(5),
+        &["green-aventurin", "did you mean `green-aventurine`"],
+    );
+    // A ground material with a typo.
+    let scene = GOOD_SCENE.replace("\"teflon\"", "\"teflom\"");
+    broken(
+        &dir,
+        "ground.ron",
+        &scene,
+        Some(9),
+        &["teflom", "did you mean `teflon`"],
+    );
+}
+
+#[test]
+fn several_inputs_one_bad_fail_and_still_report_the_good_ones() {
+    let dir = scratch("several");
+    let good = dir.join("good.ron");
+    let bad = dir.join("bad.ron");
+    std::fs::write(&good, GOOD_GEM).unwrap();
+    std::fs::write(&bad, GOOD_GEM.replace("ior: 1.5", "ior: 0.5")).unwrap();
+    let out = lapidary(&[
+        "validate",
+        good.to_str().unwrap(),
+        bad.to_str().unwrap(),
+        "gold",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    let stdout = text(&out.stdout);
+    let stderr = text(&out.stderr);
+    assert!(
+        stdout.contains(&format!("{}: ok (gem \"good\"", good.display())),
+        "{stdout}"
+    );
+    assert!(stdout.contains("builtin:gold: ok (material"), "{stdout}");
+    assert!(
+        stderr.contains(&format!("{}:7:", bad.display())),
+        "{stderr}"
+    );
+    assert!(stderr.contains("1 of 3 inputs"), "{stderr}");
+}
+
+#[test]
+fn an_unknown_builtin_name_suggests_the_close_one() {
+    let out = lapidary(&["validate", "lavender-lepidolit"]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(err.contains("did you mean `lavender-lepidolite`"), "{err}");
+}
+
+#[test]
+fn new_writes_a_recipe_that_validates_and_names_the_gem() {
+    let dir = scratch("new");
+    let path = dir.join("my-stone.ron");
+    let out = lapidary(&[
+        "new",
+        "my-stone",
+        "--from",
+        "lavender-lepidolite",
+        "-o",
+        path.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let written = std::fs::read_to_string(&path).unwrap();
+    assert!(written.starts_with("// my-stone:"), "{written}");
+    assert!(written.contains("lapidary validate"), "{written}");
+    assert!(written.contains("lapidary render"), "{written}");
+    assert!(written.contains("name: \"my-stone\""), "{written}");
+    // The template's own name is gone from the `name:` field only.
+    assert!(
+        !written.contains("name: \"lavender-lepidolite\""),
+        "{written}"
+    );
+    let out = lapidary(&["validate", path.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(text(&out.stdout).contains("ok (gem \"my-stone\""));
+    // A material template, to the default NAME.ron in the working folder.
+    let out = Command::new(env!("CARGO_BIN_EXE_lapidary"))
+        .args(["new", "my-paint", "--from", "brass"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let out = lapidary(&["validate", dir.join("my-paint.ron").to_str().unwrap()]);
+    assert!(
+        text(&out.stdout).contains("ok (material, 2 layers"),
+        "{}",
+        text(&out.stderr)
+    );
+}
+
+#[test]
+fn new_never_overwrites_and_refuses_unknown_templates() {
+    let dir = scratch("refuse");
+    let path = dir.join("taken.ron");
+    std::fs::write(&path, "precious").unwrap();
+    let out = lapidary(&[
+        "new",
+        "taken",
+        "--from",
+        "gold",
+        "-o",
+        path.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        text(&out.stderr).contains("already exists"),
+        "{}",
+        text(&out.stderr)
+    );
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), "precious");
+
+    let other = dir.join("other.ron");
+    let out = lapidary(&[
+        "new",
+        "other",
+        "--from",
+        "green-aventurin",
+        "-o",
+        other.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(err.contains("did you mean `green-aventurine`"), "{err}");
+    assert!(
+        err.contains("lavender-lepidolite") && err.contains("teflon"),
+        "{err}"
+    );
+    assert!(!other.exists());
+}
