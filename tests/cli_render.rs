@@ -325,7 +325,16 @@ fn ctrl_c_stops_a_long_render_promptly_and_writes_nothing() {
     let png = dir.join("long.png");
     // About a minute of work on two cores if it were not interrupted.
     let child = Command::new(env!("CARGO_BIN_EXE_lapidary"))
-        .args(["render", "-o", png.to_str().unwrap(), "--size", "512", "--spp", "128", "-q"])
+        .args([
+            "render",
+            "-o",
+            png.to_str().unwrap(),
+            "--size",
+            "512",
+            "--spp",
+            "128",
+            "-q",
+        ])
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
@@ -338,7 +347,11 @@ fn ctrl_c_stops_a_long_render_promptly_and_writes_nothing() {
     let out = child.wait_with_output().unwrap();
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     assert!(stderr(&out).contains("interrupted"), "{}", stderr(&out));
-    assert!(files_in(&dir).is_empty(), "left behind: {:?}", files_in(&dir));
+    assert!(
+        files_in(&dir).is_empty(),
+        "left behind: {:?}",
+        files_in(&dir)
+    );
     // Exit 1 with "interrupted" and no file means the render stopped
     // before it finished (a finished render exits 0 and writes the PNG).
 }

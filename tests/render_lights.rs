@@ -162,7 +162,7 @@ fn a_stone_between_the_light_and_the_floor_casts_a_shadow() {
         position: DVec3::new(10.0, 0.0, 0.5),
         gem: 0,
     };
-    let lit = floor_radiance(vec![light.clone()], vec![], 1);
+    let lit = floor_radiance(vec![light], vec![], 1);
     // Unshadowed: E = I cosθ / d² with d² = 404, cosθ = 2/√404.
     let expected = 100.0 * (2.0 / 404f64.sqrt()) / 404.0 / PI;
     assert_close(lit, expected, 1e-3, "unshadowed floor");

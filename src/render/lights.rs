@@ -10,54 +10,12 @@ use std::f64::consts::PI;
 use glam::DVec3;
 
 use crate::brdf::Rgb;
+use crate::scene::LightSpec;
 
-/// A light, in world space.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Light {
-    /// An isotropic point: radiant intensity `intensity` (W/sr per channel),
-    /// irradiance falls off as 1/d².
-    Point {
-        /// Where it is.
-        position: DVec3,
-        /// Radiant intensity.
-        intensity: Rgb,
-    },
-    /// A uniformly emitting sphere of radiance `radiance`.
-    Sphere {
-        /// Its centre.
-        centre: DVec3,
-        /// Its radius, > 0.
-        radius: f64,
-        /// Emitted radiance.
-        radiance: Rgb,
-    },
-    /// A one-sided rectangle (a soft box) emitting towards `normal`.
-    Rect {
-        /// Its centre.
-        centre: DVec3,
-        /// Unit normal, the side that emits.
-        normal: DVec3,
-        /// Unit edge directions, orthogonal to each other and the normal.
-        u_axis: DVec3,
-        /// See `u_axis`.
-        v_axis: DVec3,
-        /// Edge length along `u_axis`.
-        width: f64,
-        /// Edge length along `v_axis`.
-        height: f64,
-        /// Emitted radiance.
-        radiance: Rgb,
-    },
-    /// A distant disc: the sun.
-    Sun {
-        /// Unit direction towards the sun.
-        direction: DVec3,
-        /// cos of the disc's angular radius.
-        cos_radius: f64,
-        /// Radiance of the disc, irradiance / (π sin²(angular radius)).
-        radiance: Rgb,
-    },
-}
+/// A light, in world space: the scene's light description, which already
+/// holds everything sampling needs (unit normals, frames, the sun's
+/// direction). This module gives it its behaviour.
+pub type Light = LightSpec;
 
 /// A direction towards a light chosen by [`Light::sample`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -75,18 +33,14 @@ pub struct LightSample {
     pub is_delta: bool,
 }
 
-impl Light {
+impl LightSpec {
     /// A sun of `irradiance` (perpendicular to its direction) and angular
-    /// diameter `angular_diameter_deg`: the disc radiance is E / (π sin²α),
-    /// since a disc of angular radius α and radiance L delivers
-    /// E = L·π·sin²α at normal incidence.
+    /// diameter `angular_diameter_deg`, towards `direction`.
     pub fn sun(direction: DVec3, angular_diameter_deg: f64, irradiance: Rgb) -> Self {
-        let alpha = (angular_diameter_deg * 0.5).to_radians();
-        let sin2 = alpha.sin().powi(2);
-        Light::Sun {
+        LightSpec::Sun {
             direction: direction.normalize(),
-            cos_radius: alpha.cos(),
-            radiance: irradiance / (PI * sin2),
+            angular_diameter_deg,
+            irradiance,
         }
     }
 
@@ -164,13 +118,13 @@ impl Light {
             }
             Light::Sun {
                 direction,
-                cos_radius,
-                radiance,
+                angular_diameter_deg,
+                irradiance,
             } => Some(LightSample {
-                direction: sample_cone(direction, cos_radius, u),
+                direction: sample_cone(direction, sun_cos_radius(angular_diameter_deg), u),
                 distance: f64::INFINITY,
-                radiance,
-                pdf: cone_pdf(cos_radius),
+                radiance: sun_radiance(angular_diameter_deg, irradiance),
+                pdf: cone_pdf(sun_cos_radius(angular_diameter_deg)),
                 is_delta: false,
             }),
         }
@@ -213,10 +167,16 @@ impl Light {
             }
             Light::Sun {
                 direction: sun,
-                cos_radius,
-                radiance,
-            } => (t_max.is_infinite() && direction.dot(sun) >= cos_radius)
-                .then_some((f64::INFINITY, radiance)),
+                angular_diameter_deg,
+                irradiance,
+            } => (t_max.is_infinite()
+                && direction.dot(sun) >= sun_cos_radius(angular_diameter_deg))
+            .then(|| {
+                (
+                    f64::INFINITY,
+                    sun_radiance(angular_diameter_deg, irradiance),
+                )
+            }),
         }
     }
 
@@ -245,9 +205,24 @@ impl Light {
                     t * t / (cos_light * width * height)
                 }
             }
-            Light::Sun { cos_radius, .. } => cone_pdf(cos_radius),
+            Light::Sun {
+                angular_diameter_deg,
+                ..
+            } => cone_pdf(sun_cos_radius(angular_diameter_deg)),
         }
     }
+}
+
+/// cos of the sun disc's angular radius.
+fn sun_cos_radius(angular_diameter_deg: f64) -> f64 {
+    (angular_diameter_deg * 0.5).to_radians().cos()
+}
+
+/// Radiance of a sun disc delivering `irradiance` at normal incidence: a
+/// disc of angular radius α and radiance L gives E = L·π·sin²α.
+fn sun_radiance(angular_diameter_deg: f64, irradiance: Rgb) -> Rgb {
+    let sin_alpha = (angular_diameter_deg * 0.5).to_radians().sin();
+    irradiance / (PI * sin_alpha * sin_alpha)
 }
 
 /// Uniform density over a cone of directions with cos half-angle `cos_max`.

@@ -10,9 +10,8 @@ use crate::recipe::compile::load_material;
 use crate::render::camera::PinholeCamera;
 use crate::render::environment::Environment;
 use crate::render::integrator::{RenderScene, MATERIAL_ID_FIRST_STONE};
-use crate::render::lights::Light;
 use crate::render::world::{StoneInstance, World};
-use crate::scene::{EnvironmentSpec, LightSpec, Scene};
+use crate::scene::{EnvironmentSpec, Scene};
 
 use crate::brdf::LayeredBrdf;
 use crate::recipe::compile::{compile_material, MaterialSource};
@@ -134,55 +133,11 @@ pub fn prepare_scene(
         world: World::new(stones, scene.ground.as_ref().map(|g| g.height)),
         gems,
         ground_brdf,
-        lights: scene.lights.iter().map(light_from_spec).collect(),
+        lights: scene.lights.clone(),
         environment,
         max_bounces,
         ambient_occlusion: None,
     })
-}
-
-/// The renderer's light for a scene's light description.
-pub fn light_from_spec(spec: &LightSpec) -> Light {
-    match *spec {
-        LightSpec::Point {
-            position,
-            intensity,
-        } => Light::Point {
-            position,
-            intensity,
-        },
-        LightSpec::Sphere {
-            centre,
-            radius,
-            radiance,
-        } => Light::Sphere {
-            centre,
-            radius,
-            radiance,
-        },
-        LightSpec::Rect {
-            centre,
-            normal,
-            u_axis,
-            v_axis,
-            width,
-            height,
-            radiance,
-        } => Light::Rect {
-            centre,
-            normal,
-            u_axis,
-            v_axis,
-            width,
-            height,
-            radiance,
-        },
-        LightSpec::Sun {
-            direction,
-            angular_diameter_deg,
-            irradiance,
-        } => Light::sun(direction, angular_diameter_deg, irradiance),
-    }
 }
 
 /// The scene camera on a film of `width × height` pixels.
