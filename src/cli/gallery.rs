@@ -8,7 +8,8 @@ use image::RgbImage;
 use lapidary::recipe::error::did_you_mean;
 use lapidary::recipe::library::builtin_gem_names;
 use lapidary::render::figures::{
-    figure_3_2, figure_4_11, figure_4_3, gem_sheet, render_gem, FigureError, GallerySettings,
+    encode_png_compact, figure_3_2, figure_4_11, figure_4_3, gem_sheet, render_gem, FigureError,
+    GallerySettings,
 };
 
 /// The non-gem outputs, by the name `--only` knows them (file = name.png).
@@ -25,7 +26,7 @@ pub struct GalleryArgs {
         default_value = "renders"
     )]
     output: PathBuf,
-    /// Side of each gem image in pixels; the figures' spheres are a quarter
+    /// Side of each gem image in pixels; the figures' spheres are a fifth
     /// of it (figure 4.3's a half), at least 48.
     #[arg(long, value_name = "N", default_value_t = 768)]
     size: u32,
@@ -104,9 +105,17 @@ pub fn run(args: GalleryArgs) -> Result<(), String> {
         .build()
         .map_err(|e| format!("cannot start worker threads: {e}"))?;
     let started = Instant::now();
+    // Gems are encoded as `lapidary render` encodes them (same bytes);
+    // the sheets at the best compression (many renders in one PNG).
     let write = |name: &str, image: &RgbImage, since: Instant| -> Result<(), String> {
         let path = args.output.join(format!("{name}.png"));
-        lapidary::output::write_png(&path, image).map_err(|e| e.to_string())?;
+        if gems.contains(&name) {
+            lapidary::output::write_png(&path, image).map_err(|e| e.to_string())?;
+        } else {
+            let bytes = encode_png_compact(image)
+                .map_err(|e| format!("{}: cannot encode PNG: {e}", path.display()))?;
+            lapidary::output::write_atomically(&path, &bytes).map_err(|e| e.to_string())?;
+        }
         if !args.quiet {
             eprintln!(
                 "wrote {} ({} × {}) in {:.1} s",

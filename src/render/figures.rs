@@ -136,7 +136,7 @@ pub enum FigureError {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct GallerySettings {
     /// Side of each gem image, pixels (1 to [`MAX_SIZE_PX`]). The figures
-    /// scale with it: spheres of `size_px / 4` (figures 4.11, 3.2) and
+    /// scale with it: spheres of `size_px / 5` (figures 4.11, 3.2) and
     /// `size_px / 2` (figure 4.3), at least [`MIN_SPHERE_PX`].
     pub size_px: u32,
     /// Samples per pixel (1 to [`MAX_SAMPLES_PER_PIXEL`]).
@@ -187,7 +187,8 @@ impl GallerySettings {
 
     /// Side of a sphere of figures 4.11 and 3.2, pixels.
     pub fn small_sphere_px(&self) -> u32 {
-        (self.size_px / 4).max(MIN_SPHERE_PX)
+        // A fifth keeps the 24-sphere figure 4.11 near 1 MB as a PNG at 768.
+        (self.size_px / 5).max(MIN_SPHERE_PX)
     }
 
     /// Side of a sphere of figure 4.3 (a magnification), pixels.
@@ -628,6 +629,23 @@ pub fn gem_sheet(gems: &[GemPicture]) -> RgbImage {
     contact_sheet("lapidary: the built-in gems", &tiles, 4)
 }
 
+/// PNG bytes of `image` at the encoder's best compression with adaptive
+/// row filters: sheets of many renders stay smaller (the gallery keeps
+/// each PNG under about 1 MB) at the cost of encoding time.
+pub fn encode_png_compact(image: &RgbImage) -> Result<Vec<u8>, image::ImageError> {
+    use image::codecs::png::{CompressionType, FilterType as PngFilter, PngEncoder};
+    use image::{ExtendedColorType, ImageEncoder};
+    let mut bytes = Vec::new();
+    PngEncoder::new_with_quality(&mut bytes, CompressionType::Best, PngFilter::Adaptive)
+        .write_image(
+            image.as_raw(),
+            image.width(),
+            image.height(),
+            ExtendedColorType::Rgb8,
+        )?;
+    Ok(bytes)
+}
+
 /// One picture of a sheet with the words under it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Tile {
@@ -650,7 +668,8 @@ pub struct SheetLayout {
     pub cell_width_px: u32,
     /// Height of the tallest framed image.
     pub image_height_px: u32,
-    /// Integer scale of the label text (1 below 256-px cells, else 2).
+    /// Integer scale of the label text (1 below 384-px cells, else 2, so
+    /// a line holds at least 24 characters).
     pub text_scale: u32,
     /// Label lines under every image (the most any tile needs, at most 4).
     pub label_lines: u32,
@@ -742,7 +761,8 @@ fn wrap(text: &str, width: usize, max_lines: usize) -> Vec<String> {
         lines.truncate(max_lines);
         if let Some(last) = lines.last_mut() {
             let keep = width.saturating_sub(3).min(last.chars().count());
-            *last = last.chars().take(keep).collect::<String>() + "...";
+            let head: String = last.chars().take(keep).collect();
+            *last = head.trim_end().to_string() + "...";
         }
     }
     lines
@@ -776,7 +796,7 @@ pub fn sheet_layout(tiles: &[Tile], columns: u32) -> SheetLayout {
         .max()
         .unwrap_or(0);
     let cell_width_px = image_width.max(MIN_CELL_WIDTH_PX);
-    let text_scale = if cell_width_px >= 256 { 2 } else { 1 };
+    let text_scale = if cell_width_px >= 384 { 2 } else { 1 };
     let mut layout = SheetLayout {
         columns,
         rows: count.div_ceil(columns),
