@@ -2,6 +2,7 @@
 
 mod brdf;
 mod catalogue;
+mod gallery;
 mod maps;
 mod new;
 mod render;
@@ -27,6 +28,9 @@ enum Command {
         /// A library name (see `lapidary list`) or a RON file.
         material: String,
     },
+    /// Re-render every built-in gem, the contact sheet gallery.png and the
+    /// figures 4.11, 3.2 and 4.3 of the course notes into a folder.
+    Gallery(gallery::GalleryArgs),
     /// List the built-in materials with their classes.
     List,
     /// Draw the figure 4.6 sheet of a gem: surface map, glitter map, facet
@@ -119,6 +123,7 @@ pub fn run() -> i32 {
     let result = match cli.command {
         Command::Brdf(args) => brdf::run(args),
         Command::Classify { material } => catalogue::classify(&material),
+        Command::Gallery(args) => gallery::run(args),
         Command::List => catalogue::list(),
         Command::Maps(args) => maps::run(args),
         Command::Render(args) => render::run(args),

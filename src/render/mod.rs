@@ -8,6 +8,7 @@
 pub mod camera;
 pub mod distribution;
 pub mod environment;
+pub mod figures;
 pub mod film;
 pub mod integrator;
 pub mod lights;

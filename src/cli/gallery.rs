@@ -1,0 +1,166 @@
+//! `lapidary gallery`: re-render every built-in gem, the contact sheet and
+//! the course-notes figures into one folder.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use image::RgbImage;
+use lapidary::recipe::error::did_you_mean;
+use lapidary::recipe::library::builtin_gem_names;
+use lapidary::render::figures::{
+    encode_png_compact, figure_3_2, figure_4_11, figure_4_3, gem_sheet, render_gem, FigureError,
+    GallerySettings,
+};
+
+/// The non-gem outputs, by the name `--only` knows them (file = name.png).
+const FIGURES: [&str; 4] = ["gallery", "figure-4-11", "figure-3-2", "figure-4-3"];
+
+/// Arguments of `lapidary gallery`.
+#[derive(clap::Args, Debug)]
+pub struct GalleryArgs {
+    /// The folder to write into (created if missing).
+    #[arg(
+        short = 'o',
+        long = "output",
+        value_name = "DIR",
+        default_value = "renders"
+    )]
+    output: PathBuf,
+    /// Side of each gem image in pixels; the figures' spheres are a fifth
+    /// of it (figure 4.3's a half), at least 48.
+    #[arg(long, value_name = "N", default_value_t = 768)]
+    size: u32,
+    /// Samples per pixel.
+    #[arg(long, value_name = "N", default_value_t = 256)]
+    spp: u32,
+    /// Write only these outputs: built-in gem names and `gallery`,
+    /// `figure-4-11`, `figure-3-2`, `figure-4-3` (the contact sheet still
+    /// renders every gem).
+    #[arg(long, value_name = "NAME", num_args = 1..)]
+    only: Vec<String>,
+    /// Worker threads (default: all cores). The images do not depend on it.
+    #[arg(long, value_name = "N")]
+    threads: Option<usize>,
+    /// Compile materials without their multiple-scattering compensation
+    /// (the single-crossing model): quicker previews, rough layered
+    /// materials a little darker.
+    #[arg(long)]
+    draft: bool,
+    /// No progress lines.
+    #[arg(long, short = 'q')]
+    quiet: bool,
+}
+
+/// Checks `--only` names against the gems and figures; unknown names are an
+/// error naming each with a did-you-mean hint.
+fn check_only(only: &[String], gems: &[&str]) -> Result<(), String> {
+    let known: Vec<&str> = gems.iter().copied().chain(FIGURES).collect();
+    for name in only {
+        if !known.contains(&name.as_str()) {
+            let hint = did_you_mean(name, known.iter().copied())
+                .map(|s| format!(" (did you mean `{s}`?)"))
+                .unwrap_or_default();
+            return Err(format!(
+                "--only {name}: no built-in gem or figure of that name{hint}; allowed: {}",
+                known.join(", ")
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Creates `dir` if missing; refuses a path that exists but is no folder.
+fn prepare_dir(dir: &Path) -> Result<(), String> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(format!(
+            "{}: exists and is not a directory; -o needs a folder",
+            dir.display()
+        ));
+    }
+    std::fs::create_dir_all(dir)
+        .map_err(|e| format!("{}: cannot create the directory: {e}", dir.display()))
+}
+
+/// Run `lapidary gallery`.
+pub fn run(args: GalleryArgs) -> Result<(), String> {
+    let settings = GallerySettings {
+        size_px: args.size,
+        samples_per_pixel: args.spp,
+        draft: args.draft,
+        ..GallerySettings::default()
+    };
+    settings.check().map_err(|e| e.to_string())?;
+    if let Some(threads) = args.threads.filter(|t| !(1..=1024).contains(t)) {
+        return Err(format!("--threads {threads}: allowed 1 to 1024"));
+    }
+    let gems: Vec<&str> = builtin_gem_names().collect();
+    check_only(&args.only, &gems)?;
+    prepare_dir(&args.output)?;
+    let wanted = |name: &str| args.only.is_empty() || args.only.iter().any(|n| n == name);
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(threads) = args.threads {
+        pool = pool.num_threads(threads);
+    }
+    let pool = pool
+        .build()
+        .map_err(|e| format!("cannot start worker threads: {e}"))?;
+    let started = Instant::now();
+    // Gems are encoded as `lapidary render` encodes them (same bytes);
+    // the sheets at the best compression (many renders in one PNG).
+    let write = |name: &str, image: &RgbImage, since: Instant| -> Result<(), String> {
+        let path = args.output.join(format!("{name}.png"));
+        if gems.contains(&name) {
+            lapidary::output::write_png(&path, image).map_err(|e| e.to_string())?;
+        } else {
+            let bytes = encode_png_compact(image)
+                .map_err(|e| format!("{}: cannot encode PNG: {e}", path.display()))?;
+            lapidary::output::write_atomically(&path, &bytes).map_err(|e| e.to_string())?;
+        }
+        if !args.quiet {
+            eprintln!(
+                "wrote {} ({} × {}) in {:.1} s",
+                path.display(),
+                image.width(),
+                image.height(),
+                since.elapsed().as_secs_f64()
+            );
+        }
+        Ok(())
+    };
+    pool.install(|| -> Result<(), String> {
+        let need_sheet = wanted("gallery");
+        let mut pictures = Vec::new();
+        for name in &gems {
+            if !(need_sheet || wanted(name)) {
+                continue;
+            }
+            let since = Instant::now();
+            let picture = render_gem(name, &settings).map_err(|e| e.to_string())?;
+            if wanted(name) {
+                write(name, &picture.image, since)?;
+            }
+            pictures.push(picture);
+        }
+        if need_sheet {
+            write("gallery", &gem_sheet(&pictures), Instant::now())?;
+        }
+        type Figure = fn(&GallerySettings) -> Result<RgbImage, FigureError>;
+        let figures: [(&str, Figure); 3] = [
+            ("figure-4-11", figure_4_11),
+            ("figure-3-2", figure_3_2),
+            ("figure-4-3", figure_4_3),
+        ];
+        for (name, make) in figures {
+            if wanted(name) {
+                let since = Instant::now();
+                let image = make(&settings).map_err(|e| e.to_string())?;
+                write(name, &image, since)?;
+            }
+        }
+        Ok(())
+    })?;
+    if !args.quiet {
+        eprintln!("gallery done in {:.1} s", started.elapsed().as_secs_f64());
+    }
+    Ok(())
+}
