@@ -39,10 +39,10 @@ use crate::render::camera::PinholeCamera;
 use crate::render::environment::Environment;
 use crate::render::film::{render, FilmSettings};
 use crate::render::integrator::{GemShading, RenderScene, MATERIAL_ID_FIRST_STONE};
-use crate::render::prepare::{camera_for, compile_gem_source, light_from_spec};
+use crate::render::prepare::{camera_for, compile_gem_source, environment_for_spec};
 use crate::render::world::{StoneInstance, World};
 use crate::sampling::direction_from_degrees;
-use crate::scene::{default_scene, Camera, EnvironmentSpec, Scene, StonePlacement};
+use crate::scene::{default_scene, Camera, Scene, StonePlacement};
 
 /// Largest image side accepted, in pixels (a bound on film memory: the
 /// gallery holds every gem's image for the contact sheet).
@@ -360,27 +360,6 @@ pub fn sphere_scene(radius_mm: f64) -> Scene {
     scene
 }
 
-/// The environment a scene describes (the same rules as
-/// [`crate::render::prepare::prepare_scene`], which compiles gems by name
-/// and always with compensation; the gallery compiles its own).
-fn environment_for(spec: &EnvironmentSpec) -> Result<Environment, FigureError> {
-    let environment = match spec {
-        EnvironmentSpec::Constant(radiance) => {
-            Environment::try_constant(*radiance).map_err(|e| e.to_string())
-        }
-        EnvironmentSpec::Studio {
-            intensity,
-            rotation_deg,
-        } => Environment::try_studio(*intensity, *rotation_deg).map_err(|e| e.to_string()),
-        EnvironmentSpec::File {
-            path,
-            rotation_deg,
-            intensity,
-        } => Environment::from_file(path, *rotation_deg, *intensity).map_err(|e| e.to_string()),
-    };
-    environment.map_err(FigureError::Scene)
-}
-
 /// A scene with its ground material and environment compiled once, into
 /// which one compiled gem at a time is put (every stone shows it).
 struct Studio {
@@ -396,7 +375,7 @@ impl Studio {
             Some(ground) => Some(compile_material_spec(&ground.material, settings.draft)?),
             None => None,
         };
-        let environment = environment_for(&scene.environment)?;
+        let environment = environment_for_spec(&scene.environment).map_err(FigureError::Scene)?;
         Ok(Self {
             scene,
             ground_brdf,
@@ -430,7 +409,7 @@ impl Studio {
             world: World::new(stones, self.scene.ground.as_ref().map(|g| g.height)),
             gems: vec![gem],
             ground_brdf: self.ground_brdf.clone(),
-            lights: self.scene.lights.iter().map(light_from_spec).collect(),
+            lights: self.scene.lights.clone(),
             environment: self.environment.clone(),
             max_bounces: self.max_bounces,
             ambient_occlusion: None,

@@ -113,21 +113,7 @@ pub fn prepare_scene(
     };
     let environment = match environment_file {
         Some(path) => Environment::from_file(path, 0.0, 1.0).map_err(|e| e.to_string())?,
-        None => match &scene.environment {
-            EnvironmentSpec::Constant(radiance) => {
-                Environment::try_constant(*radiance).map_err(|e| e.to_string())?
-            }
-            EnvironmentSpec::Studio {
-                intensity,
-                rotation_deg,
-            } => Environment::try_studio(*intensity, *rotation_deg).map_err(|e| e.to_string())?,
-            EnvironmentSpec::File {
-                path,
-                rotation_deg,
-                intensity,
-            } => Environment::from_file(path, *rotation_deg, *intensity)
-                .map_err(|e| e.to_string())?,
-        },
+        None => environment_for_spec(&scene.environment)?,
     };
     Ok(RenderScene {
         world: World::new(stones, scene.ground.as_ref().map(|g| g.height)),
@@ -138,6 +124,25 @@ pub fn prepare_scene(
         max_bounces,
         ambient_occlusion: None,
     })
+}
+
+/// The environment a scene describes, built (the studio baked, a file
+/// loaded and checked).
+pub fn environment_for_spec(spec: &EnvironmentSpec) -> Result<Environment, String> {
+    match spec {
+        EnvironmentSpec::Constant(radiance) => {
+            Environment::try_constant(*radiance).map_err(|e| e.to_string())
+        }
+        EnvironmentSpec::Studio {
+            intensity,
+            rotation_deg,
+        } => Environment::try_studio(*intensity, *rotation_deg).map_err(|e| e.to_string()),
+        EnvironmentSpec::File {
+            path,
+            rotation_deg,
+            intensity,
+        } => Environment::from_file(path, *rotation_deg, *intensity).map_err(|e| e.to_string()),
+    }
 }
 
 /// The scene camera on a film of `width × height` pixels.
