@@ -6,29 +6,18 @@
 //! runs in seconds; one test renders without it and checks the gallery's
 //! image is the one `lapidary render` makes.
 
+mod common;
+
+use common::cli::{lapidary, stderr};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use image::RgbImage;
 use lapidary::recipe::library::builtin_gem_names;
 use lapidary::render::figures::{FIGURE_3_2_THICKNESSES, FRAME_COLOUR};
 
-fn lapidary(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lapidary"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("lapidary-gallery-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
+    common::cli::scratch("gallery", name)
 }
 
 fn gallery(dir: &Path, extra: &[&str]) -> Output {

@@ -1,24 +1,13 @@
 //! `lapidary render`: the command a user runs, its outputs and its refusals.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
 
-fn lapidary(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lapidary"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
+use common::cli::{lapidary, stderr};
+use std::path::PathBuf;
+use std::process::Command;
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("lapidary-render-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
+    common::cli::scratch("render", name)
 }
 
 /// Files left in `dir` (to prove a failed render leaves nothing behind).

@@ -2,21 +2,14 @@
 //! recipes broken the way a new user breaks them fail with exit status 1
 //! and a message naming the file, the place, the field and what is allowed.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn lapidary(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lapidary"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
+use common::cli::lapidary;
+use std::path::{Path, PathBuf};
+use std::process::Command;
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("lapidary-validate-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::cli::scratch("validate", name)
 }
 
 fn text(bytes: &[u8]) -> String {

@@ -31,15 +31,15 @@ use crate::geometry::{Base, Cabochon, CabochonParams, Outline};
 use crate::output::tonemap::DisplayTransform;
 use crate::plot::text::{draw_text_centred, text_height, text_width, ClipRect};
 use crate::plot::{polar_plot, PolarPanel, PolarPlotStyle};
-use crate::recipe::compile::{compile_material, locate_material, parse_material, MaterialSource};
+use crate::recipe::compile::{compile_material, locate_material, parse_material};
 use crate::recipe::error::RecipeError;
-use crate::recipe::gem::{load_gem_source, parse_gem, parse_gem_with_seed};
+use crate::recipe::gem::{load_gem_source, parse_gem};
 use crate::recipe::library::builtin_material_names;
 use crate::render::camera::PinholeCamera;
 use crate::render::environment::Environment;
 use crate::render::film::{render, FilmSettings};
 use crate::render::integrator::{GemShading, RenderScene, MATERIAL_ID_FIRST_STONE};
-use crate::render::prepare::{camera_for, compile_gem_source, environment_for_spec};
+use crate::render::prepare::{camera_for, compile_gem_draft_or_full, environment_for_spec};
 use crate::render::world::{StoneInstance, World};
 use crate::sampling::direction_from_degrees;
 use crate::scene::{default_scene, Camera, Scene, StonePlacement};
@@ -233,29 +233,7 @@ fn film_settings(side_px: u32, settings: &GallerySettings) -> FilmSettings {
 /// [`MATERIAL_ID_FIRST_STONE`], the recipe's seed), or with `draft` every
 /// material without its compensation table.
 pub fn compile_gem_text(path: &str, text: &str, draft: bool) -> Result<GemShading, FigureError> {
-    if !draft {
-        return Ok(compile_gem_source(path, text, None, MATERIAL_ID_FIRST_STONE)?.0);
-    }
-    let gem = parse_gem_with_seed(path, text, None)?;
-    let brdfs = gem
-        .materials
-        .par_iter()
-        .map(|(name, material)| {
-            let source = MaterialSource {
-                path: path.to_string(),
-                name: name.clone(),
-                text: text.to_string(),
-            };
-            let mut material = material.clone();
-            material.multiple_scattering = false;
-            compile_material(&source, &material)
-        })
-        .collect::<Result<Vec<LayeredBrdf>, RecipeError>>()?;
-    Ok(GemShading {
-        pattern: gem.pattern,
-        brdfs,
-        material_id_base: MATERIAL_ID_FIRST_STONE,
-    })
+    Ok(compile_gem_draft_or_full(path, text, None, MATERIAL_ID_FIRST_STONE, draft)?.0)
 }
 
 /// Loads and compiles library material (or material file) `spec`; with

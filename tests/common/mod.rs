@@ -12,4 +12,5 @@
 #![allow(dead_code)]
 
 pub mod chi2;
+pub mod cli;
 pub mod ks;
