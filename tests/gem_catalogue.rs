@@ -4,13 +4,12 @@
 //! compiled pattern at many points (not read back from recipe parameters).
 
 use glam::DVec3;
-use lapidary::recipe::compile::{compile_material, MaterialSource};
 use lapidary::recipe::gem::{load_gem, parse_gem, CompiledGem};
 use lapidary::recipe::library::{builtin_gem_names, builtin_gem_source, BUILTIN_GEMS};
 use lapidary::recipe::material::{BaseSpec, Material};
 use lapidary::render::film::{render, FilmSettings};
 use lapidary::render::integrator::{GemShading, RenderScene, MATERIAL_ID_FIRST_STONE};
-use lapidary::render::prepare::{camera_for, prepare_scene};
+use lapidary::render::prepare::{camera_for, compile_gem_draft_or_full, prepare_scene};
 use lapidary::sampling::Rng;
 use lapidary::scene::default_scene;
 use lapidary::texture::pattern::Entry;
@@ -126,10 +125,10 @@ fn every_recipe_file_and_builtin_compiles() {
 /// the stone shows.
 fn assert_renders(name: &str, prepared: &mut RenderScene, gem: Option<GemShading>) {
     let scene = default_scene();
-    let camera = camera_for(&scene, 8, 8);
+    let camera = camera_for(&scene, 32, 32);
     let settings = FilmSettings {
-        width: 8,
-        height: 8,
+        width: 32,
+        height: 32,
         samples_per_pixel: 1,
         seed: 0,
     };
@@ -137,7 +136,11 @@ fn assert_renders(name: &str, prepared: &mut RenderScene, gem: Option<GemShading
         prepared.gems[0] = gem;
     }
     let film = render(prepared, &camera, &settings, &|_| {});
-    assert_eq!(film.rgb.len(), 64);
+    assert_eq!(film.rgb.len(), 32 * 32);
+    assert_eq!(
+        film.stats.bad_samples, 0,
+        "{name}: non-finite samples were dropped"
+    );
     for px in &film.rgb {
         assert!(
             px.iter().all(|c| c.is_finite() && *c >= 0.0),
@@ -166,28 +169,15 @@ fn every_builtin_renders_finite_pixels() {
         prepare_scene(&scene, "sunstone", None, 2, &|_| {}).unwrap_or_else(|e| panic!("{e}"));
     assert_renders("sunstone", &mut prepared, None);
     for name in builtin_gem_names() {
-        let gem = builtin(name);
-        let source = MaterialSource {
-            path: format!("builtin:{name}"),
-            name: name.to_string(),
-            text: builtin_gem_source(name).unwrap().to_string(),
-        };
-        let brdfs = gem
-            .materials
-            .iter()
-            .map(|(_, m)| {
-                let single = Material {
-                    multiple_scattering: false,
-                    ..m.clone()
-                };
-                compile_material(&source, &single).unwrap_or_else(|e| panic!("{e}"))
-            })
-            .collect();
-        let shading = GemShading {
-            pattern: gem.pattern.clone(),
-            brdfs,
-            material_id_base: MATERIAL_ID_FIRST_STONE,
-        };
+        let text = builtin_gem_source(name).unwrap();
+        let (shading, _) = compile_gem_draft_or_full(
+            &format!("builtin:{name}"),
+            text,
+            None,
+            MATERIAL_ID_FIRST_STONE,
+            true,
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
         assert_renders(name, &mut prepared, Some(shading));
     }
 }
