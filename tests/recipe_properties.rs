@@ -105,6 +105,10 @@ fn function() -> impl Strategy<Value = (String, f64, f64)> {
     ]
 }
 
+/// A switch function with its value range `[lo, hi]`, the interior cuts as
+/// fractions of that range, and a material index per range.
+type SwitchParams = ((String, f64, f64), Vec<f64>, Vec<usize>);
+
 /// Parameters of one recipe, turned into RON by [`recipe_text`].
 #[derive(Debug, Clone)]
 struct Recipe {
@@ -115,7 +119,7 @@ struct Recipe {
     /// (material index, weight) per surface-map entry.
     entries: Vec<(usize, f64)>,
     /// Function, its range, interior cut fractions and material per range.
-    switch: Option<((String, f64, f64), Vec<f64>, Vec<usize>)>,
+    switch: Option<SwitchParams>,
     /// Glitter cell size, fill fraction, facet size fraction, tilt, material.
     glitter: Option<(f64, f64, f64, f64, usize)>,
 }
