@@ -440,6 +440,17 @@ fn negative_absorption() {
 }
 
 #[test]
+fn a_metal_with_a_refractive_index_of_zero() {
+    bad_gem(
+        "metal-n-zero",
+        "Conductor(metal: \"silver\", roughness_deg: 4.0)",
+        "Conductor(n: (0.0, 0.13, 0.157), k: (0.0, 3.25, 2.40), roughness_deg: 4.0)",
+        "n: (0.0",
+        &["`n`", "0.01 <= n <= 20"],
+    );
+}
+
+#[test]
 fn zero_cell_size() {
     bad_gem(
         "zero-cell-size",
