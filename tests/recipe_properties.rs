@@ -330,3 +330,71 @@ fn the_generator_writes_what_it_was_asked_for() {
         "{text}"
     );
 }
+
+/// Renders `text` (a valid gem) like the property above and returns the
+/// number of samples dropped as NaN, infinite or negative.
+fn bad_samples_of(text: &str) -> u64 {
+    let (gem, _) = compile_gem_source("extreme.ron", text, None, MATERIAL_ID_FIRST_STONE)
+        .unwrap_or_else(|e| panic!("{e}\n{text}"));
+    let scene = default_scene();
+    let stones = scene
+        .stones
+        .iter()
+        .map(|s| StoneInstance {
+            cabochon: Cabochon::new(s.shape).expect("the built-in stone is valid"),
+            rotation: s.rotation,
+            position: s.position,
+            gem: 0,
+        })
+        .collect();
+    let render_scene = RenderScene {
+        world: World::new(stones, None),
+        gems: vec![gem],
+        ground_brdf: None,
+        lights: scene.lights.iter().map(light_from_spec).collect(),
+        environment: studio().clone(),
+        max_bounces: 4,
+        ambient_occlusion: None,
+    };
+    let side = 16;
+    let camera = camera_for(&scene, side, side);
+    let settings = FilmSettings {
+        width: side,
+        height: side,
+        samples_per_pixel: 2,
+        seed: 1,
+    };
+    let film = render(&render_scene, &camera, &settings, &|_| {});
+    assert!(film
+        .rgb
+        .iter()
+        .flatten()
+        .all(|c| c.is_finite() && *c >= 0.0));
+    film.stats.bad_samples
+}
+
+/// Numbers at the edges of their allowed ranges (found by fuzzing and by
+/// hand): each is valid, so each must shade without a NaN.
+#[test]
+fn extreme_valid_numbers_shade_without_nan() {
+    let gem = |material: &str| {
+        format!(
+            "Gem(materials: {{\"m\": Material({material}, multiple_scattering: false)}}, \
+             maps: {{\"t\": SurfaceMap(cell_size: 0.1, entries: [(material: \"m\")])}}, surface: \"t\")"
+        )
+    };
+    for material in [
+        // α·d overflows in one channel while another has α = 0: Beer's law
+        // gives 0 and 1, never 0 · ∞.
+        "layers: [Layer(ior: 1.5, roughness_deg: 5.0, thickness: 1e308, absorption: (1e308, 0.0, 0.3))], base: Diffuse(colour: (0.5, 0.5, 0.5))",
+        // The smallest allowed metal index, no extinction, nearly flat facets.
+        "base: Conductor(n: (0.01, 0.01, 0.01), k: (0.0, 0.0, 0.0), roughness_deg: 0.0)",
+        // The smallest metal index under the densest varnish.
+        "layers: [Layer(ior: 5.0, roughness_deg: 89.9)], base: Conductor(n: (0.01, 20.0, 1.0), k: (20.0, 0.0, 0.0), roughness_deg: 89.9)",
+        // Nearly the largest roughness everywhere.
+        "layers: [Layer(ior: 1.0, roughness_deg: 89.9999), Layer(reflectivity: 1.0, roughness_deg: 89.9999)], base: Diffuse(colour: (1.0, 1.0, 1.0), oren_nayar_sigma_rad: 1.57)",
+    ] {
+        let text = gem(material);
+        assert_eq!(bad_samples_of(&text), 0, "{text}");
+    }
+}
