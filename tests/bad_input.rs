@@ -859,6 +859,53 @@ fn scene_with_a_field_of_view_of_180_degrees() {
 }
 
 #[test]
+fn scene_with_a_stone_a_light_year_away() {
+    // Beyond f32: the BVH build over the stones used to panic in obvhs.
+    bad_scene(
+        "scene-far-stone",
+        "position: (0.0, 0.0, 0.5)",
+        "position: (1e300, 0.0, 0.5)",
+        "1e300",
+        &["`position`", "within ±100000"],
+    );
+}
+
+#[test]
+fn scene_with_a_stone_of_astronomical_size() {
+    bad_scene(
+        "scene-huge-stone",
+        "length: 10.0",
+        "length: 1e300",
+        "shape: Cabochon",
+        &["stone 1", "at most 100000"],
+    );
+}
+
+#[test]
+fn scene_with_a_point_sized_sphere_light() {
+    // A sphere light of radius 1e-300 made every sample NaN (its cone pdf
+    // overflowed) and the picture black.
+    bad_scene(
+        "scene-tiny-light",
+        "    environment:",
+        "    lights: [Sphere(centre: (0.0, 0.0, 20.0), radius: 1e-300, radiance: (1.0, 1.0, 1.0))],\n    environment:",
+        "radius: 1e-300",
+        &["`radius`", "from 0.01"],
+    );
+}
+
+#[test]
+fn scene_with_a_sun_of_zero_size() {
+    bad_scene(
+        "scene-point-sun",
+        "    environment:",
+        "    lights: [Sun(elevation_deg: 45.0, azimuth_deg: 0.0, angular_diameter_deg: 0.0, irradiance: (1.0, 1.0, 1.0))],\n    environment:",
+        "angular_diameter_deg: 0.0",
+        &["`angular_diameter_deg`", "at least 0.01"],
+    );
+}
+
+#[test]
 fn scene_with_an_empty_stone_list() {
     let from = GOOD_SCENE
         .split("stones: [")
