@@ -216,7 +216,7 @@ impl Cabochon {
         let z_bottom = -g - base_depth;
         let ellipsoidal = matches!(params.outline, Outline::Round | Outline::Oval) && p == 2.0;
         let size = params.length.max(params.width).max(z_top - z_bottom);
-        if !(size <= MAX_SIZE) {
+        if size.is_nan() || size > MAX_SIZE {
             return Err(GeometryError::new(
                 "size",
                 size,

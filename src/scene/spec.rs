@@ -320,7 +320,10 @@ fn finite_vec3<'de, D: Deserializer<'de>>(
     max_abs: f64,
 ) -> Result<[f64; 3], D::Error> {
     let v = <(f64, f64, f64)>::deserialize(d)?;
-    if [v.0, v.1, v.2].iter().any(|c| !(c.abs() <= max_abs)) {
+    if [v.0, v.1, v.2]
+        .iter()
+        .any(|c| !c.is_finite() || c.abs() > max_abs)
+    {
         let allowed = if max_abs == f64::MAX {
             "three finite numbers (x, y, z)".to_string()
         } else {
