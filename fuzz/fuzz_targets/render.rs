@@ -1,6 +1,7 @@
 //! Fuzz target: any gem recipe that validates, rendered 1×1 at 1 spp in the
 //! built-in studio scene. Every film value must be finite (depth may be +∞
-//! where nothing was hit, never NaN); any panic is a bug.
+//! where nothing was hit, never NaN), and no sample may have been dropped
+//! by the film's NaN guard; any panic is a bug.
 //!
 //! BRDFs are compiled without the multiple-scattering compensation (its
 //! tables cost 0.1–1 s per material); the rest of the scene (world, ground,
@@ -90,6 +91,12 @@ fuzz_target!(|data: &[u8]| {
         seed: gem.seed,
     };
     let film = render(&scene, camera, &settings, &|_| {});
+    // The film guard drops NaN, infinite or negative samples; a valid recipe
+    // must not produce any.
+    assert_eq!(
+        film.stats.bad_samples, 0,
+        "samples dropped as NaN/inf/negative"
+    );
     let finite3 = |v: &[[f32; 3]]| v.iter().flatten().all(|x| x.is_finite());
     let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
     assert!(finite3(&film.rgb), "rgb {:?}", film.rgb);
