@@ -36,8 +36,10 @@ impl Interface {
         if self.thickness == 0.0 || self.absorption_rgb == Rgb::ZERO {
             return Rgb::ONE;
         }
-        let path = self.thickness / cos_theta.abs().max(1e-3);
-        (-self.absorption_rgb * path).exp()
+        // Optical depth α·d first: a channel with α = 0 stays 0 even when
+        // d / cosθ overflows to ∞ (0 · ∞ would be NaN).
+        let depth = self.absorption_rgb * self.thickness;
+        (-depth / cos_theta.abs().max(1e-3)).exp()
     }
 
     /// Appendix `absorption`: Beer's law along both refracted directions,
@@ -46,9 +48,10 @@ impl Interface {
         if self.thickness == 0.0 || self.absorption_rgb == Rgb::ZERO {
             return Rgb::ONE;
         }
-        let path = self.thickness
-            * (1.0 / wi_inside.z.clamp(1e-3, 1.0) + 1.0 / wo_inside.z.clamp(1e-3, 1.0));
-        (-self.absorption_rgb * path).exp()
+        // α·d first, as in `crossing_transmittance`: no 0 · ∞ for a huge d.
+        let depth = self.absorption_rgb * self.thickness;
+        let secants = 1.0 / wi_inside.z.clamp(1e-3, 1.0) + 1.0 / wo_inside.z.clamp(1e-3, 1.0);
+        (-depth * secants).exp()
     }
 }
 

@@ -138,6 +138,11 @@ enum Side {
     Bottom,
 }
 
+/// Largest extent of a stone (length, width, or height from base to top), in
+/// object units (mm in a scene): the BVH over stones is built in f32, where
+/// 1e300 is infinite and the build panics.
+pub const MAX_SIZE: f64 = 1e5;
+
 /// A validated, analytic cabochon solid (see the module docs for the
 /// geometry and accuracy).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -211,6 +216,13 @@ impl Cabochon {
         let z_bottom = -g - base_depth;
         let ellipsoidal = matches!(params.outline, Outline::Round | Outline::Oval) && p == 2.0;
         let size = params.length.max(params.width).max(z_top - z_bottom);
+        if size.is_nan() || size > MAX_SIZE {
+            return Err(GeometryError::new(
+                "size",
+                size,
+                format!("the stone's length, width and height must each be at most {MAX_SIZE} (the scene's bounding boxes are f32)"),
+            ));
+        }
         Ok(Self {
             params,
             footprint,

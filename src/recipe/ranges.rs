@@ -100,7 +100,10 @@ optional_scalar_field!(
 rgb_field!(absorption, "absorption", "absorption >= 0", |v| v >= 0.0);
 rgb_field!(colour, "colour", "0 <= colour <= 1", |v| (0.0..=1.0)
     .contains(&v));
-optional_rgb_field!(conductor_n, "n", "0 < n <= 20", |v| v > 0.0 && v <= 20.0);
+// n ≥ 0.01: below every real metal (silver ≈ 0.04 in the blue), and far
+// from 0, where the Fresnel equations (eq. 3.3) divide 0 by 0.
+optional_rgb_field!(conductor_n, "n", "0.01 <= n <= 20", |v| (0.01..=20.0)
+    .contains(&v));
 optional_rgb_field!(conductor_k, "k", "0 <= k <= 20", |v| (0.0..=20.0)
     .contains(&v));
 

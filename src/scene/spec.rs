@@ -308,12 +308,29 @@ pub enum EnvironmentKind {
 
 // ---- Range-checked fields (messages as in `recipe::ranges`) -------------
 
-/// A point or vector: three finite numbers.
-fn finite_vec3<'de, D: Deserializer<'de>>(d: D, field: &str) -> Result<[f64; 3], D::Error> {
+/// Largest coordinate of a point in a scene, mm (100 m). The stones' BVH
+/// is built in f32 (obvhs), where 1e300 is infinite and its build panics;
+/// and a light's solid angle from this far stays representable.
+pub const MAX_COORDINATE_MM: f64 = 1e5;
+
+/// A point or vector: three finite numbers, each within ±`max_abs`.
+fn finite_vec3<'de, D: Deserializer<'de>>(
+    d: D,
+    field: &str,
+    max_abs: f64,
+) -> Result<[f64; 3], D::Error> {
     let v = <(f64, f64, f64)>::deserialize(d)?;
-    if [v.0, v.1, v.2].iter().any(|c| !c.is_finite()) {
+    if [v.0, v.1, v.2]
+        .iter()
+        .any(|c| !c.is_finite() || c.abs() > max_abs)
+    {
+        let allowed = if max_abs == f64::MAX {
+            "three finite numbers (x, y, z)".to_string()
+        } else {
+            format!("three finite numbers (x, y, z) within ±{max_abs} (mm)")
+        };
         return Err(D::Error::custom(format!(
-            "`{field}` = ({}, {}, {}) is out of range; allowed: three finite numbers (x, y, z)",
+            "`{field}` = ({}, {}, {}) is out of range; allowed: {allowed}",
             v.0, v.1, v.2
         )));
     }
@@ -321,10 +338,10 @@ fn finite_vec3<'de, D: Deserializer<'de>>(d: D, field: &str) -> Result<[f64; 3],
 }
 
 macro_rules! vec3_field {
-    ($name:ident, $field:literal) => {
-        #[doc = concat!("Deserialize `", $field, "`: three finite numbers.")]
+    ($name:ident, $field:literal, $max_abs:expr) => {
+        #[doc = concat!("Deserialize `", $field, "`: three finite numbers within ±", stringify!($max_abs), ".")]
         fn $name<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
-            finite_vec3(d, $field)
+            finite_vec3(d, $field, $max_abs)
         }
     };
 }
@@ -347,14 +364,16 @@ macro_rules! rgb_field {
     };
 }
 
-vec3_field!(target, "target");
-vec3_field!(position, "position");
-vec3_field!(look_at, "look_at");
-vec3_field!(centre, "centre");
-vec3_field!(aim_at, "aim_at");
-vec3_field!(rotation_deg, "rotation_deg");
+vec3_field!(target, "target", MAX_COORDINATE_MM);
+vec3_field!(position, "position", MAX_COORDINATE_MM);
+vec3_field!(look_at, "look_at", MAX_COORDINATE_MM);
+vec3_field!(centre, "centre", MAX_COORDINATE_MM);
+vec3_field!(aim_at, "aim_at", MAX_COORDINATE_MM);
+vec3_field!(rotation_deg, "rotation_deg", f64::MAX);
 
-scalar_field!(distance, "distance", "distance > 0", |v| v > 0.0);
+scalar_field!(distance, "distance", "0 < distance <= 100000 (mm)", |v| v
+    > 0.0
+    && v <= MAX_COORDINATE_MM);
 scalar_field!(
     elevation_deg,
     "elevation_deg",
@@ -373,15 +392,32 @@ scalar_field!(
     "0 < vertical_fov_deg < 170 (degrees)",
     |v| v > 0.0 && v < 170.0
 );
-scalar_field!(height, "height", "any finite height", |_| true);
-scalar_field!(radius, "radius", "radius > 0", |v| v > 0.0);
-scalar_field!(width, "width", "width > 0", |v| v > 0.0);
-scalar_field!(height_size, "height", "height > 0", |v| v > 0.0);
+scalar_field!(height, "height", "-100000 <= height <= 100000 (mm)", |v| v
+    .abs()
+    <= MAX_COORDINATE_MM);
+// A sphere light smaller than 0.01 mm subtends too small a cone from far
+// away for its pdf 1 / (2π (1 − cos θmax)) to stay finite.
+scalar_field!(
+    radius,
+    "radius",
+    "radius > 0 (mm), from 0.01 to 100000",
+    |v| (0.01..=MAX_COORDINATE_MM).contains(&v)
+);
+// A soft box below 0.01 mm has an area pdf d² / (cos · w · h) that overflows.
+scalar_field!(width, "width", "width > 0 (mm), from 0.01 to 100000", |v| {
+    (0.01..=MAX_COORDINATE_MM).contains(&v)
+});
+scalar_field!(
+    height_size,
+    "height",
+    "height > 0 (mm), from 0.01 to 100000",
+    |v| (0.01..=MAX_COORDINATE_MM).contains(&v)
+);
 scalar_field!(
     angular_diameter_deg,
     "angular_diameter_deg",
-    "0 < angular_diameter_deg <= 20 (degrees)",
-    |v| v > 0.0 && v <= 20.0
+    "0 < angular_diameter_deg <= 20 (degrees), at least 0.01",
+    |v| (0.01..=20.0).contains(&v)
 );
 scalar_field!(intensity, "intensity", "intensity >= 0", |v| v >= 0.0);
 scalar_field!(

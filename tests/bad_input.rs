@@ -1,0 +1,1089 @@
+//! Broken inputs through the real binary (`validate`, `render`, `maps`,
+//! `brdf`): each is a mistake a person really makes. Every one must end with
+//! exit status 1, a message naming the file (with `line:col` where the
+//! mistake has a place) and what is wrong, no panic, no output file
+//! created, and an existing output file left byte-for-byte as it was.
+//!
+//! Renders that could start use `--size 8 --spp 1`, and the recipes turn the
+//! multiple-scattering compensation off, so the whole file runs in seconds.
+
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// A valid gem with every kind of node (surface map, switch, glitter with
+/// facets), one field per line so each mistake below has its own line.
+const GOOD_GEM: &str = r#"Gem(
+    name: "test",
+    seed: 3,
+    materials: {
+        "lilac": Material(
+            layers: [
+                Layer(ior: 1.5, roughness_deg: 5.0, thickness: 0.1, absorption: (0.1, 0.2, 0.3)),
+            ],
+            base: Diffuse(colour: (0.4, 0.3, 0.5)),
+            multiple_scattering: false,
+        ),
+        "foil": Material(
+            base: Conductor(metal: "silver", roughness_deg: 4.0),
+            multiple_scattering: false,
+        ),
+    },
+    maps: {
+        "tiles": SurfaceMap(
+            cell_size: 0.1,
+            entries: [
+                (material: "lilac", weight: 2.0),
+                (material: "foil", weight: 1.0),
+            ],
+        ),
+        "veins": Switch(
+            function: Marble(frequency: 4.0, amplitude: 2.0),
+            ranges: [
+                (from: 0.0, to: 0.8, map: "tiles"),
+                (from: 0.8, to: 1.0, material: "foil"),
+            ],
+        ),
+    },
+    surface: "veins",
+    glitter: Some(GlitterMap(
+        cell_size: 0.2,
+        fill_fraction: 0.02,
+        entries: [(material: "foil")],
+        facets: FacetBumpMap(cell_size: 0.05, tilt: UniformCone(max_tilt_deg: 20.0)),
+    )),
+)
+"#;
+
+/// A valid material file.
+const GOOD_MATERIAL: &str = r#"Material(
+    layers: [
+        Layer(
+            ior: 1.5,
+            roughness_deg: 3.0,
+            thickness: 0.2,
+            absorption: (0.1, 0.4, 0.8),
+        ),
+    ],
+    base: Diffuse(colour: (0.8, 0.2, 0.1)),
+    multiple_scattering: false,
+)
+"#;
+
+/// A valid scene: the gem named on the command line on a cushion stone.
+const GOOD_SCENE: &str = r#"Scene(
+    camera: LookAt(
+        position: (30.0, -30.0, 25.0),
+        look_at: (0.0, 0.0, 1.0),
+        vertical_fov_deg: 25.0,
+    ),
+    stones: [
+        Stone(
+            shape: Cabochon(
+                outline: Oval,
+                length: 10.0,
+                width: 8.0,
+            ),
+            position: (0.0, 0.0, 0.5),
+        ),
+    ],
+    environment: Constant(radiance: (0.5, 0.5, 0.5)),
+)
+"#;
+
+/// Bytes a pre-existing output holds; a failed command must not touch them.
+const KNOWN_BYTES: &[u8] = b"not an image: bytes that must survive a failed command\n";
+
+fn lapidary<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lapidary"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+/// A fresh empty directory for one case.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("lapidary-bad-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn files_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+/// `path:LINE:` where LINE is the 1-based line of the first line of `text`
+/// holding `marker`: where a person would look for the mistake.
+fn at_line(path: &Path, text: &str, marker: &str) -> String {
+    let line = text
+        .lines()
+        .position(|l| l.contains(marker))
+        .unwrap_or_else(|| panic!("marker `{marker}` not in the input"))
+        + 1;
+    format!("{}:{line}:", path.display())
+}
+
+/// Exit status 1, no panic, and every needle in the messages; where a
+/// needle is `file:LINE:` it must be followed by a column number.
+fn assert_refused(case: &str, out: &Output, needles: &[String]) {
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let all = format!("{stdout}{stderr}");
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "{case}: exit status {:?}\n{all}",
+        out.status
+    );
+    assert!(!all.contains("panicked"), "{case}: panicked\n{all}");
+    assert!(!all.contains("RUST_BACKTRACE"), "{case}: panicked\n{all}");
+    for needle in needles {
+        let Some(at) = all.find(needle.as_str()) else {
+            panic!("{case}: message lacks `{needle}`:\n{all}");
+        };
+        if needle.ends_with(':') && needle.rsplit(':').nth(1).is_some_and(is_number) {
+            let col: String = all[at + needle.len()..]
+                .chars()
+                .take_while(char::is_ascii_digit)
+                .collect();
+            assert!(
+                !col.is_empty() && all[at + needle.len() + col.len()..].starts_with(':'),
+                "{case}: `{needle}` is not followed by a column:\n{all}"
+            );
+        }
+    }
+}
+
+fn is_number(s: &str) -> bool {
+    !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit())
+}
+
+/// Runs a command that writes `-o OUT` twice: once with no OUT (none may be
+/// created, nothing else left in its folder) and once with OUT holding
+/// [`KNOWN_BYTES`] (they must be unchanged). `args` go before `-o OUT`.
+fn assert_refused_writing(case: &str, args: &[OsString], out_name: &str, needles: &[String]) {
+    let dir = scratch(&format!("{case}-out"));
+    let output = dir.join(out_name);
+    let with_output = |args: &[OsString]| {
+        let mut all = args.to_vec();
+        all.push("-o".into());
+        all.push(output.clone().into());
+        lapidary(&all)
+    };
+    let out = with_output(args);
+    assert_refused(case, &out, needles);
+    assert!(
+        files_in(&dir).is_empty(),
+        "{case}: left {:?} behind",
+        files_in(&dir)
+    );
+
+    std::fs::write(&output, KNOWN_BYTES).unwrap();
+    let out = with_output(args);
+    assert_refused(case, &out, needles);
+    assert_eq!(
+        std::fs::read(&output).unwrap(),
+        KNOWN_BYTES,
+        "{case}: the existing output was changed"
+    );
+    assert_eq!(files_in(&dir), [out_name], "{case}: extra files left");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn os(args: &[&str]) -> Vec<OsString> {
+    args.iter().map(OsString::from).collect()
+}
+
+/// A gem recipe made from [`GOOD_GEM`] by replacing `from` with `to`; the
+/// mistake is on the line holding `marker`. Checked through `validate`,
+/// `render` and `maps`: each names `file:line:col` and says what is wrong
+/// (every needle).
+fn bad_gem(case: &str, from: &str, to: &str, marker: &str, needles: &[&str]) {
+    assert!(GOOD_GEM.contains(from), "{case}: `{from}` not in GOOD_GEM");
+    let text = GOOD_GEM.replacen(from, to, 1);
+    let dir = scratch(case);
+    let path = dir.join(format!("{case}.ron"));
+    std::fs::write(&path, &text).unwrap();
+    let mut expected = vec![at_line(&path, &text, marker)];
+    expected.extend(needles.iter().map(|s| s.to_string()));
+
+    let out = lapidary(&[OsString::from("validate"), path.clone().into()]);
+    assert_refused(case, &out, &expected);
+    let render = [
+        OsString::from("render"),
+        path.clone().into(),
+        "--size".into(),
+        "8".into(),
+        "--spp".into(),
+        "1".into(),
+        "-q".into(),
+    ];
+    assert_refused_writing(case, &render, "gem.png", &expected);
+    let maps = [
+        OsString::from("maps"),
+        path.clone().into(),
+        "--size".into(),
+        "8".into(),
+    ];
+    assert_refused_writing(case, &maps, "maps.png", &expected);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_good_inputs_are_accepted() {
+    // The bad inputs below are one mistake away from these: they must be
+    // valid, or the refusals would prove nothing.
+    let dir = scratch("good");
+    let gem = dir.join("gem.ron");
+    let material = dir.join("material.ron");
+    let scene = dir.join("scene.ron");
+    std::fs::write(&gem, GOOD_GEM).unwrap();
+    std::fs::write(&material, GOOD_MATERIAL).unwrap();
+    std::fs::write(&scene, GOOD_SCENE).unwrap();
+    let out = lapidary(&[
+        OsString::from("validate"),
+        gem.clone().into(),
+        material.clone().into(),
+        scene.clone().into(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let png = dir.join("gem.png");
+    let out = lapidary(&[
+        OsString::from("render"),
+        gem.into(),
+        "--scene".into(),
+        scene.into(),
+        "--size".into(),
+        "8".into(),
+        "--spp".into(),
+        "1".into(),
+        "-q".into(),
+        "-o".into(),
+        png.clone().into(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(png.is_file());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+// ---- gem recipes: field names and types --------------------------------
+
+#[test]
+fn typo_in_a_map_field_name() {
+    bad_gem(
+        "typo-map-field",
+        "cell_size: 0.1,",
+        "cell_sise: 0.1,",
+        "cell_sise",
+        &["unknown field `cell_sise`", "cell_size"],
+    );
+}
+
+#[test]
+fn typo_in_a_top_level_field_name() {
+    bad_gem(
+        "typo-top-field",
+        "surface: \"veins\",",
+        "surfce: \"veins\",",
+        "surfce",
+        &["unknown field `surfce`", "surface"],
+    );
+}
+
+#[test]
+fn typo_in_a_layer_field_name() {
+    bad_gem(
+        "typo-layer-field",
+        "roughness_deg: 5.0,",
+        "roughnes_deg: 5.0,",
+        "roughnes_deg",
+        &["unknown field `roughnes_deg`", "roughness_deg"],
+    );
+}
+
+#[test]
+fn a_string_where_a_number_belongs() {
+    bad_gem(
+        "string-for-number",
+        "cell_size: 0.1,",
+        "cell_size: \"0.1\",",
+        "cell_size: \"0.1\"",
+        &["cell_size"],
+    );
+}
+
+#[test]
+fn a_number_where_a_name_belongs() {
+    bad_gem(
+        "number-for-name",
+        "surface: \"veins\",",
+        "surface: 7,",
+        "surface: 7",
+        &["surface"],
+    );
+}
+
+#[test]
+fn an_unknown_base_variant() {
+    bad_gem(
+        "unknown-base",
+        "base: Diffuse(colour: (0.4, 0.3, 0.5)),",
+        "base: Glossy(colour: (0.4, 0.3, 0.5)),",
+        "Glossy",
+        &["Glossy", "Diffuse"],
+    );
+}
+
+// ---- gem recipes: numbers out of range ---------------------------------
+
+#[test]
+fn nan_ior() {
+    bad_gem(
+        "nan-ior",
+        "ior: 1.5,",
+        "ior: NaN,",
+        "ior: NaN",
+        &["ior", "NaN", "1 <= ior <= 5"],
+    );
+}
+
+#[test]
+fn infinite_thickness() {
+    bad_gem(
+        "inf-thickness",
+        "thickness: 0.1,",
+        "thickness: inf,",
+        "thickness: inf",
+        &["thickness", "inf", "thickness >= 0"],
+    );
+}
+
+#[test]
+fn ior_below_one() {
+    bad_gem(
+        "ior-below-one",
+        "ior: 1.5,",
+        "ior: 0.8,",
+        "ior: 0.8",
+        &["ior", "0.8", "1 <= ior <= 5"],
+    );
+}
+
+#[test]
+fn negative_thickness() {
+    bad_gem(
+        "negative-thickness",
+        "thickness: 0.1,",
+        "thickness: -0.1,",
+        "thickness: -0.1",
+        &["thickness", "-0.1", "thickness >= 0"],
+    );
+}
+
+#[test]
+fn layer_roughness_of_90_degrees() {
+    bad_gem(
+        "layer-roughness-90",
+        "roughness_deg: 5.0,",
+        "roughness_deg: 90.0,",
+        "roughness_deg: 90",
+        &["roughness_deg", "90"],
+    );
+}
+
+#[test]
+fn metal_roughness_above_90_degrees() {
+    bad_gem(
+        "metal-roughness-120",
+        "roughness_deg: 4.0",
+        "roughness_deg: 120.0",
+        "roughness_deg: 120",
+        &["roughness_deg", "120"],
+    );
+}
+
+#[test]
+fn colour_above_one() {
+    bad_gem(
+        "colour-above-one",
+        "colour: (0.4, 0.3, 0.5)",
+        "colour: (1.4, 0.3, 0.5)",
+        "colour: (1.4",
+        &["colour", "1.4"],
+    );
+}
+
+#[test]
+fn negative_absorption() {
+    bad_gem(
+        "negative-absorption",
+        "absorption: (0.1, 0.2, 0.3)",
+        "absorption: (0.1, -0.2, 0.3)",
+        "absorption: (0.1, -0.2",
+        &["absorption", "-0.2"],
+    );
+}
+
+#[test]
+fn a_metal_with_a_refractive_index_of_zero() {
+    bad_gem(
+        "metal-n-zero",
+        "Conductor(metal: \"silver\", roughness_deg: 4.0)",
+        "Conductor(n: (0.0, 0.13, 0.157), k: (0.0, 3.25, 2.40), roughness_deg: 4.0)",
+        "n: (0.0",
+        &["`n`", "0.01 <= n <= 20"],
+    );
+}
+
+#[test]
+fn zero_cell_size() {
+    bad_gem(
+        "zero-cell-size",
+        "cell_size: 0.1,",
+        "cell_size: 0.0,",
+        "cell_size: 0.0",
+        &["cell_size", "0"],
+    );
+}
+
+// ---- gem recipes: rules across fields ----------------------------------
+
+#[test]
+fn an_empty_entry_list() {
+    bad_gem(
+        "empty-entries",
+        "entries: [(material: \"foil\")],",
+        "entries: [],",
+        "glitter: Some",
+        &["`glitter` has no entries"],
+    );
+}
+
+#[test]
+fn an_empty_surface_map() {
+    let from =
+        "(material: \"lilac\", weight: 2.0),\n                (material: \"foil\", weight: 1.0),";
+    bad_gem(
+        "empty-surface-map",
+        from,
+        "",
+        "\"tiles\": SurfaceMap",
+        &["tiles", "no entries"],
+    );
+}
+
+#[test]
+fn weights_all_zero() {
+    let from =
+        "(material: \"lilac\", weight: 2.0),\n                (material: \"foil\", weight: 1.0),";
+    let to =
+        "(material: \"lilac\", weight: 0.0),\n                (material: \"foil\", weight: 0.0),";
+    bad_gem(
+        "weights-all-zero",
+        from,
+        to,
+        "\"tiles\": SurfaceMap",
+        &["weight", "tiles"],
+    );
+}
+
+#[test]
+fn a_negative_weight() {
+    bad_gem(
+        "negative-weight",
+        "weight: 2.0",
+        "weight: -2.0",
+        "weight: -2.0",
+        &["weight", "-2"],
+    );
+}
+
+#[test]
+fn a_map_that_contains_itself() {
+    bad_gem(
+        "self-map",
+        "(material: \"foil\", weight: 1.0),",
+        "(map: \"tiles\", weight: 1.0),",
+        "\"tiles\": SurfaceMap",
+        &["map `tiles` contains itself directly"],
+    );
+}
+
+#[test]
+fn a_map_that_contains_itself_through_another() {
+    // tiles → veins (in its entries) → tiles (in its first range).
+    bad_gem(
+        "cycle-map",
+        "(material: \"foil\", weight: 1.0),",
+        "(map: \"veins\", weight: 1.0),",
+        "\"tiles\": SurfaceMap",
+        &["map `tiles` contains itself through veins"],
+    );
+}
+
+#[test]
+fn an_unknown_material_name() {
+    bad_gem(
+        "unknown-material",
+        "(material: \"lilac\", weight: 2.0),",
+        "(material: \"lilak\", weight: 2.0),",
+        "lilak",
+        &["unknown material `lilak`", "lilac"],
+    );
+}
+
+#[test]
+fn an_unknown_surface_map() {
+    bad_gem(
+        "unknown-surface",
+        "surface: \"veins\",",
+        "surface: \"vein\",",
+        "surface: \"vein\"",
+        &["vein", "veins"],
+    );
+}
+
+#[test]
+fn an_entry_with_a_material_and_a_map() {
+    bad_gem(
+        "entry-both",
+        "(from: 0.8, to: 1.0, material: \"foil\"),",
+        "(from: 0.8, to: 1.0, material: \"foil\", map: \"tiles\"),",
+        "\"veins\": Switch",
+        &["an entry of `veins` needs exactly one of `material` or `map`"],
+    );
+}
+
+#[test]
+fn switch_ranges_with_a_gap() {
+    bad_gem(
+        "range-gap",
+        "(from: 0.8, to: 1.0, material: \"foil\"),",
+        "(from: 0.85, to: 1.0, material: \"foil\"),",
+        "\"veins\": Switch",
+        &["veins", "0.8"],
+    );
+}
+
+#[test]
+fn a_layer_with_two_iors() {
+    bad_gem(
+        "two-iors",
+        "Layer(ior: 1.5,",
+        "Layer(ior: 1.5, reflectivity: 0.3,",
+        "reflectivity: 0.3",
+        &["exactly one of `ior`, `reflectivity` or `varnish`"],
+    );
+}
+
+#[test]
+fn an_unknown_metal() {
+    bad_gem(
+        "unknown-metal",
+        "metal: \"silver\"",
+        "metal: \"platinum\"",
+        "platinum",
+        &["platinum", "silver"],
+    );
+}
+
+#[test]
+fn a_truncated_file() {
+    // Cut in the middle of the maps: the file ends inside a list.
+    let cut = GOOD_GEM.find("(from: 0.8").unwrap();
+    let text = GOOD_GEM[..cut].trim_end();
+    let dir = scratch("truncated");
+    let path = dir.join("truncated.ron");
+    std::fs::write(&path, text).unwrap();
+    let line = text.lines().count();
+    let needle = format!("{}:{line}:", path.display());
+    let out = lapidary(&[OsString::from("validate"), path.clone().into()]);
+    assert_refused("truncated", &out, std::slice::from_ref(&needle));
+    let render = [
+        OsString::from("render"),
+        path.clone().into(),
+        "--size".into(),
+        "8".into(),
+    ];
+    assert_refused_writing("truncated", &render, "gem.png", &[needle]);
+}
+
+// ---- files that are not recipes ------------------------------------------
+
+#[test]
+fn non_utf8_bytes() {
+    let dir = scratch("non-utf8");
+    let path = dir.join("latin1.ron");
+    // "Gem(name: "Grüner")" written in Latin-1 by an old editor.
+    let mut bytes = b"Gem(name: \"Gr".to_vec();
+    bytes.push(0xfc);
+    bytes.extend_from_slice(b"ner\", surface: \"gold\")\n");
+    std::fs::write(&path, &bytes).unwrap();
+    let needles = [path.display().to_string(), "UTF-8".to_string()];
+    let out = lapidary(&[OsString::from("validate"), path.clone().into()]);
+    assert_refused("non-utf8", &out, &needles);
+    let render = [
+        OsString::from("render"),
+        path.clone().into(),
+        "--size".into(),
+        "8".into(),
+    ];
+    assert_refused_writing("non-utf8", &render, "gem.png", &needles);
+    let maps = [
+        OsString::from("maps"),
+        path.clone().into(),
+        "--size".into(),
+        "8".into(),
+    ];
+    assert_refused_writing("non-utf8-maps", &maps, "maps.png", &needles);
+}
+
+#[test]
+fn a_directory_instead_of_a_file() {
+    let dir = scratch("directory");
+    let recipe = dir.join("recipes.ron");
+    std::fs::create_dir_all(&recipe).unwrap();
+    let needles = [recipe.display().to_string(), "directory".to_string()];
+    let out = lapidary(&[OsString::from("validate"), recipe.clone().into()]);
+    assert_refused("directory", &out, &needles);
+    let render = [
+        OsString::from("render"),
+        recipe.clone().into(),
+        "--size".into(),
+        "8".into(),
+    ];
+    assert_refused_writing("directory", &render, "gem.png", &needles);
+    let maps = [
+        OsString::from("maps"),
+        recipe.clone().into(),
+        "--size".into(),
+        "8".into(),
+    ];
+    assert_refused_writing("directory-maps", &maps, "maps.png", &needles);
+    let out = lapidary(&[OsString::from("brdf"), recipe.into(), "--albedo".into()]);
+    assert_refused("directory-brdf", &out, &needles);
+}
+
+#[test]
+fn a_missing_recipe_file() {
+    let dir = scratch("missing");
+    let path = dir.join("no-such-gem.ron");
+    let needles = [path.display().to_string(), "cannot read".to_string()];
+    let out = lapidary(&[OsString::from("validate"), path.clone().into()]);
+    assert_refused("missing", &out, &needles);
+    let render = [
+        OsString::from("render"),
+        path.into(),
+        "--size".into(),
+        "8".into(),
+    ];
+    assert_refused_writing("missing", &render, "gem.png", &needles);
+}
+
+#[test]
+fn an_empty_file() {
+    let dir = scratch("empty");
+    let path = dir.join("empty.ron");
+    std::fs::write(&path, "").unwrap();
+    let out = lapidary(&[OsString::from("validate"), path.clone().into()]);
+    assert_refused("empty", &out, &[path.display().to_string()]);
+    let render = [
+        OsString::from("render"),
+        path.clone().into(),
+        "--size".into(),
+        "8".into(),
+    ];
+    assert_refused_writing("empty", &render, "gem.png", &[path.display().to_string()]);
+}
+
+#[test]
+fn a_misspelt_builtin_gem() {
+    let render = os(&["render", "green-aventurin", "--size", "8", "--spp", "1"]);
+    assert_refused_writing(
+        "misspelt-gem",
+        &render,
+        "gem.png",
+        &[
+            "green-aventurin".to_string(),
+            "green-aventurine".to_string(),
+        ],
+    );
+}
+
+// ---- material files and `brdf` ---------------------------------------------
+
+/// A material made from [`GOOD_MATERIAL`] by replacing `from` with `to`,
+/// through `validate`, `brdf --albedo` and `brdf -o`.
+fn bad_material(case: &str, from: &str, to: &str, marker: &str, needles: &[&str]) {
+    assert!(
+        GOOD_MATERIAL.contains(from),
+        "{case}: `{from}` not in GOOD_MATERIAL"
+    );
+    let text = GOOD_MATERIAL.replacen(from, to, 1);
+    let dir = scratch(case);
+    let path = dir.join(format!("{case}.ron"));
+    std::fs::write(&path, &text).unwrap();
+    let mut expected = vec![at_line(&path, &text, marker)];
+    expected.extend(needles.iter().map(|s| s.to_string()));
+    let out = lapidary(&[OsString::from("validate"), path.clone().into()]);
+    assert_refused(case, &out, &expected);
+    let out = lapidary(&[
+        OsString::from("brdf"),
+        path.clone().into(),
+        "--albedo".into(),
+    ]);
+    assert_refused(case, &out, &expected);
+    assert!(out.stdout.is_empty(), "{case}: brdf printed a table");
+    let plot = [OsString::from("brdf"), path.into()];
+    assert_refused_writing(case, &plot, "plot.png", &expected);
+}
+
+#[test]
+fn material_with_a_misspelt_field() {
+    bad_material(
+        "material-typo",
+        "absorption:",
+        "absorbtion:",
+        "absorbtion",
+        &["unknown field `absorbtion`", "absorption"],
+    );
+}
+
+#[test]
+fn material_with_ior_below_one() {
+    bad_material(
+        "material-ior",
+        "ior: 1.5,",
+        "ior: 0.5,",
+        "ior: 0.5",
+        &["ior", "0.5", "1 <= ior <= 5"],
+    );
+}
+
+#[test]
+fn material_with_a_boolean_written_as_a_word() {
+    bad_material(
+        "material-bool",
+        "multiple_scattering: false,",
+        "multiple_scattering: no,",
+        "multiple_scattering: no",
+        &["multiple_scattering"],
+    );
+}
+
+#[test]
+fn brdf_of_an_unknown_library_name() {
+    let out = lapidary(&os(&["brdf", "golld", "--albedo"]));
+    assert_refused(
+        "brdf-unknown",
+        &out,
+        &["golld".to_string(), "gold".to_string()],
+    );
+}
+
+// ---- scenes -------------------------------------------------------------------
+
+/// A scene made from [`GOOD_SCENE`] by replacing `from` with `to`, through
+/// `validate` and `render --scene`.
+fn bad_scene(case: &str, from: &str, to: &str, marker: &str, needles: &[&str]) {
+    assert!(
+        GOOD_SCENE.contains(from),
+        "{case}: `{from}` not in GOOD_SCENE"
+    );
+    let text = GOOD_SCENE.replacen(from, to, 1);
+    let dir = scratch(case);
+    let path = dir.join(format!("{case}.ron"));
+    std::fs::write(&path, &text).unwrap();
+    let mut expected = vec![at_line(&path, &text, marker)];
+    expected.extend(needles.iter().map(|s| s.to_string()));
+    let out = lapidary(&[OsString::from("validate"), path.clone().into()]);
+    assert_refused(case, &out, &expected);
+    let render = [
+        OsString::from("render"),
+        "--scene".into(),
+        path.into(),
+        "--size".into(),
+        "8".into(),
+        "--spp".into(),
+        "1".into(),
+    ];
+    assert_refused_writing(case, &render, "scene.png", &expected);
+}
+
+#[test]
+fn scene_with_a_misspelt_field() {
+    bad_scene(
+        "scene-typo",
+        "look_at:",
+        "lookat:",
+        "lookat",
+        &["unknown field `lookat`", "look_at"],
+    );
+}
+
+#[test]
+fn scene_with_a_nan_position() {
+    bad_scene(
+        "scene-nan",
+        "position: (0.0, 0.0, 0.5)",
+        "position: (0.0, NaN, 0.5)",
+        "NaN",
+        &["position", "NaN"],
+    );
+}
+
+#[test]
+fn scene_with_a_field_of_view_of_180_degrees() {
+    bad_scene(
+        "scene-fov",
+        "vertical_fov_deg: 25.0",
+        "vertical_fov_deg: 180.0",
+        "vertical_fov_deg",
+        &["vertical_fov_deg", "180"],
+    );
+}
+
+#[test]
+fn scene_with_a_stone_a_light_year_away() {
+    // Beyond f32: the BVH build over the stones used to panic in obvhs.
+    bad_scene(
+        "scene-far-stone",
+        "position: (0.0, 0.0, 0.5)",
+        "position: (1e300, 0.0, 0.5)",
+        "1e300",
+        &["`position`", "within ±100000"],
+    );
+}
+
+#[test]
+fn scene_with_a_stone_of_astronomical_size() {
+    bad_scene(
+        "scene-huge-stone",
+        "length: 10.0",
+        "length: 1e300",
+        "shape: Cabochon",
+        &["stone 1", "at most 100000"],
+    );
+}
+
+#[test]
+fn scene_with_a_point_sized_sphere_light() {
+    // A sphere light of radius 1e-300 made every sample NaN (its cone pdf
+    // overflowed) and the picture black.
+    bad_scene(
+        "scene-tiny-light",
+        "    environment:",
+        "    lights: [Sphere(centre: (0.0, 0.0, 20.0), radius: 1e-300, radiance: (1.0, 1.0, 1.0))],\n    environment:",
+        "radius: 1e-300",
+        &["`radius`", "from 0.01"],
+    );
+}
+
+#[test]
+fn scene_with_a_sun_of_zero_size() {
+    bad_scene(
+        "scene-point-sun",
+        "    environment:",
+        "    lights: [Sun(elevation_deg: 45.0, azimuth_deg: 0.0, angular_diameter_deg: 0.0, irradiance: (1.0, 1.0, 1.0))],\n    environment:",
+        "angular_diameter_deg: 0.0",
+        &["`angular_diameter_deg`", "at least 0.01"],
+    );
+}
+
+#[test]
+fn scene_with_an_empty_stone_list() {
+    let from = GOOD_SCENE
+        .split("stones: [")
+        .nth(1)
+        .and_then(|s| s.split("\n    ],").next())
+        .unwrap();
+    bad_scene("scene-no-stones", from, "", "stones: [", &["stones"]);
+}
+
+// ---- the command line and the output -----------------------------------------
+
+#[test]
+fn a_corrupt_environment_map() {
+    let dir = scratch("corrupt-env");
+    let env = dir.join("studio.hdr");
+    // A Radiance header with its pixels cut off, as after a failed download.
+    std::fs::write(
+        &env,
+        b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 64 +X 128\n\x02\x02",
+    )
+    .unwrap();
+    let gem = dir.join("gem.ron");
+    std::fs::write(&gem, GOOD_GEM).unwrap();
+    let render = [
+        OsString::from("render"),
+        gem.into(),
+        "--env".into(),
+        env.clone().into(),
+        "--size".into(),
+        "8".into(),
+        "--spp".into(),
+        "1".into(),
+        "-q".into(),
+    ];
+    assert_refused_writing(
+        "corrupt-env",
+        &render,
+        "gem.png",
+        &[env.display().to_string(), "corrupt".to_string()],
+    );
+}
+
+#[test]
+fn an_image_of_a_million_by_a_million_pixels() {
+    let render = os(&[
+        "render", "--width", "1000000", "--height", "1000000", "--spp", "1",
+    ]);
+    assert_refused_writing(
+        "huge",
+        &render,
+        "huge.png",
+        &["--width 1000000".to_string(), "32768".to_string()],
+    );
+}
+
+#[test]
+fn an_image_over_the_memory_limit() {
+    // 20 000² pixels is a legal size, but its film alone is far above 1 GiB:
+    // the refusal must come before anything is allocated, with the number.
+    let render = os(&[
+        "render",
+        "--size",
+        "20000",
+        "--spp",
+        "1",
+        "--max-memory",
+        "1",
+    ]);
+    assert_refused_writing(
+        "memory",
+        &render,
+        "big.exr",
+        &["GiB".to_string(), "--max-memory".to_string()],
+    );
+}
+
+#[test]
+fn zero_samples_per_pixel() {
+    let render = os(&["render", "--size", "8", "--spp", "0"]);
+    assert_refused_writing(
+        "spp-zero",
+        &render,
+        "gem.png",
+        &["--spp 0".to_string(), "allowed 1".to_string()],
+    );
+}
+
+#[test]
+fn an_output_with_an_unknown_extension() {
+    let render = os(&["render", "--size", "8", "--spp", "1"]);
+    assert_refused_writing(
+        "jpeg",
+        &render,
+        "gem.jpg",
+        &["gem.jpg".to_string(), ".png or .exr".to_string()],
+    );
+}
+
+#[test]
+fn an_output_in_a_missing_directory() {
+    let dir = scratch("missing-dir");
+    let output = dir.join("renders").join("gem.png");
+    for args in [
+        os(&["render", "--size", "8", "--spp", "1", "-q"]),
+        os(&["maps", "goldstone", "--size", "8"]),
+    ] {
+        let mut args = args;
+        args.push("-o".into());
+        args.push(output.clone().into());
+        let out = lapidary(&args);
+        assert_refused(
+            "missing-dir",
+            &out,
+            &[output.display().to_string(), "does not exist".to_string()],
+        );
+        assert!(files_in(&dir).is_empty(), "left {:?}", files_in(&dir));
+    }
+}
+
+#[test]
+fn an_output_that_is_a_directory() {
+    let dir = scratch("output-dir");
+    let output = dir.join("gem.png");
+    std::fs::create_dir_all(&output).unwrap();
+    let out = lapidary(&[
+        OsString::from("render"),
+        "--size".into(),
+        "8".into(),
+        "--spp".into(),
+        "1".into(),
+        "-o".into(),
+        output.clone().into(),
+    ]);
+    assert_refused(
+        "output-dir",
+        &out,
+        &[output.display().to_string(), "directory".to_string()],
+    );
+    assert!(files_in(&output).is_empty());
+}
+
+#[test]
+fn an_output_in_a_read_only_directory() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = scratch("read-only");
+    let locked = dir.join("locked");
+    std::fs::create_dir_all(&locked).unwrap();
+    let existing = locked.join("existing.png");
+    std::fs::write(&existing, KNOWN_BYTES).unwrap();
+    std::fs::set_permissions(&locked, std::fs::Permissions::from_mode(0o555)).unwrap();
+    // Root ignores directory permissions: probe whether this process can
+    // still create a file there, and skip only this case if so.
+    let probe = locked.join("probe");
+    if std::fs::write(&probe, b"x").is_ok() {
+        let _ = std::fs::remove_file(&probe);
+        std::fs::set_permissions(&locked, std::fs::Permissions::from_mode(0o755)).unwrap();
+        eprintln!("note: running with permission to write into a 0o555 directory (root?): read-only output case skipped");
+        return;
+    }
+    for name in ["new.png", "existing.png"] {
+        let output = locked.join(name);
+        let out = lapidary(&[
+            OsString::from("render"),
+            "--size".into(),
+            "8".into(),
+            "--spp".into(),
+            "1".into(),
+            "-q".into(),
+            "-o".into(),
+            output.clone().into(),
+        ]);
+        assert_refused(
+            "read-only",
+            &out,
+            &[output.display().to_string(), "ermission".to_string()],
+        );
+        assert_eq!(files_in(&locked), ["existing.png"]);
+        assert_eq!(std::fs::read(&existing).unwrap(), KNOWN_BYTES);
+    }
+    std::fs::set_permissions(&locked, std::fs::Permissions::from_mode(0o755)).unwrap();
+}
