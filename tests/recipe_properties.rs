@@ -18,7 +18,7 @@ use lapidary::geometry::Cabochon;
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, FilmSettings};
 use lapidary::render::integrator::{RenderScene, MATERIAL_ID_FIRST_STONE};
-use lapidary::render::prepare::{camera_for, compile_gem_source, light_from_spec};
+use lapidary::render::prepare::{camera_for, compile_gem_source};
 use lapidary::render::world::{StoneInstance, World};
 use lapidary::scene::{default_scene, EnvironmentSpec};
 use proptest::prelude::*;
@@ -272,7 +272,7 @@ proptest! {
             world: World::new(stones, None),
             gems: vec![gem],
             ground_brdf: None,
-            lights: scene.lights.iter().map(light_from_spec).collect(),
+            lights: scene.lights.clone(),
             environment: studio().clone(),
             max_bounces: 4,
             ambient_occlusion: None,
@@ -351,7 +351,7 @@ fn bad_samples_of(text: &str) -> u64 {
         world: World::new(stones, None),
         gems: vec![gem],
         ground_brdf: None,
-        lights: scene.lights.iter().map(light_from_spec).collect(),
+        lights: scene.lights.clone(),
         environment: studio().clone(),
         max_bounces: 4,
         ambient_occlusion: None,
