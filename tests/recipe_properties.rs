@@ -14,12 +14,11 @@
 
 use std::sync::OnceLock;
 
-use lapidary::geometry::Cabochon;
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, FilmSettings};
 use lapidary::render::integrator::{RenderScene, MATERIAL_ID_FIRST_STONE};
-use lapidary::render::prepare::{camera_for, compile_gem_source};
-use lapidary::render::world::{StoneInstance, World};
+use lapidary::render::prepare::{camera_for, compile_gem_source, stone_instances};
+use lapidary::render::world::World;
 use lapidary::scene::{default_scene, EnvironmentSpec};
 use proptest::prelude::*;
 use proptest::test_runner::RngSeed;
@@ -258,16 +257,7 @@ proptest! {
         // The default scene without its ground (its BRDF would tabulate the
         // compensation every case): the stone, the lights, the studio.
         let scene = default_scene();
-        let stones = scene
-            .stones
-            .iter()
-            .map(|s| StoneInstance {
-                cabochon: Cabochon::new(s.shape).expect("the built-in stone is valid"),
-                rotation: s.rotation,
-                position: s.position,
-                gem: 0,
-            })
-            .collect();
+        let stones = stone_instances(&scene).expect("the built-in stones are valid");
         let render_scene = RenderScene {
             world: World::new(stones, None),
             gems: vec![gem],
@@ -337,16 +327,7 @@ fn bad_samples_of(text: &str) -> u64 {
     let (gem, _) = compile_gem_source("extreme.ron", text, None, MATERIAL_ID_FIRST_STONE)
         .unwrap_or_else(|e| panic!("{e}\n{text}"));
     let scene = default_scene();
-    let stones = scene
-        .stones
-        .iter()
-        .map(|s| StoneInstance {
-            cabochon: Cabochon::new(s.shape).expect("the built-in stone is valid"),
-            rotation: s.rotation,
-            position: s.position,
-            gem: 0,
-        })
-        .collect();
+    let stones = stone_instances(&scene).expect("the built-in stones are valid");
     let render_scene = RenderScene {
         world: World::new(stones, None),
         gems: vec![gem],

@@ -11,14 +11,13 @@
 
 use std::sync::OnceLock;
 
-use lapidary::geometry::Cabochon;
 use lapidary::recipe::compile::{compile_material, MaterialSource};
 use lapidary::recipe::gem::parse_gem;
 use lapidary::recipe::library::DEFAULT_GEM;
 use lapidary::render::camera::PinholeCamera;
 use lapidary::render::film::{render, FilmSettings};
 use lapidary::render::integrator::{GemShading, RenderScene, MATERIAL_ID_FIRST_STONE};
-use lapidary::render::prepare::{camera_for, prepare_scene};
+use lapidary::render::prepare::{camera_for, prepare_scene, stone_instances};
 use lapidary::render::world::{StoneInstance, World};
 use lapidary::scene::default_scene;
 use libfuzzer_sys::fuzz_target;
@@ -34,16 +33,7 @@ fn base() -> &'static (RenderScene, Vec<StoneInstance>, Option<f64>, PinholeCame
         let scene = default_scene();
         let prepared = prepare_scene(&scene, DEFAULT_GEM, None, 4, &|_| {})
             .expect("the built-in scene prepares");
-        let stones = scene
-            .stones
-            .iter()
-            .map(|s| StoneInstance {
-                cabochon: Cabochon::new(s.shape).expect("the built-in stone is valid"),
-                rotation: s.rotation,
-                position: s.position,
-                gem: 0,
-            })
-            .collect();
+        let stones = stone_instances(&scene).expect("the built-in stones are valid");
         let ground = scene.ground.as_ref().map(|g| g.height);
         (prepared, stones, ground, camera_for(&scene, 1, 1))
     })

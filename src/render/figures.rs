@@ -27,7 +27,7 @@ use rayon::prelude::*;
 
 use crate::brdf::classify::classify;
 use crate::brdf::LayeredBrdf;
-use crate::geometry::{Base, Cabochon, CabochonParams, Outline};
+use crate::geometry::{Base, CabochonParams, Outline};
 use crate::output::tonemap::DisplayTransform;
 use crate::plot::text::{draw_text_centred, text_height, text_width, ClipRect};
 use crate::plot::{polar_plot, PolarPanel, PolarPlotStyle};
@@ -39,8 +39,10 @@ use crate::render::camera::PinholeCamera;
 use crate::render::environment::Environment;
 use crate::render::film::{render, FilmSettings};
 use crate::render::integrator::{GemShading, RenderScene, MATERIAL_ID_FIRST_STONE};
-use crate::render::prepare::{camera_for, compile_gem_draft_or_full, environment_for_spec};
-use crate::render::world::{StoneInstance, World};
+use crate::render::prepare::{
+    camera_for, compile_gem_draft_or_full, environment_for_spec, stone_instances,
+};
+use crate::render::world::World;
 use crate::sampling::direction_from_degrees;
 use crate::scene::{default_scene, Camera, Scene, StonePlacement};
 
@@ -369,20 +371,7 @@ impl Studio {
         side_px: u32,
         settings: &GallerySettings,
     ) -> Result<RgbImage, FigureError> {
-        let stones = self
-            .scene
-            .stones
-            .iter()
-            .map(|stone| {
-                Ok(StoneInstance {
-                    cabochon: Cabochon::new(stone.shape)
-                        .map_err(|e| FigureError::Scene(e.to_string()))?,
-                    rotation: stone.rotation,
-                    position: stone.position,
-                    gem: 0,
-                })
-            })
-            .collect::<Result<Vec<_>, FigureError>>()?;
+        let stones = stone_instances(&self.scene).map_err(FigureError::Scene)?;
         let render_scene = RenderScene {
             world: World::new(stones, self.scene.ground.as_ref().map(|g| g.height)),
             gems: vec![gem],
@@ -859,7 +848,7 @@ mod tests {
     #[test]
     fn sphere_shape_is_a_valid_sphere_of_the_radius() {
         let shape = sphere_shape(2.0);
-        assert!(Cabochon::new(shape).is_ok());
+        assert!(crate::geometry::Cabochon::new(shape).is_ok());
         // Height above and depth below the girdle plane equal the radius,
         // and the girdle's diameter is 2r: the three semi-axes of a sphere.
         assert_eq!(shape.dome_height, 2.0);

@@ -95,8 +95,8 @@ pub fn prepare_scene(
     report: &dyn Fn(&str),
 ) -> Result<RenderScene, String> {
     let mut keys: Vec<(String, Option<u64>)> = Vec::new();
-    let mut stones = Vec::with_capacity(scene.stones.len());
-    for stone in &scene.stones {
+    let mut stones = stone_instances(scene)?;
+    for (stone, instance) in scene.stones.iter().zip(&mut stones) {
         let key = (
             stone
                 .recipe
@@ -104,19 +104,13 @@ pub fn prepare_scene(
                 .unwrap_or_else(|| default_gem.to_string()),
             stone.seed,
         );
-        let gem = match keys.iter().position(|k| *k == key) {
+        instance.gem = match keys.iter().position(|k| *k == key) {
             Some(i) => i,
             None => {
                 keys.push(key);
                 keys.len() - 1
             }
         };
-        stones.push(StoneInstance {
-            cabochon: Cabochon::new(stone.shape).map_err(|e| e.to_string())?,
-            rotation: stone.rotation,
-            position: stone.position,
-            gem,
-        });
     }
     let mut gems = Vec::with_capacity(keys.len());
     let mut material_id_base = MATERIAL_ID_FIRST_STONE;
@@ -143,6 +137,23 @@ pub fn prepare_scene(
         max_bounces,
         ambient_occlusion: None,
     })
+}
+
+/// The scene's stones, placed, every one shaded by gem 0 (callers with
+/// several gems reassign [`StoneInstance::gem`]).
+pub fn stone_instances(scene: &Scene) -> Result<Vec<StoneInstance>, String> {
+    scene
+        .stones
+        .iter()
+        .map(|stone| {
+            Ok(StoneInstance {
+                cabochon: Cabochon::new(stone.shape).map_err(|e| e.to_string())?,
+                rotation: stone.rotation,
+                position: stone.position,
+                gem: 0,
+            })
+        })
+        .collect()
 }
 
 /// The environment a scene describes, built (the studio baked, a file
