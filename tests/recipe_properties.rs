@@ -16,10 +16,10 @@ use std::sync::OnceLock;
 
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, FilmSettings};
-use lapidary::render::integrator::{RenderScene, MATERIAL_ID_FIRST_STONE};
+use lapidary::render::integrator::{GemShading, RenderScene, MATERIAL_ID_FIRST_STONE};
 use lapidary::render::prepare::{camera_for, compile_gem_source, stone_instances};
 use lapidary::render::world::World;
-use lapidary::scene::{default_scene, EnvironmentSpec};
+use lapidary::scene::{default_scene, EnvironmentSpec, Scene};
 use proptest::prelude::*;
 use proptest::test_runner::RngSeed;
 
@@ -254,19 +254,7 @@ proptest! {
             .map_err(|e| TestCaseError::fail(format!("{e}\n{text}")))?;
         prop_assert_eq!(gem.brdfs.len(), r.materials.len(), "{}", text);
 
-        // The default scene without its ground (its BRDF would tabulate the
-        // compensation every case): the stone, the lights, the studio.
-        let scene = default_scene();
-        let stones = stone_instances(&scene).expect("the built-in stones are valid");
-        let render_scene = RenderScene {
-            world: World::new(stones, None),
-            gems: vec![gem],
-            ground_brdf: None,
-            lights: scene.lights.clone(),
-            environment: studio().clone(),
-            max_bounces: 4,
-            ambient_occlusion: None,
-        };
+        let (scene, render_scene) = default_scene_without_ground(gem);
         let camera = camera_for(&scene, SIDE, SIDE);
         let settings = FilmSettings { width: SIDE, height: SIDE, samples_per_pixel: 1, seed: r.seed };
         let film = render(&render_scene, &camera, &settings, &|_| {});
@@ -321,11 +309,10 @@ fn the_generator_writes_what_it_was_asked_for() {
     );
 }
 
-/// Renders `text` (a valid gem) like the property above and returns the
-/// number of samples dropped as NaN, infinite or negative.
-fn bad_samples_of(text: &str) -> u64 {
-    let (gem, _) = compile_gem_source("extreme.ron", text, None, MATERIAL_ID_FIRST_STONE)
-        .unwrap_or_else(|e| panic!("{e}\n{text}"));
+/// The default scene without its ground (its BRDF would tabulate the
+/// compensation every case): the stone shaded by `gem`, the lights, the
+/// studio.
+fn default_scene_without_ground(gem: GemShading) -> (Scene, RenderScene) {
     let scene = default_scene();
     let stones = stone_instances(&scene).expect("the built-in stones are valid");
     let render_scene = RenderScene {
@@ -337,6 +324,15 @@ fn bad_samples_of(text: &str) -> u64 {
         max_bounces: 4,
         ambient_occlusion: None,
     };
+    (scene, render_scene)
+}
+
+/// Renders `text` (a valid gem) like the property above and returns the
+/// number of samples dropped as NaN, infinite or negative.
+fn bad_samples_of(text: &str) -> u64 {
+    let (gem, _) = compile_gem_source("extreme.ron", text, None, MATERIAL_ID_FIRST_STONE)
+        .unwrap_or_else(|e| panic!("{e}\n{text}"));
+    let (scene, render_scene) = default_scene_without_ground(gem);
     let side = 16;
     let camera = camera_for(&scene, side, side);
     let settings = FilmSettings {

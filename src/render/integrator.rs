@@ -330,11 +330,10 @@ impl RenderScene {
     ) -> Option<(&Light, f64, Rgb)> {
         let mut best: Option<(&Light, f64, Rgb)> = None;
         for light in &self.lights {
+            // `hit` only reports a crossing nearer than the limit.
             let limit = best.map_or(t_max, |b| b.1);
             if let Some((t, emitted)) = light.hit(origin, direction, limit) {
-                if best.is_none() || t < limit {
-                    best = Some((light, t, emitted));
-                }
+                best = Some((light, t, emitted));
             }
         }
         best
