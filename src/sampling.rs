@@ -48,11 +48,54 @@ pub fn mix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// (sin 2πt, cos 2πt) for an angle of `t` turns, to within 3·10⁻¹⁴: the
+/// azimuth of every sampled direction. The angle is reduced to the nearest
+/// quarter turn q/4 and a remainder x ∈ [−π/4, π/4], whose sine and cosine
+/// are Taylor polynomials to x¹³ and x¹⁴ (the first omitted terms are below
+/// (π/4)¹⁵/15! ≈ 2·10⁻¹⁴ and (π/4)¹⁶/16! ≈ 10⁻¹⁵); several times faster
+/// than libm's `sin_cos`, which rounds correctly at a cost no sample needs.
+pub fn sin_cos_turns(t: f64) -> (f64, f64) {
+    // Round to the nearest quarter turn by adding and subtracting 1.5·2⁵²,
+    // which leaves no fraction bits (`f64::round` is a library call on
+    // x86-64 without SSE4.1); exact for |4t| < 2⁵¹.
+    const ROUNDER: f64 = 6_755_399_441_055_744.0;
+    let quarter = (t * 4.0 + ROUNDER) - ROUNDER;
+    let x = (t - quarter * 0.25) * (2.0 * PI);
+    let x2 = x * x;
+    // Horner forms of Σ (−1)ᵏ x²ᵏ⁺¹/(2k+1)! and Σ (−1)ᵏ x²ᵏ/(2k)!.
+    let sin_terms = [
+        -1.0 / 6.0,
+        1.0 / 120.0,
+        -1.0 / 5040.0,
+        1.0 / 362_880.0,
+        -1.0 / 39_916_800.0,
+        1.0 / 6_227_020_800.0,
+    ];
+    let cos_terms = [
+        -1.0 / 2.0,
+        1.0 / 24.0,
+        -1.0 / 720.0,
+        1.0 / 40_320.0,
+        -1.0 / 3_628_800.0,
+        1.0 / 479_001_600.0,
+        -1.0 / 87_178_291_200.0,
+    ];
+    let sin = x * (1.0 + x2 * sin_terms.iter().rev().fold(0.0, |acc, c| c + x2 * acc));
+    let cos = 1.0 + x2 * cos_terms.iter().rev().fold(0.0, |acc, c| c + x2 * acc);
+    // sin and cos of q·π/2 + x.
+    match (quarter as i64) & 3 {
+        0 => (sin, cos),
+        1 => (cos, -sin),
+        2 => (-sin, -cos),
+        _ => (-cos, sin),
+    }
+}
+
 /// Cosine-weighted direction on the upper hemisphere (z up); pdf = cosθ/π.
 pub fn cosine_hemisphere(u1: f64, u2: f64) -> DVec3 {
     let r = u1.sqrt();
-    let phi = 2.0 * PI * u2;
-    DVec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt())
+    let (sin_phi, cos_phi) = sin_cos_turns(u2);
+    DVec3::new(r * cos_phi, r * sin_phi, (1.0 - u1).max(0.0).sqrt())
 }
 
 /// Density of [`cosine_hemisphere`] with respect to solid angle.
@@ -68,4 +111,26 @@ pub fn cosine_hemisphere_pdf(w: DVec3) -> f64 {
 pub fn direction_from_degrees(theta_deg: f64, phi_deg: f64) -> DVec3 {
     let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
     DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn turn_sines_match_libm_everywhere_within_3e_14() {
+        // Every octant, the reduction's seams at multiples of 1/8 turn, and
+        // angles outside one turn.
+        let mut worst: f64 = 0.0;
+        for i in -4000..=12000 {
+            let t = i as f64 / 8000.0 + 1e-9 * (i % 7) as f64;
+            let (sin, cos) = sin_cos_turns(t);
+            let (sin_ref, cos_ref) = (2.0 * PI * t).sin_cos();
+            worst = worst.max((sin - sin_ref).abs()).max((cos - cos_ref).abs());
+        }
+        assert!(worst < 3e-14, "worst error {worst}");
+        // Exact quarter turns give exact axes.
+        assert_eq!(sin_cos_turns(0.0), (0.0, 1.0));
+        assert_eq!(sin_cos_turns(0.25), (1.0, -0.0));
+    }
 }

@@ -142,8 +142,8 @@ impl Microfacet {
             }
         };
         let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-        let phi = 2.0 * PI * u2;
-        DVec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta)
+        let (sin_phi, cos_phi) = crate::sampling::sin_cos_turns(u2);
+        DVec3::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta)
     }
 
     /// Density of [`Microfacet::sample_normal`] with respect to solid angle.

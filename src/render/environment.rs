@@ -293,7 +293,7 @@ impl Environment {
                 // Uniform sphere (pbrt-v4 eq. A.15): z = 1 − 2u₀, φ = 2πu₁.
                 let z = 1.0 - 2.0 * u[0];
                 let r = (1.0 - z * z).max(0.0).sqrt();
-                let (s, co) = (TAU * u[1]).sin_cos();
+                let (s, co) = crate::sampling::sin_cos_turns(u[1]);
                 Some(EnvironmentSample {
                     direction: DVec3::new(r * co, r * s, z),
                     radiance: *c,

@@ -208,9 +208,12 @@ impl RenderScene {
                 }
             }
             let Some(hit) = hit else {
-                let weight = previous.map_or(1.0, |(_, brdf_pdf)| {
-                    power_heuristic(brdf_pdf, self.environment.pdf(direction))
-                });
+                let weight = match previous {
+                    Some((_, brdf_pdf)) if self.samples_environment() => {
+                        power_heuristic(brdf_pdf, self.environment.pdf(direction))
+                    }
+                    _ => 1.0,
+                };
                 radiance += throughput * self.environment.radiance(direction) * weight;
                 break;
             };
@@ -249,8 +252,11 @@ impl RenderScene {
                 );
                 radiance += throughput * contribution;
             }
-            let u = stream.next_2d();
-            if let Some(sample) = self.environment.sample(u) {
+            if let Some(sample) = self
+                .samples_environment()
+                .then(|| self.environment.sample(stream.next_2d()))
+                .flatten()
+            {
                 let contribution = self.direct(
                     &shading,
                     &hit,
@@ -294,6 +300,16 @@ impl RenderScene {
             bounce += 1;
         }
         (radiance, first)
+    }
+
+    /// Whether next-event estimation samples the environment. A constant
+    /// environment is left to BRDF sampling alone: for uniform incident
+    /// radiance the BRDF's own importance (cosine-weighted for the diffuse
+    /// base, the lobe for the coats) is already the ideal density, while a
+    /// light sample would spend a BRDF evaluation and a shadow ray on
+    /// directions half of which point below the surface.
+    fn samples_environment(&self) -> bool {
+        !matches!(self.environment, Environment::Constant(_))
     }
 
     /// One ambient-occlusion ray around the geometric normal (1 escaped,

@@ -234,9 +234,9 @@ fn cone_pdf(cos_max: f64) -> f64 {
 fn sample_cone(axis: DVec3, cos_max: f64, u: [f64; 2]) -> DVec3 {
     let cos_theta = 1.0 - u[0] * (1.0 - cos_max);
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-    let phi = 2.0 * PI * u[1];
+    let (sin_phi, cos_phi) = crate::sampling::sin_cos_turns(u[1]);
     let (t, b) = axis.any_orthonormal_pair();
-    (t * (sin_theta * phi.cos()) + b * (sin_theta * phi.sin()) + axis * cos_theta).normalize()
+    (t * (sin_theta * cos_phi) + b * (sin_theta * sin_phi) + axis * cos_theta).normalize()
 }
 
 /// Nearest positive distance at which the ray enters the sphere.

@@ -21,6 +21,8 @@ pub const SOBOL_PAIRS: u32 = 6;
 pub struct SampleStream {
     pixel_seed: u64,
     sample_index: u32,
+    /// `sample_index` with its bits reversed, computed once per sample.
+    reversed_index: u32,
     next_pair: u32,
     tail: Rng,
 }
@@ -33,6 +35,7 @@ impl SampleStream {
         Self {
             pixel_seed,
             sample_index,
+            reversed_index: sample_index.reverse_bits(),
             next_pair: 0,
             tail: Rng::new(pixel_seed, u64::from(sample_index)),
         }
@@ -43,8 +46,8 @@ impl SampleStream {
         let pair = self.next_pair;
         self.next_pair += 1;
         if pair < SOBOL_PAIRS {
-            let pair_seed = mix64(self.pixel_seed ^ u64::from(pair).wrapping_mul(0x9e37_79b9));
-            owen_sobol_2d(self.sample_index, pair_seed)
+            let pair_seed = self.pixel_seed ^ u64::from(pair).wrapping_mul(0x9e37_79b9);
+            owen_sobol_2d_reversed(self.reversed_index, scramble_seeds(pair_seed))
         } else {
             [self.tail.next_f64(), self.tail.next_f64()]
         }
@@ -72,9 +75,27 @@ impl SampleStream {
 
 /// Point `index` of the shuffled, scrambled 2-D Sobol sequence for `seed`.
 pub fn owen_sobol_2d(index: u32, seed: u64) -> [f64; 2] {
-    let shuffled = nested_uniform_scramble(index, hash32(seed, 0));
-    let x = nested_uniform_scramble(sobol_dimension_0(shuffled), hash32(seed, 1));
-    let y = nested_uniform_scramble(sobol_dimension_1(shuffled), hash32(seed, 2));
+    owen_sobol_2d_reversed(index.reverse_bits(), scramble_seeds(seed))
+}
+
+/// Three independent 32-bit scrambling seeds (index shuffle, x, y) from one
+/// 64-bit seed, with two hashes.
+fn scramble_seeds(seed: u64) -> [u32; 3] {
+    let h = mix64(seed);
+    [h as u32, (h >> 32) as u32, mix64(h) as u32]
+}
+
+/// [`owen_sobol_2d`] from the bit-reversed index. Written out,
+/// x = nus(sobol₀(shuffled)) and y = nus(sobol₁(shuffled)) with
+/// shuffled = nus(index) and nus(v) = rev(LK(rev(v))); since sobol₀ = rev,
+/// the reversals cancel down to three per point: with r = LK(rev(index)),
+/// x = rev(LK(rev(r))) and y = rev(LK(rev ∘ sobol₁ ∘ rev(r))), the middle
+/// map being linear and tabulated like [`sobol_dimension_1`].
+fn owen_sobol_2d_reversed(reversed_index: u32, seeds: [u32; 3]) -> [f64; 2] {
+    let r = laine_karras_permutation(reversed_index, seeds[0]);
+    let x = laine_karras_permutation(r.reverse_bits(), seeds[1]).reverse_bits();
+    let y = laine_karras_permutation(by_byte_tables(&REVERSED_SOBOL_1_TABLES, r), seeds[2])
+        .reverse_bits();
     [to_unit(x), to_unit(y)]
 }
 
@@ -84,8 +105,67 @@ pub fn sobol_dimension_0(index: u32) -> u32 {
 }
 
 /// The second Sobol dimension: direction numbers `v₀ = 2³¹`,
-/// `vᵢ = vᵢ₋₁ ⊕ (vᵢ₋₁ >> 1)` (the primitive polynomial x + 1).
-pub fn sobol_dimension_1(mut index: u32) -> u32 {
+/// `vᵢ = vᵢ₋₁ ⊕ (vᵢ₋₁ >> 1)` (the primitive polynomial x + 1). The product
+/// of the generator matrix with the index is linear over GF(2), so it is the
+/// XOR of four byte-wise partial products looked up in tables built at
+/// compile time (a scrambled index has all 32 bits set at random, so a
+/// bit-by-bit loop would run 32 times per point).
+pub fn sobol_dimension_1(index: u32) -> u32 {
+    by_byte_tables(&SOBOL_1_TABLES, index)
+}
+
+/// A GF(2)-linear map of 32-bit words given by its value on every byte.
+type ByteTables = [[u32; 256]; 4];
+
+fn by_byte_tables(tables: &ByteTables, v: u32) -> u32 {
+    let [b0, b1, b2, b3] = v.to_le_bytes();
+    tables[0][b0 as usize] ^ tables[1][b1 as usize] ^ tables[2][b2 as usize] ^ tables[3][b3 as usize]
+}
+
+/// `SOBOL_1_TABLES[k][b]` is the second Sobol dimension of `b << 8k`.
+static SOBOL_1_TABLES: ByteTables = sobol_1_tables(false);
+/// The same map conjugated by bit reversal: v ↦ rev(sobol₁(rev(v))).
+static REVERSED_SOBOL_1_TABLES: ByteTables = sobol_1_tables(true);
+
+const fn sobol_1_tables(reversed: bool) -> ByteTables {
+    // The image of every single index bit.
+    let mut image = [0u32; 32];
+    let mut v = 1u32 << 31;
+    let mut bit = 0;
+    while bit < 32 {
+        if reversed {
+            image[31 - bit] = v.reverse_bits();
+        } else {
+            image[bit] = v;
+        }
+        v ^= v >> 1;
+        bit += 1;
+    }
+    let mut tables = [[0u32; 256]; 4];
+    let mut k = 0;
+    while k < 4 {
+        let mut byte = 0;
+        while byte < 256 {
+            let mut result = 0;
+            let mut b = 0;
+            while b < 8 {
+                if byte & (1 << b) != 0 {
+                    result ^= image[8 * k + b];
+                }
+                b += 1;
+            }
+            tables[k][byte] = result;
+            byte += 1;
+        }
+        k += 1;
+    }
+    tables
+}
+
+/// The second Sobol dimension bit by bit: the definition the tables are
+/// checked against.
+#[cfg(test)]
+fn sobol_dimension_1_by_bits(mut index: u32) -> u32 {
     let mut v = 1u32 << 31;
     let mut result = 0;
     while index != 0 {
@@ -111,10 +191,6 @@ fn laine_karras_permutation(mut x: u32, seed: u32) -> u32 {
     x ^= x.wrapping_mul(0xc7af_e638);
     x ^= x.wrapping_mul(0x8d22_f6e6);
     x
-}
-
-fn hash32(seed: u64, salt: u64) -> u32 {
-    (mix64(seed ^ salt.wrapping_mul(0xd6e8_feb8_6659_fd93)) >> 32) as u32
 }
 
 fn to_unit(x: u32) -> f64 {
@@ -145,6 +221,37 @@ mod tests {
                     );
                     seen[cell as usize] = true;
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn byte_tables_equal_the_bit_by_bit_generator_matrix() {
+        let mut rng = crate::sampling::Rng::new(3, 4);
+        for i in (0..4096u32).chain((0..4096).map(|_| (rng.next_u64() >> 32) as u32)) {
+            assert_eq!(sobol_dimension_1(i), sobol_dimension_1_by_bits(i), "index {i}");
+            let conjugated = by_byte_tables(&REVERSED_SOBOL_1_TABLES, i);
+            let direct = sobol_dimension_1_by_bits(i.reverse_bits()).reverse_bits();
+            assert_eq!(conjugated, direct, "reversed, index {i}");
+        }
+        // Joe & Kuo's second dimension has m = 1, 3, 5, 15: direction
+        // numbers 1/2, 3/4, 5/8, 15/16, so indices 1, 2, 3, 4, 8 give
+        // 1/2, 3/4, 1/2 ⊕ 3/4 = 1/4, 5/8, 15/16.
+        let first: Vec<f64> = [1, 2, 3, 4, 8].map(|i| to_unit(sobol_dimension_1(i))).to_vec();
+        assert_eq!(first, vec![0.5, 0.75, 0.25, 0.625, 0.9375]);
+    }
+
+    #[test]
+    fn the_cancelled_reversals_equal_the_written_out_definition() {
+        // x = nus(sobol₀(nus(i, s₀)), s₁), y = nus(sobol₁(nus(i, s₀)), s₂),
+        // computed the long way with the bit-by-bit generator.
+        for seed in [0u64, 7, 0xdead_beef] {
+            let [s0, s1, s2] = scramble_seeds(seed);
+            for i in 0..1024u32 {
+                let shuffled = nested_uniform_scramble(i, s0);
+                let x = nested_uniform_scramble(sobol_dimension_0(shuffled), s1);
+                let y = nested_uniform_scramble(sobol_dimension_1_by_bits(shuffled), s2);
+                assert_eq!(owen_sobol_2d(i, seed), [to_unit(x), to_unit(y)], "index {i}");
             }
         }
     }

@@ -2,7 +2,7 @@
 //! rotation and a translation, all in one obvhs BVH) and an optional ground
 //! plane.
 
-use glam::{DQuat, DVec3, Vec3A};
+use glam::{DMat3, DQuat, DVec3, Vec3A};
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::cwbvh::CwBvh;
@@ -45,23 +45,24 @@ impl StoneInstance {
     }
 
     /// The first crossing of the world ray with this stone's surface in
-    /// (t_min, t_max), from outside or inside.
+    /// (t_min, t_max), from outside or inside, given the stone's rotation
+    /// as matrices (precomputed by [`World::new`]).
     fn intersect(
         &self,
+        frame: &Placement,
         origin: DVec3,
         direction: DVec3,
         t_min: f64,
         t_max: f64,
     ) -> Option<SurfaceHit> {
-        let inverse = self.rotation.inverse();
-        let o = inverse * (origin - self.position);
-        let d = inverse * direction;
+        let o = frame.world_to_object * (origin - self.position);
+        let d = frame.world_to_object * direction;
         // A rotation keeps lengths, so t is the same in both spaces.
         let hit = self.cabochon.intersect(o, d, t_min, t_max)?;
         Some(SurfaceHit {
             t: hit.t,
             point: origin + direction * hit.t,
-            normal: (self.rotation * hit.normal).normalize(),
+            normal: (frame.object_to_world * hit.normal).normalize(),
             surface: Surface::Stone {
                 index: 0,
                 object_point: hit.point,
@@ -100,11 +101,46 @@ pub struct SurfaceHit {
     pub surface: Surface,
 }
 
+/// A stone's rotation as matrices and its world box in f64, precomputed
+/// once: a matrix-vector product is half the work of rotating by a
+/// quaternion, and every ray does two.
+#[derive(Clone, Copy, Debug)]
+struct Placement {
+    world_to_object: DMat3,
+    object_to_world: DMat3,
+    /// Padded world-space bounds (min, max).
+    bounds: (DVec3, DVec3),
+}
+
+/// Scenes with at most this many stones test each stone's box directly:
+/// a slab test is cheaper than descending a BVH of a handful of boxes.
+const MAX_STONES_WITHOUT_BVH: usize = 4;
+
 /// Stones in a BVH plus the ground.
 pub struct World {
     stones: Vec<StoneInstance>,
+    placements: Vec<Placement>,
+    /// The padded box around all stones (rays that miss it skip the BVH).
+    stones_bounds: (DVec3, DVec3),
+    /// `None` for an empty scene or one of ≤ [`MAX_STONES_WITHOUT_BVH`].
     bvh: Option<CwBvh>,
     ground_height: Option<f64>,
+}
+
+/// Whether the ray `origin + t·direction` (with `inverse_direction` its
+/// reciprocal) crosses the box for some t in [0, t_max] (Kay & Kajiya
+/// slabs; IEEE infinities handle axis-parallel rays).
+fn ray_hits_box(
+    origin: DVec3,
+    inverse_direction: DVec3,
+    t_max: f64,
+    (min, max): (DVec3, DVec3),
+) -> bool {
+    let t0 = (min - origin) * inverse_direction;
+    let t1 = (max - origin) * inverse_direction;
+    let near = t0.min(t1).max_element().max(0.0);
+    let far = t0.max(t1).min_element().min(t_max);
+    near <= far
 }
 
 struct StoneBox(Aabb);
@@ -123,17 +159,31 @@ pub const RAY_OFFSET: f64 = 1e-5;
 impl World {
     /// Builds the BVH over the stones (one box each).
     pub fn new(stones: Vec<StoneInstance>, ground_height: Option<f64>) -> Self {
-        let bvh = (!stones.is_empty()).then(|| {
-            let boxes: Vec<StoneBox> = stones
+        let placements: Vec<Placement> = stones
+            .iter()
+            .map(|s| {
+                let (lo, hi) = s.world_bounds();
+                // Pad by an f32 ulp-scale margin so the f32 box test
+                // never clips the f64 surface.
+                let pad = 1e-4 * (hi - lo).max_element().max(1.0);
+                Placement {
+                    world_to_object: DMat3::from_quat(s.rotation.inverse()),
+                    object_to_world: DMat3::from_quat(s.rotation),
+                    bounds: (lo - DVec3::splat(pad), hi + DVec3::splat(pad)),
+                }
+            })
+            .collect();
+        let stones_bounds = placements.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(p.bounds.0), hi.max(p.bounds.1)),
+        );
+        let bvh = (stones.len() > MAX_STONES_WITHOUT_BVH).then(|| {
+            let boxes: Vec<StoneBox> = placements
                 .iter()
-                .map(|s| {
-                    let (lo, hi) = s.world_bounds();
-                    // Pad by an f32 ulp-scale margin so the f32 box test
-                    // never clips the f64 surface.
-                    let pad = 1e-4 * (hi - lo).max_element().max(1.0);
+                .map(|p| {
                     StoneBox(Aabb {
-                        min: to_f32(lo - DVec3::splat(pad)),
-                        max: to_f32(hi + DVec3::splat(pad)),
+                        min: to_f32(p.bounds.0),
+                        max: to_f32(p.bounds.1),
                     })
                 })
                 .collect();
@@ -145,6 +195,8 @@ impl World {
         });
         Self {
             stones,
+            placements,
+            stones_bounds,
             bvh,
             ground_height,
         }
@@ -168,30 +220,14 @@ impl World {
         t_min: f64,
         t_max: f64,
     ) -> Option<SurfaceHit> {
+        // The ground first: it bounds the search among the stones.
         let mut best: Option<SurfaceHit> = None;
         let mut limit = t_max;
-        if let Some(bvh) = &self.bvh {
-            let ray = Ray::new(to_f32(origin), to_f32(direction), 0.0, f32_up(t_max));
-            let mut ray_hit = RayHit::none();
-            bvh.ray_traverse(ray, &mut ray_hit, |_, id| {
-                let index = bvh.primitive_indices[id] as usize;
-                match self.stones[index].intersect(origin, direction, t_min, limit) {
-                    Some(mut hit) => {
-                        if let Surface::Stone { index: i, .. } = &mut hit.surface {
-                            *i = index;
-                        }
-                        limit = hit.t;
-                        best = Some(hit);
-                        f32_up(hit.t)
-                    }
-                    None => f32::INFINITY,
-                }
-            });
-        }
         if let Some(h) = self.ground_height {
             if direction.z < 0.0 && origin.z > h {
                 let t = (h - origin.z) / direction.z;
                 if t > t_min && t < limit {
+                    limit = t;
                     best = Some(SurfaceHit {
                         t,
                         point: DVec3::new(
@@ -205,6 +241,52 @@ impl World {
                 }
             }
         }
+        let inverse_direction = direction.recip();
+        if self.stones.is_empty()
+            || !ray_hits_box(origin, inverse_direction, limit, self.stones_bounds)
+        {
+            return best;
+        }
+        let mut try_stone = |index: usize, limit: &mut f64| -> bool {
+            match self.stones[index].intersect(
+                &self.placements[index],
+                origin,
+                direction,
+                t_min,
+                *limit,
+            ) {
+                Some(mut hit) => {
+                    if let Surface::Stone { index: i, .. } = &mut hit.surface {
+                        *i = index;
+                    }
+                    *limit = hit.t;
+                    best = Some(hit);
+                    true
+                }
+                None => false,
+            }
+        };
+        match &self.bvh {
+            None => {
+                for (index, placement) in self.placements.iter().enumerate() {
+                    if ray_hits_box(origin, inverse_direction, limit, placement.bounds) {
+                        try_stone(index, &mut limit);
+                    }
+                }
+            }
+            Some(bvh) => {
+                let ray = Ray::new(to_f32(origin), to_f32(direction), 0.0, f32_up(limit));
+                let mut ray_hit = RayHit::none();
+                bvh.ray_traverse(ray, &mut ray_hit, |_, id| {
+                    let index = bvh.primitive_indices[id] as usize;
+                    if try_stone(index, &mut limit) {
+                        f32_up(limit)
+                    } else {
+                        f32::INFINITY
+                    }
+                });
+            }
+        }
         best
     }
 
@@ -216,20 +298,36 @@ impl World {
                 return true;
             }
         }
-        let Some(bvh) = &self.bvh else {
+        let inverse_direction = direction.recip();
+        if self.stones.is_empty()
+            || !ray_hits_box(origin, inverse_direction, distance, self.stones_bounds)
+        {
             return false;
+        }
+        // Any crossing before `distance` blocks.
+        let blocks = |index: usize| {
+            self.stones[index]
+                .intersect(&self.placements[index], origin, direction, 0.0, distance)
+                .is_some()
         };
-        let ray = Ray::new(to_f32(origin), to_f32(direction), 0.0, f32_up(distance));
-        let missed = bvh.ray_traverse_miss(ray, |_, id| {
-            let index = bvh.primitive_indices[id] as usize;
-            // Any crossing before `distance` blocks; report it inside the
-            // ray's range so the traversal stops at once.
-            match self.stones[index].intersect(origin, direction, 0.0, distance) {
-                Some(_) => 0.0,
-                None => f32::INFINITY,
+        match &self.bvh {
+            None => self.placements.iter().enumerate().any(|(index, placement)| {
+                ray_hits_box(origin, inverse_direction, distance, placement.bounds)
+                    && blocks(index)
+            }),
+            Some(bvh) => {
+                let ray = Ray::new(to_f32(origin), to_f32(direction), 0.0, f32_up(distance));
+                // A blocker is reported inside the ray's range so the
+                // traversal stops at once.
+                !bvh.ray_traverse_miss(ray, |_, id| {
+                    if blocks(bvh.primitive_indices[id] as usize) {
+                        0.0
+                    } else {
+                        f32::INFINITY
+                    }
+                })
             }
-        });
-        !missed
+        }
     }
 }
 
