@@ -221,6 +221,10 @@ mod tests {
             sum += error.max_element();
         }
         assert!(worst < 1.5e-3, "worst {worst}");
-        assert!(sum / (samples as f64) < 1.5e-4, "mean {}", sum / samples as f64);
+        assert!(
+            sum / (samples as f64) < 1.5e-4,
+            "mean {}",
+            sum / samples as f64
+        );
     }
 }

@@ -162,6 +162,25 @@ impl Microfacet {
         (value, h)
     }
 
+    /// [`Microfacet::reflection_without_fresnel`] and
+    /// [`Microfacet::reflection_pdf`] at once, D(h) evaluated once:
+    /// (value, pdf, h), each equal to the separate call's.
+    pub fn reflection_value_and_pdf(&self, wi: DVec3, wo: DVec3) -> (f64, f64, DVec3) {
+        let h = (wi + wo).normalize_or_zero();
+        if h == DVec3::ZERO || wi.z <= 0.0 || wo.z <= 0.0 {
+            return (0.0, 0.0, DVec3::Z);
+        }
+        let d = self.d(h);
+        let value = d * self.g(wi, wo, h) / (4.0 * wi.z * wo.z);
+        let oh = wo.dot(h);
+        let pdf = if oh <= 0.0 {
+            0.0
+        } else {
+            d * h.z.max(0.0) / (4.0 * oh)
+        };
+        (value, pdf, h)
+    }
+
     /// Sample the incident direction of the reflection lobe for outgoing `wo`:
     /// a normal from [`Microfacet::sample_normal`], mirrored. None below the horizon.
     pub fn sample_reflection(&self, wo: DVec3, u1: f64, u2: f64) -> Option<DVec3> {

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use lapidary::output::exr::{write_exr, ChannelData, ExrChannel};
+use lapidary::output::exr::{write_exr_owned, ChannelData, ExrChannel};
 use lapidary::output::tonemap::{DisplayTransform, ToneCurve};
 use lapidary::recipe::library::DEFAULT_GEM;
 use lapidary::render::film::{render_cancellable, Film, FilmSettings, FILM_BYTES_PER_PIXEL};
@@ -280,6 +280,10 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             args.output.display()
         ));
     };
+    // The scene (materials, environment map, BVH) is no longer needed:
+    // free it before the output is encoded, which is the memory peak.
+    drop(render_scene);
+    let stats = film.stats;
     match format {
         Format::Png => {
             let transform = DisplayTransform {
@@ -302,23 +306,17 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             lapidary::output::write_png(&args.output, &image).map_err(|e| e.to_string())?;
         }
         Format::Exr => {
-            let mut channels = exr_channels(&film);
-            if args.ao.is_some() {
-                channels.push(ExrChannel {
-                    name: "ao".to_string(),
-                    data: ChannelData::F32(film.ao.clone()),
-                });
-            }
-            write_exr(&args.output, width, height, &channels).map_err(|e| e.to_string())?;
+            let channels = exr_channels(film, args.ao.is_some());
+            write_exr_owned(&args.output, width, height, channels).map_err(|e| e.to_string())?;
         }
     }
-    if film.stats.bad_samples > 0 {
+    if stats.bad_samples > 0 {
         eprintln!(
             "warning: {} samples were NaN, infinite or negative and were left out",
-            film.stats.bad_samples
+            stats.bad_samples
         );
     }
-    let rays = film.stats.traced_rays + film.stats.shadow_rays;
+    let rays = stats.traced_rays + stats.shadow_rays;
     report(&format!(
         "wrote {} ({width} × {height}, {} spp) in {:.1} s: {:.2} Mrays/s, {:.2} M samples/s, {:.1} s total",
         args.output.display(),
@@ -331,33 +329,37 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     Ok(())
 }
 
-/// The EXR channels of a film: RGBA and the AOV layers, dotted names.
-pub fn exr_channels(film: &Film) -> Vec<ExrChannel> {
+/// The EXR channels of a film: RGBA and the AOV layers, dotted names, plus
+/// `ao` when `with_ao`. Takes the film so that single-valued buffers move
+/// into the channels and the three-valued ones are freed as soon as split.
+pub fn exr_channels(film: Film, with_ao: bool) -> Vec<ExrChannel> {
     let f32_channel = |name: &str, data: Vec<f32>| ExrChannel {
         name: name.to_string(),
         data: ChannelData::F32(data),
     };
-    let component = |v: &[[f32; 3]], i: usize| v.iter().map(|p| p[i]).collect::<Vec<f32>>();
-    vec![
-        f32_channel("R", component(&film.rgb, 0)),
-        f32_channel("G", component(&film.rgb, 1)),
-        f32_channel("B", component(&film.rgb, 2)),
-        f32_channel("A", film.alpha.clone()),
-        f32_channel("albedo.R", component(&film.albedo, 0)),
-        f32_channel("albedo.G", component(&film.albedo, 1)),
-        f32_channel("albedo.B", component(&film.albedo, 2)),
-        f32_channel("normal.X", component(&film.normal, 0)),
-        f32_channel("normal.Y", component(&film.normal, 1)),
-        f32_channel("normal.Z", component(&film.normal, 2)),
-        f32_channel("depth.Z", film.depth.clone()),
-        ExrChannel {
-            name: "surface_cell".to_string(),
-            data: ChannelData::U32(film.surface_cell.clone()),
-        },
-        f32_channel("glitter", film.glitter.clone()),
-        ExrChannel {
-            name: "material_id".to_string(),
-            data: ChannelData::U32(film.material_id.clone()),
-        },
-    ]
+    let split = |v: Vec<[f32; 3]>, names: [&str; 3]| {
+        let channels: Vec<ExrChannel> = (0..3)
+            .map(|i| f32_channel(names[i], v.iter().map(|p| p[i]).collect()))
+            .collect();
+        drop(v);
+        channels
+    };
+    let mut channels = split(film.rgb, ["R", "G", "B"]);
+    channels.push(f32_channel("A", film.alpha));
+    channels.extend(split(film.albedo, ["albedo.R", "albedo.G", "albedo.B"]));
+    channels.extend(split(film.normal, ["normal.X", "normal.Y", "normal.Z"]));
+    channels.push(f32_channel("depth.Z", film.depth));
+    channels.push(ExrChannel {
+        name: "surface_cell".to_string(),
+        data: ChannelData::U32(film.surface_cell),
+    });
+    channels.push(f32_channel("glitter", film.glitter));
+    channels.push(ExrChannel {
+        name: "material_id".to_string(),
+        data: ChannelData::U32(film.material_id),
+    });
+    if with_ao {
+        channels.push(f32_channel("ao", film.ao));
+    }
+    channels
 }

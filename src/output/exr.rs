@@ -12,7 +12,7 @@
 //! never leaves a half-written EXR behind.
 
 use std::collections::HashSet;
-use std::io::Cursor;
+use std::io::Write;
 use std::path::Path;
 
 use ::exr::prelude::{
@@ -20,7 +20,7 @@ use ::exr::prelude::{
     ReadChannels, ReadLayers, SmallVec, WritableImage,
 };
 
-use super::{check_writable, write_atomically, OutputError};
+use super::{check_writable, write_atomically_with, OutputError};
 
 /// The samples of one channel, row-major, `width * height` of them.
 #[derive(Clone, Debug, PartialEq)]
@@ -87,20 +87,33 @@ pub fn write_exr(
     height: u32,
     channels: &[ExrChannel],
 ) -> Result<(), OutputError> {
+    write_exr_owned(path, width, height, channels.to_vec())
+}
+
+/// [`write_exr`] taking the channels by value: the samples move into the
+/// encoder instead of being copied, and the compressed blocks stream into
+/// the temporary file, so a render's EXR costs little memory beyond its
+/// film (issue 6: peak memory).
+pub fn write_exr_owned(
+    path: &Path,
+    width: u32,
+    height: u32,
+    channels: Vec<ExrChannel>,
+) -> Result<(), OutputError> {
     let err = |message: String| OutputError {
         path: path.display().to_string(),
         message,
     };
-    let pixel_count = validate(width, height, channels).map_err(err)?;
+    let pixel_count = validate(width, height, &channels).map_err(err)?;
     debug_assert!(channels.iter().all(|c| c.data.len() == pixel_count));
     check_writable(path)?;
 
     let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels
-        .iter()
+        .into_iter()
         .map(|channel| {
-            let samples = match &channel.data {
-                ChannelData::F32(v) => FlatSamples::F32(v.clone()),
-                ChannelData::U32(v) => FlatSamples::U32(v.clone()),
+            let samples = match channel.data {
+                ChannelData::F32(v) => FlatSamples::F32(v),
+                ChannelData::U32(v) => FlatSamples::U32(v),
             };
             AnyChannel::new(channel.name.as_str(), samples)
         })
@@ -111,16 +124,16 @@ pub fn write_exr(
         Encoding::SMALL_LOSSLESS,
         AnyChannels::sort(list),
     );
-    let mut bytes = Vec::new();
-    Image::from_layer(layer)
-        .write()
-        .to_buffered(Cursor::new(&mut bytes))
-        .map_err(|e| err(format!("cannot encode EXR: {e}")))?;
-    write_atomically(path, &bytes)
+    write_atomically_with(path, |file| {
+        let mut buffered = std::io::BufWriter::new(file);
+        Image::from_layer(layer)
+            .write()
+            .to_buffered(&mut buffered)
+            .map_err(|e| format!("cannot encode EXR: {e}"))?;
+        buffered.flush().map_err(|e| format!("cannot write: {e}"))
+    })
 }
 
-/// Check the image size and channels before encoding; returns the pixel
-/// count, or a message naming the offending channel and the allowed values.
 fn validate(width: u32, height: u32, channels: &[ExrChannel]) -> Result<usize, String> {
     if width == 0 || height == 0 {
         return Err(format!(

@@ -46,16 +46,34 @@ pub fn check_writable(path: &Path) -> Result<(), OutputError> {
 
 /// Write `bytes` to `path` atomically (temporary file, then rename).
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+    write_atomically_with(path, |file| {
+        file.write_all(bytes).map_err(|e| e.to_string())
+    })
+}
+
+/// Like [`write_atomically`], for an encoder that streams into the file
+/// (so the encoded bytes never sit in memory all at once): `write` fills
+/// the temporary sibling, which is synced and renamed over `path` only if
+/// `write` succeeds; on any error it is removed and `path` is untouched.
+/// `write`'s error message becomes the [`OutputError`]'s.
+pub fn write_atomically_with(
+    path: &Path,
+    write: impl FnOnce(&mut std::fs::File) -> Result<(), String>,
+) -> Result<(), OutputError> {
     check_writable(path)?;
     let tmp = temporary_sibling(path);
     let result = std::fs::File::create(&tmp)
-        .and_then(|mut f| f.write_all(bytes).and_then(|_| f.sync_all()))
-        .and_then(|_| std::fs::rename(&tmp, path));
-    result.map_err(|e| {
+        .map_err(|e| format!("cannot write: {e}"))
+        .and_then(|mut f| {
+            write(&mut f)?;
+            f.sync_all().map_err(|e| format!("cannot write: {e}"))
+        })
+        .and_then(|_| std::fs::rename(&tmp, path).map_err(|e| format!("cannot write: {e}")));
+    result.map_err(|message| {
         let _ = std::fs::remove_file(&tmp);
         OutputError {
             path: path.display().to_string(),
-            message: format!("cannot write: {e}"),
+            message,
         }
     })
 }

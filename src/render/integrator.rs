@@ -377,7 +377,7 @@ impl RenderScene {
         if wi.z <= 0.0 {
             return Rgb::ZERO;
         }
-        let f = shading.brdf.eval(wi, wo);
+        let (f, brdf_pdf) = shading.brdf.eval_and_pdf(wi, wo);
         if f.max_element() <= 0.0 || incoming.max_element() <= 0.0 {
             return Rgb::ZERO;
         }
@@ -393,7 +393,7 @@ impl RenderScene {
         let weight = if is_delta {
             1.0
         } else {
-            power_heuristic(pdf, shading.brdf.pdf(wi, wo))
+            power_heuristic(pdf, brdf_pdf)
         };
         f * incoming * (wi.z * weight / pdf)
     }
