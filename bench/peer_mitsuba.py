@@ -87,8 +87,14 @@ def ellipsoid_cap_mesh(rings=96, segments=192):
 # --- Mitsuba ------------------------------------------------------------------
 
 
-def stone_mesh(mi, dr):
-    """The cabochon as a Mitsuba mesh with the `plastic` BSDF of the issue."""
+def stone_mesh(mi, dr, nonlinear=False):
+    """The cabochon as a Mitsuba mesh with the `plastic` BSDF of the issue.
+
+    `nonlinear` false (the issue's choice) treats the diffuse reflectance as
+    the albedo including internal reflections; true applies the physical
+    series ρ / (1 − ρ·F_dr) instead (used only for the BRDF check in
+    bench/README.md).
+    """
     pos, nrm, faces = ellipsoid_cap_mesh()
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(
@@ -97,7 +103,7 @@ def stone_mesh(mi, dr):
             "diffuse_reflectance": {"type": "rgb", "value": list(STONE_BASE_RGB)},
             "int_ior": STONE_COAT_IOR,
             "ext_ior": 1.0,
-            "nonlinear": False,
+            "nonlinear": nonlinear,
         }
     )
     mesh = mi.Mesh("stone", len(pos), len(faces), props, has_vertex_normals=True)
@@ -109,7 +115,7 @@ def stone_mesh(mi, dr):
     return mesh
 
 
-def scene_dict(mi, dr, size, spp, max_depth):
+def scene_dict(mi, dr, size, spp, max_depth, nonlinear=False):
     """The whole peer scene as a Mitsuba `load_dict` dictionary.
 
     `max_depth` follows Mitsuba's `path` convention: 1 = emitters seen
@@ -133,7 +139,7 @@ def scene_dict(mi, dr, size, spp, max_depth):
                 "rfilter": {"type": "box"},
             },
         },
-        "stone": stone_mesh(mi, dr),
+        "stone": stone_mesh(mi, dr, nonlinear),
         "ground": {
             "type": "rectangle",  # [-1, 1]² in the xy plane, normal +z
             "to_world": t().scale([GROUND_SIDE / 2, GROUND_SIDE / 2, 1.0]),
@@ -159,7 +165,9 @@ def render(args):
 
     mi.set_variant("llvm_ad_rgb")
     dr.set_thread_count(args.threads)
-    scene = mi.load_dict(scene_dict(mi, dr, args.size, args.spp, args.max_depth))
+    scene = mi.load_dict(
+        scene_dict(mi, dr, args.size, args.spp, args.max_depth, args.nonlinear)
+    )
     image = mi.render(scene, spp=args.spp, seed=0)
     mi.util.write_bitmap(args.out, image)
 
@@ -225,6 +233,7 @@ def main(argv):
     r.add_argument("--spp", type=int, default=64)
     r.add_argument("--max-depth", type=int, default=6)
     r.add_argument("--threads", type=int, default=2)
+    r.add_argument("--nonlinear", action="store_true", help="plastic nonlinear=true (check only)")
     p = sub.add_parser("to-png", help="downsample + sRGB-encode an image")
     p.add_argument("src")
     p.add_argument("dst")
