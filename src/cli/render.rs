@@ -209,7 +209,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     let interrupted = Arc::new(AtomicBool::new(false));
     {
         let flag = Arc::clone(&interrupted);
-        // Ctrl-C (from here on) stops the render at the next band and nothing is written;
+        // Ctrl-C (from here on) stops the render after the rows in flight; nothing is written;
         // if a handler cannot be installed, Ctrl-C keeps its default (the
         // process dies before writing, which also leaves no file).
         let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));

@@ -79,18 +79,17 @@ pub struct RenderStats {
     pub bad_samples: u64,
 }
 
-/// One row's pixels before assembly.
-struct Row {
-    rgb: Vec<[f32; 3]>,
-    alpha: Vec<f32>,
-    albedo: Vec<[f32; 3]>,
-    normal: Vec<[f32; 3]>,
-    depth: Vec<f32>,
-    surface_cell: Vec<u32>,
-    glitter: Vec<f32>,
-    material_id: Vec<u32>,
-    ao: Vec<f32>,
-    stats: RenderStats,
+/// One row of the film, borrowed for writing.
+struct RowOut<'a> {
+    rgb: &'a mut [[f32; 3]],
+    alpha: &'a mut [f32],
+    albedo: &'a mut [[f32; 3]],
+    normal: &'a mut [[f32; 3]],
+    depth: &'a mut [f32],
+    surface_cell: &'a mut [u32],
+    glitter: &'a mut [f32],
+    material_id: &'a mut [u32],
+    ao: &'a mut [f32],
 }
 
 /// A sample of the tent filter of radius 1 by inverting its CDF.
@@ -106,20 +105,15 @@ fn to_f32x3(v: DVec3) -> [f32; 3] {
     [v.x as f32, v.y as f32, v.z as f32]
 }
 
-fn render_row(scene: &RenderScene, camera: &PinholeCamera, settings: &FilmSettings, y: u32) -> Row {
-    let w = settings.width as usize;
-    let mut row = Row {
-        rgb: Vec::with_capacity(w),
-        alpha: Vec::with_capacity(w),
-        albedo: Vec::with_capacity(w),
-        normal: Vec::with_capacity(w),
-        depth: Vec::with_capacity(w),
-        surface_cell: Vec::with_capacity(w),
-        glitter: Vec::with_capacity(w),
-        material_id: Vec::with_capacity(w),
-        ao: Vec::with_capacity(w),
-        stats: RenderStats::default(),
-    };
+/// Renders row `y` into `row`; returns its ray counts.
+fn render_row(
+    scene: &RenderScene,
+    camera: &PinholeCamera,
+    settings: &FilmSettings,
+    y: u32,
+    row: RowOut<'_>,
+) -> RenderStats {
+    let mut stats = RenderStats::default();
     let spp = settings.samples_per_pixel;
     for x in 0..settings.width {
         let pixel_index = u64::from(y) * u64::from(settings.width) + u64::from(x);
@@ -136,12 +130,12 @@ fn render_row(scene: &RenderScene, camera: &PinholeCamera, settings: &FilmSettin
             let mut counts = RayCounts::default();
             let (radiance, first) =
                 scene.radiance(ray.origin, ray.direction, &mut stream, &mut counts);
-            row.stats.traced_rays += counts.traced;
-            row.stats.shadow_rays += counts.shadow;
+            stats.traced_rays += counts.traced;
+            stats.shadow_rays += counts.shadow;
             if radiance.is_finite() && radiance.min_element() >= 0.0 {
                 sum += radiance;
             } else {
-                row.stats.bad_samples += 1;
+                stats.bad_samples += 1;
             }
             unoccluded += first.unoccluded;
             if s == 0 {
@@ -159,27 +153,23 @@ fn render_row(scene: &RenderScene, camera: &PinholeCamera, settings: &FilmSettin
             }
         }
         let n = f64::from(spp);
-        row.rgb.push(to_f32x3(sum / n));
-        row.alpha.push((f64::from(hits) / n) as f32);
-        row.albedo.push(to_f32x3(albedo / n));
-        row.normal.push(to_f32x3(normal / n));
-        row.depth.push(if hits > 0 {
+        let x = x as usize;
+        row.rgb[x] = to_f32x3(sum / n);
+        row.alpha[x] = (f64::from(hits) / n) as f32;
+        row.albedo[x] = to_f32x3(albedo / n);
+        row.normal[x] = to_f32x3(normal / n);
+        row.depth[x] = if hits > 0 {
             (depth_sum / f64::from(hits)) as f32
         } else {
             f32::INFINITY
-        });
-        row.surface_cell.push(cell);
-        row.glitter.push((f64::from(glints) / n) as f32);
-        row.material_id.push(material);
-        row.ao.push((unoccluded / n) as f32);
+        };
+        row.surface_cell[x] = cell;
+        row.glitter[x] = (f64::from(glints) / n) as f32;
+        row.material_id[x] = material;
+        row.ao[x] = (unoccluded / n) as f32;
     }
-    row
+    stats
 }
-
-/// Rows rendered per parallel band: the film grows band by band, so the
-/// per-row buffers never hold more than this many rows (memory stays near
-/// one film), and a cancellation is noticed within a band.
-pub const ROWS_PER_BAND: u32 = 32;
 
 /// Renders the film on the current rayon pool. `progress` is called with
 /// each finished row's number of pixels (from any thread, in any order).
@@ -195,7 +185,8 @@ pub fn render(
 }
 
 /// [`render`], stopping early (returning None) once `cancel` is set, e.g.
-/// by Ctrl-C. Rows already started finish; no partial film is returned.
+/// by Ctrl-C. Rows already started finish, the others are skipped; no
+/// partial film is returned.
 pub fn render_cancellable(
     scene: &RenderScene,
     camera: &PinholeCamera,
@@ -204,54 +195,67 @@ pub fn render_cancellable(
     cancel: &AtomicBool,
 ) -> Option<Film> {
     let pixels = settings.width as usize * settings.height as usize;
+    let w = settings.width as usize;
     let mut film = Film {
         width: settings.width,
         height: settings.height,
-        rgb: Vec::with_capacity(pixels),
-        alpha: Vec::with_capacity(pixels),
-        albedo: Vec::with_capacity(pixels),
-        normal: Vec::with_capacity(pixels),
-        depth: Vec::with_capacity(pixels),
-        surface_cell: Vec::with_capacity(pixels),
-        glitter: Vec::with_capacity(pixels),
-        material_id: Vec::with_capacity(pixels),
-        ao: Vec::with_capacity(pixels),
+        rgb: vec![[0.0; 3]; pixels],
+        alpha: vec![0.0; pixels],
+        albedo: vec![[0.0; 3]; pixels],
+        normal: vec![[0.0; 3]; pixels],
+        depth: vec![0.0; pixels],
+        surface_cell: vec![0; pixels],
+        glitter: vec![0.0; pixels],
+        material_id: vec![0; pixels],
+        ao: vec![0.0; pixels],
         stats: RenderStats::default(),
     };
-    let band = ROWS_PER_BAND.max(4 * rayon::current_num_threads() as u32);
-    let mut first_row = 0;
-    while first_row < settings.height {
-        let end = (first_row + band).min(settings.height);
-        let rows: Vec<Option<Row>> = (first_row..end)
-            .into_par_iter()
-            .map(|y| {
+    // Every row is written in place by whichever thread takes it: no
+    // barrier between groups of rows (an idle core steals the next row at
+    // once) and no second copy of the film.
+    let rows = (
+        film.rgb.par_chunks_mut(w),
+        film.alpha.par_chunks_mut(w),
+        film.albedo.par_chunks_mut(w),
+        film.normal.par_chunks_mut(w),
+        film.depth.par_chunks_mut(w),
+        film.surface_cell.par_chunks_mut(w),
+        film.glitter.par_chunks_mut(w),
+        film.material_id.par_chunks_mut(w),
+        film.ao.par_chunks_mut(w),
+    );
+    let stats = rows
+        .into_par_iter()
+        .enumerate()
+        .map(
+            |(y, (rgb, alpha, albedo, normal, depth, surface_cell, glitter, material_id, ao))| {
                 if cancel.load(Ordering::Relaxed) {
-                    return None;
+                    return RenderStats::default();
                 }
-                let row = render_row(scene, camera, settings, y);
+                let row = RowOut {
+                    rgb,
+                    alpha,
+                    albedo,
+                    normal,
+                    depth,
+                    surface_cell,
+                    glitter,
+                    material_id,
+                    ao,
+                };
+                let stats = render_row(scene, camera, settings, y as u32, row);
                 progress(u64::from(settings.width));
-                Some(row)
-            })
-            .collect();
-        for row in rows {
-            let row = row?;
-            film.rgb.extend(row.rgb);
-            film.alpha.extend(row.alpha);
-            film.albedo.extend(row.albedo);
-            film.normal.extend(row.normal);
-            film.depth.extend(row.depth);
-            film.surface_cell.extend(row.surface_cell);
-            film.glitter.extend(row.glitter);
-            film.material_id.extend(row.material_id);
-            film.ao.extend(row.ao);
-            film.stats.traced_rays += row.stats.traced_rays;
-            film.stats.shadow_rays += row.stats.shadow_rays;
-            film.stats.bad_samples += row.stats.bad_samples;
-        }
-        if cancel.load(Ordering::Relaxed) {
-            return None;
-        }
-        first_row = end;
+                stats
+            },
+        )
+        .reduce(RenderStats::default, |a, b| RenderStats {
+            traced_rays: a.traced_rays + b.traced_rays,
+            shadow_rays: a.shadow_rays + b.shadow_rays,
+            bad_samples: a.bad_samples + b.bad_samples,
+        });
+    if cancel.load(Ordering::Relaxed) {
+        return None;
     }
+    film.stats = stats;
     Some(film)
 }
