@@ -535,8 +535,9 @@ impl Cabochon {
         let g = self.girdle;
         let mut lo = f64::INFINITY;
         let mut hi = f64::NEG_INFINITY;
-        let mut keep = |t: f64, z_ok: &dyn Fn(f64) -> bool| {
-            if z_ok(origin.z + t * dir.z) {
+        let z_at = |t: f64| origin.z + t * dir.z;
+        let mut keep = |t: f64, z_ok: bool| {
+            if z_ok {
                 lo = lo.min(t);
                 hi = hi.max(t);
             }
@@ -547,13 +548,14 @@ impl Cabochon {
         let o3 = o2.extend(origin.z * self.inv_h);
         let d3 = d2.extend(dir.z * self.inv_h);
         for t in quadratic_unit_roots(o3.dot(o3), o3.dot(d3), d3.dot(d3)) {
-            keep(t, &|z| z >= -eps);
+            keep(t, z_at(t) >= -eps);
         }
         // Band: (x/a)² + (y/b)² = 1.
         if g > 0.0 || self.flat_base {
             let flat = self.flat_base;
             for t in quadratic_unit_roots(o2.dot(o2), o2.dot(d2), d2.dot(d2)) {
-                keep(t, &|z| z <= eps && (flat || z >= -g - eps));
+                let z = z_at(t);
+                keep(t, z <= eps && (flat || z >= -g - eps));
             }
         }
         // Domed base: (x/a)² + (y/b)² + ((z + g)/h_b)² = 1 for z ≤ −g.
@@ -561,7 +563,7 @@ impl Cabochon {
             let o3 = o2.extend((origin.z + g) * self.inv_hb);
             let d3 = d2.extend(dir.z * self.inv_hb);
             for t in quadratic_unit_roots(o3.dot(o3), o3.dot(d3), d3.dot(d3)) {
-                keep(t, &|z| z <= -g + eps);
+                keep(t, z_at(t) <= -g + eps);
             }
         }
         (lo < hi).then_some((lo, hi))
