@@ -236,7 +236,10 @@ fn sample_cone(axis: DVec3, cos_max: f64, u: [f64; 2]) -> DVec3 {
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
     let (sin_phi, cos_phi) = crate::sampling::sin_cos_turns(u[1]);
     let (t, b) = axis.any_orthonormal_pair();
-    (t * (sin_theta * cos_phi) + b * (sin_theta * sin_phi) + axis * cos_theta).normalize()
+    // Unit by construction (t, b, axis orthonormal and sin² + cos² = 1, to
+    // within 10⁻¹³): no normalisation, whose division and square root are a
+    // tenth of a light sample's time.
+    t * (sin_theta * cos_phi) + b * (sin_theta * sin_phi) + axis * cos_theta
 }
 
 /// Nearest positive distance at which the ray enters the sphere.
@@ -264,6 +267,20 @@ fn sphere_entry(origin: DVec3, direction: DVec3, centre: DVec3, radius: f64) -> 
 mod tests {
     use super::*;
     use crate::sampling::Rng;
+
+    #[test]
+    fn cone_samples_are_unit_and_inside_the_cone_without_normalising() {
+        let mut rng = Rng::new(2, 3);
+        for axis in [DVec3::Z, -DVec3::Z, DVec3::new(0.3, -0.9, 0.1).normalize()] {
+            for cos_max in [0.999_999, 0.9, 0.0, -1.0] {
+                for _ in 0..2000 {
+                    let d = sample_cone(axis, cos_max, [rng.next_f64(), rng.next_f64()]);
+                    assert!((d.length() - 1.0).abs() < 1e-13, "|d| = {}", d.length());
+                    assert!(d.dot(axis) >= cos_max - 1e-12);
+                }
+            }
+        }
+    }
 
     #[test]
     fn a_sun_delivers_its_irradiance_to_a_facing_plane() {
