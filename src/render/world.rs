@@ -187,9 +187,9 @@ impl World {
                     })
                 })
                 .collect();
-            // At most 1024 boxes: even obvhs' slow, high-quality build takes
-            // well under a millisecond, and its tighter tree paid 15–30 % of
-            // the render time on a 1000-stone tray (bench/scaling).
+            // At most 1024 boxes, so obvhs' slow, high-quality build costs
+            // nothing next to a render, and its tighter tree took 15–30 % off
+            // the render time of a 1000-stone tray (bench/scaling's tray).
             build_cwbvh(
                 &boxes,
                 BvhBuildParams::slow_build(),
