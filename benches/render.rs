@@ -1,6 +1,10 @@
 //! Whole-renderer speed on the built-in studio scene with the default gem
-//! (green aventurine): a 128² image at 16 samples per pixel, and the
-//! obvhs traversal alone (camera rays through `World::intersect`).
+//! (green aventurine) and on issue 6's peer scene (`bench/peer-scene.ron`:
+//! the plain glossy stone, and the same stone in lavender lepidolite), each
+//! a 128² image at 16 samples per pixel with the materials compiled
+//! beforehand, so the ratio lepidolite / plain is the cost of the pattern
+//! and its richer materials in tracing; and the obvhs traversal alone
+//! (camera rays through `World::intersect`).
 //!
 //! Run with `cargo bench --bench render`; criterion reports the time per
 //! image and per ray batch, from which samples/s and Mrays/s follow
@@ -10,7 +14,8 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use lapidary::recipe::library::DEFAULT_GEM;
 use lapidary::render::film::{render, FilmSettings};
 use lapidary::render::prepare::{camera_for, prepare_scene};
-use lapidary::scene::default_scene;
+use lapidary::scene::{default_scene, load_scene};
+use std::path::Path;
 
 const SIDE: u32 = 128;
 const SPP: u32 = 16;
@@ -32,6 +37,23 @@ fn renderer(c: &mut Criterion) {
     group.bench_function("studio_128px_16spp_samples", |b| {
         b.iter(|| render(&prepared, &camera, &settings, &|_| {}))
     });
+    for (name, file) in [
+        ("peer_plain_128px_16spp_samples", "peer-scene.ron"),
+        (
+            "peer_lepidolite_128px_16spp_samples",
+            "peer-scene-lepidolite.ron",
+        ),
+    ] {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("bench")
+            .join(file);
+        let peer = load_scene(&path).expect("the peer scene");
+        let peer_prepared = prepare_scene(&peer, DEFAULT_GEM, None, 4, &|_| {}).expect("peer");
+        let peer_camera = camera_for(&peer, SIDE, SIDE);
+        group.bench_function(name, |b| {
+            b.iter(|| render(&peer_prepared, &peer_camera, &settings, &|_| {}))
+        });
+    }
     group.finish();
 
     // Traversal alone: one camera ray per pixel through the BVH.
