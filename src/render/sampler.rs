@@ -119,7 +119,10 @@ type ByteTables = [[u32; 256]; 4];
 
 fn by_byte_tables(tables: &ByteTables, v: u32) -> u32 {
     let [b0, b1, b2, b3] = v.to_le_bytes();
-    tables[0][b0 as usize] ^ tables[1][b1 as usize] ^ tables[2][b2 as usize] ^ tables[3][b3 as usize]
+    tables[0][b0 as usize]
+        ^ tables[1][b1 as usize]
+        ^ tables[2][b2 as usize]
+        ^ tables[3][b3 as usize]
 }
 
 /// `SOBOL_1_TABLES[k][b]` is the second Sobol dimension of `b << 8k`.
@@ -229,7 +232,11 @@ mod tests {
     fn byte_tables_equal_the_bit_by_bit_generator_matrix() {
         let mut rng = crate::sampling::Rng::new(3, 4);
         for i in (0..4096u32).chain((0..4096).map(|_| (rng.next_u64() >> 32) as u32)) {
-            assert_eq!(sobol_dimension_1(i), sobol_dimension_1_by_bits(i), "index {i}");
+            assert_eq!(
+                sobol_dimension_1(i),
+                sobol_dimension_1_by_bits(i),
+                "index {i}"
+            );
             let conjugated = by_byte_tables(&REVERSED_SOBOL_1_TABLES, i);
             let direct = sobol_dimension_1_by_bits(i.reverse_bits()).reverse_bits();
             assert_eq!(conjugated, direct, "reversed, index {i}");
@@ -237,7 +244,9 @@ mod tests {
         // Joe & Kuo's second dimension has m = 1, 3, 5, 15: direction
         // numbers 1/2, 3/4, 5/8, 15/16, so indices 1, 2, 3, 4, 8 give
         // 1/2, 3/4, 1/2 ⊕ 3/4 = 1/4, 5/8, 15/16.
-        let first: Vec<f64> = [1, 2, 3, 4, 8].map(|i| to_unit(sobol_dimension_1(i))).to_vec();
+        let first: Vec<f64> = [1, 2, 3, 4, 8]
+            .map(|i| to_unit(sobol_dimension_1(i)))
+            .to_vec();
         assert_eq!(first, vec![0.5, 0.75, 0.25, 0.625, 0.9375]);
     }
 
@@ -251,7 +260,11 @@ mod tests {
                 let shuffled = nested_uniform_scramble(i, s0);
                 let x = nested_uniform_scramble(sobol_dimension_0(shuffled), s1);
                 let y = nested_uniform_scramble(sobol_dimension_1_by_bits(shuffled), s2);
-                assert_eq!(owen_sobol_2d(i, seed), [to_unit(x), to_unit(y)], "index {i}");
+                assert_eq!(
+                    owen_sobol_2d(i, seed),
+                    [to_unit(x), to_unit(y)],
+                    "index {i}"
+                );
             }
         }
     }

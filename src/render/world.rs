@@ -311,10 +311,14 @@ impl World {
                 .is_some()
         };
         match &self.bvh {
-            None => self.placements.iter().enumerate().any(|(index, placement)| {
-                ray_hits_box(origin, inverse_direction, distance, placement.bounds)
-                    && blocks(index)
-            }),
+            None => self
+                .placements
+                .iter()
+                .enumerate()
+                .any(|(index, placement)| {
+                    ray_hits_box(origin, inverse_direction, distance, placement.bounds)
+                        && blocks(index)
+                }),
             Some(bvh) => {
                 let ray = Ray::new(to_f32(origin), to_f32(direction), 0.0, f32_up(distance));
                 // A blocker is reported inside the ray's range so the

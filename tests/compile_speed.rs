@@ -1,0 +1,199 @@
+//! Issue 6, compile speed: the quicker compensation tables (closed form for
+//! a smooth coat over a Lambertian base, stratified batches of walks that
+//! stop at a standard error of 10⁻³) are as accurate as the first version's
+//! 8192 independent walks per node, whose documented standard error is
+//! ≲ 3·10⁻³.
+
+use glam::DVec3;
+use lapidary::brdf::compensation::{node_cosine, Compensation, SmoothCoatOverLambert, TABLE_NODES};
+use lapidary::brdf::reference::reference_albedo;
+use lapidary::brdf::{fresnel, Base, Interface, LayeredBrdf, Microfacet, MicrofacetModel, Rgb};
+use lapidary::recipe::load_material;
+use rayon::prelude::*;
+
+/// The first version's documented standard error of E_stack per node.
+const OLD_STANDARD_ERROR: f64 = 3e-3;
+
+fn in_plane(mu: f64) -> DVec3 {
+    DVec3::new((1.0 - mu * mu).sqrt(), 0.0, mu)
+}
+
+/// One coat of IOR `ior` and roughness `roughness_deg` (absorption α over a
+/// thickness 1) over `base`.
+fn coated(ior: f64, roughness_deg: f64, absorption: Rgb, base: Base) -> LayeredBrdf {
+    let model = MicrofacetModel::Blinn;
+    let interface = Interface {
+        ior_below: ior,
+        eta: ior,
+        lobe: Microfacet::new(model, roughness_deg),
+        own_lobe: Microfacet::new(model, roughness_deg),
+        thickness: 1.0,
+        absorption_rgb: absorption,
+    };
+    LayeredBrdf::new("test", model, vec![interface], base)
+}
+
+fn lambert(colour: Rgb) -> Base {
+    Base::Diffuse {
+        colour,
+        oren_nayar_sigma_rad: 0.0,
+    }
+}
+
+#[test]
+fn closed_form_is_exact_where_the_answer_is_known() {
+    // A lossless stack (white Lambert, clear coat) returns all the light:
+    // E_stack = 1 at every angle, whatever the coat's index.
+    for ior in [1.3, 1.5, 2.0] {
+        let white = coated(ior, 0.0, Rgb::ZERO, lambert(Rgb::ONE));
+        let c = SmoothCoatOverLambert::of(&white).expect("smooth coat over Lambert");
+        for k in 0..=20 {
+            let mu = (k as f64 / 20.0).max(1e-3);
+            let e = c.albedo(mu);
+            assert!(
+                (e - Rgb::ONE).abs().max_element() < 1e-5,
+                "ior {ior} μ {mu}: {e}"
+            );
+        }
+    }
+    // A black base leaves only the coat's Fresnel reflection.
+    let black = coated(1.5, 0.0, Rgb::ZERO, Base::Black);
+    let c = SmoothCoatOverLambert::of(&black).unwrap();
+    for mu in [0.1, 0.5, 1.0] {
+        assert_eq!(c.albedo(mu), Rgb::splat(fresnel::dielectric(mu, 1.5)));
+    }
+    // Not for stacks it does not describe: rough coats, Oren-Nayar, metals.
+    assert!(SmoothCoatOverLambert::of(&coated(1.5, 2.0, Rgb::ZERO, lambert(Rgb::ONE))).is_none());
+    let oren_nayar = Base::Diffuse {
+        colour: Rgb::ONE,
+        oren_nayar_sigma_rad: 0.3,
+    };
+    assert!(SmoothCoatOverLambert::of(&coated(1.5, 0.0, Rgb::ZERO, oren_nayar)).is_none());
+    assert!(SmoothCoatOverLambert::of(&load_material("gold-metallic-paint").unwrap()).is_none());
+}
+
+#[test]
+fn closed_form_matches_the_random_walk() {
+    // The peer stone's coat and a pink absorbing coat over a pale base.
+    let stacks = [
+        coated(1.5, 0.0, Rgb::ZERO, lambert(Rgb::new(0.1, 0.5, 0.2))),
+        coated(
+            1.56,
+            0.0,
+            Rgb::new(0.15, 0.70, 0.35),
+            lambert(Rgb::new(0.9, 0.88, 0.92)),
+        ),
+    ];
+    for brdf in &stacks {
+        let c = SmoothCoatOverLambert::of(brdf).unwrap();
+        for mu in [0.05, 0.3, 0.6, 0.95] {
+            let (walk, err) = reference_albedo(brdf, in_plane(mu), 40_000, 11);
+            let closed = c.albedo(mu);
+            // 4 standard errors, plus 5·10⁻⁴ for the walk's cut-off of paths
+            // below 10⁻⁴ of their power and the 0.01° minimum roughness.
+            let bound = err * 4.0 + Rgb::splat(5e-4);
+            let diff = (closed - walk).abs();
+            assert!(
+                diff.cmple(bound).all(),
+                "μ {mu}: closed {closed}, walk {walk} ± {err}"
+            );
+        }
+    }
+}
+
+#[test]
+fn tables_match_a_high_sample_reference() {
+    // A rough coat over Lambert, a rough coat over Oren-Nayar, a metal under
+    // an absorbing coat, and the lepidolite's silver glitter under a smooth
+    // coat (the slowest to converge: light trapped beyond the critical angle).
+    let glitter = {
+        let silver = load_material("silver").unwrap();
+        let Base::Conductor {
+            n_relative,
+            k_relative,
+            ..
+        } = silver.base
+        else {
+            panic!("silver is a conductor");
+        };
+        let ior: f64 = 1.56;
+        coated(
+            ior,
+            0.0,
+            Rgb::ZERO,
+            Base::Conductor {
+                n_relative: n_relative / ior,
+                k_relative: k_relative / ior,
+                lobe: Microfacet::new(MicrofacetModel::Blinn, 4.0),
+                own_lobe: Microfacet::new(MicrofacetModel::Blinn, 4.0),
+            },
+        )
+    };
+    let materials = [
+        ("red-garnet", load_material("red-garnet").unwrap()),
+        ("sugar", load_material("sugar").unwrap()),
+        (
+            "gold-metallic-paint",
+            load_material("gold-metallic-paint").unwrap(),
+        ),
+        ("silver glitter", glitter),
+    ];
+    let nodes = [0, 8, 14, 18, 21, 23];
+    for (name, brdf) in &materials {
+        let table = Compensation::compute(brdf, 99).expect("a real deficit");
+        // The reference: 16× the first version's 8192 walks; and the first
+        // version itself (8192 independent walks) for its noise σ_old (its
+        // own estimate of its standard error) at each node.
+        let rows: Vec<(Rgb, Rgb, Rgb, Rgb)> = nodes
+            .par_iter()
+            .map(|&k| {
+                let wi = in_plane(node_cosine(k));
+                let (reference, ref_err) = reference_albedo(brdf, wi, 16 * 8192, 1000 + k as u64);
+                let (_, old_err) = reference_albedo(brdf, wi, 8192, 2000 + k as u64);
+                (
+                    table.stack_albedo[k],
+                    reference.min(Rgb::ONE),
+                    ref_err,
+                    old_err,
+                )
+            })
+            .collect();
+        // z = (new − reference) / √(σ_ref² + σ_old²): the error in units of
+        // the old method's noise (plus the reference's own).
+        let (mut worst_z, mut sum_z2, mut worst) = (0.0f64, 0.0, 0.0f64);
+        for (new, reference, ref_err, old_err) in &rows {
+            let scale = (*ref_err * *ref_err + *old_err * *old_err)
+                .map(f64::sqrt)
+                .max(Rgb::splat(1e-4));
+            let z = (*new - *reference) / scale;
+            worst_z = worst_z.max(z.abs().max_element());
+            sum_z2 += z.length_squared();
+            worst = worst.max((*new - *reference).abs().max_element());
+        }
+        let rms_z = (sum_z2 / (3 * rows.len()) as f64).sqrt();
+        println!("{name}: rms z {rms_z:.3}, worst z {worst_z:.3}, worst |error| {worst:.5}");
+        // On average no noisier than the old method (for which rms z ≈ 1),
+        // and no node beyond 3 of its standard errors.
+        assert!(rms_z <= 1.0, "{name}: rms z {rms_z}");
+        assert!(worst_z <= 3.0, "{name}: worst z {worst_z}");
+        assert!(worst <= 3.0 * OLD_STANDARD_ERROR, "{name}: worst {worst}");
+    }
+}
+
+#[test]
+fn walked_tables_are_identical_on_1_and_4_threads() {
+    // gold-metallic-paint goes through the adaptive random walk (not the
+    // closed form); computed directly, past any cache.
+    let brdf = load_material("gold-metallic-paint").unwrap();
+    let compute_on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| Compensation::compute(&brdf, 7).unwrap())
+    };
+    let (one, four) = (compute_on(1), compute_on(4));
+    assert_eq!(one, four);
+    assert_eq!(one.deficit.len(), TABLE_NODES);
+    assert!(one.deficit.iter().any(|d| d.abs().max_element() > 0.01));
+}
