@@ -33,8 +33,12 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
-/// Paths stop once every channel of their power is below this.
-const MIN_THROUGHPUT: f64 = 1e-4;
+/// Below this power (largest channel) a path plays Russian roulette: it
+/// goes on with probability q = power / this, its power divided by q, so
+/// its expected contribution is unchanged (unbiased), while light trapped
+/// between a smooth coat and a bright metal (hundreds of bounces) stops
+/// after a few.
+const ROULETTE_BELOW: f64 = 0.01;
 /// Paths stop after this many scattering events (never reached in practice
 /// for the library: with IOR ≤ 2 a bounce keeps at most ~0.9 of the power).
 const MAX_EVENTS: usize = 512;
@@ -55,6 +59,22 @@ pub struct WalkTables {
     from_below: Vec<Vec<f64>>,
     /// The conductor base (geometry only), empty for other bases.
     base: Vec<f64>,
+    /// The conductor base's Fresnel reflectance (eq. 3.3) at cosines
+    /// j/[`FRESNEL_TABLE_INTERVALS`], j = 0…N (linear interpolation is
+    /// within ~10⁻⁶ of the exact value, which costs a complex square root
+    /// and divisions per channel at every bounce); empty for other bases.
+    base_fresnel: Vec<Rgb>,
+}
+
+/// Intervals of [`WalkTables`]'s conductor Fresnel table.
+const FRESNEL_TABLE_INTERVALS: usize = 2048;
+
+/// The conductor Fresnel table at cosine `cos` (in [0, 1]).
+fn lookup_fresnel(table: &[Rgb], cos: f64) -> Rgb {
+    let x = cos.clamp(0.0, 1.0) * FRESNEL_TABLE_INTERVALS as f64;
+    let j = (x as usize).min(FRESNEL_TABLE_INTERVALS - 1);
+    let t = x - j as f64;
+    table[j] * (1.0 - t) + table[j + 1] * t
 }
 
 fn lookup(table: &[f64], mu: f64) -> f64 {
@@ -132,10 +152,24 @@ impl WalkTables {
             }),
             _ => Vec::new(),
         };
+        let base_fresnel = match &brdf.base {
+            Base::Conductor {
+                n_relative,
+                k_relative,
+                ..
+            } => (0..=FRESNEL_TABLE_INTERVALS)
+                .map(|j| {
+                    let cos = j as f64 / FRESNEL_TABLE_INTERVALS as f64;
+                    fresnel::conductor(cos, *n_relative, *k_relative)
+                })
+                .collect(),
+            _ => Vec::new(),
+        };
         WalkTables {
             from_above,
             from_below,
             base,
+            base_fresnel,
         }
     }
 }
@@ -242,12 +276,7 @@ fn scatter_base(
             // weight f·cos/pdf with pdf = cos/π
             Some((w, base.eval(w_away, w) * PI))
         }
-        Base::Conductor {
-            n_relative,
-            k_relative,
-            own_lobe,
-            ..
-        } => {
+        Base::Conductor { own_lobe, .. } => {
             let h = own_lobe.sample_normal(rng.next_f64(), rng.next_f64());
             let wh = w_away.dot(h);
             if wh <= 0.0 {
@@ -259,7 +288,7 @@ fn scatter_base(
             }
             let weight =
                 own_lobe.g(w_away, w, h) * wh / (w_away.z * h.z) / lookup(&tables.base, w_away.z);
-            Some((w, fresnel::conductor(wh, *n_relative, *k_relative) * weight))
+            Some((w, lookup_fresnel(&tables.base_fresnel, wh) * weight))
         }
         Base::Black => None,
     }
@@ -314,8 +343,13 @@ pub fn trace_path_with(
     // `medium` = 1 + index of the interface above the current position.
     let mut medium = 1usize;
     for _ in 0..MAX_EVENTS {
-        if power.max_element() < MIN_THROUGHPUT {
-            return;
+        let strongest = power.max_element();
+        if strongest < ROULETTE_BELOW {
+            let survival = strongest / ROULETTE_BELOW;
+            if strongest <= 0.0 || rng.next_f64() >= survival {
+                return;
+            }
+            power /= survival;
         }
         // Beer-Lambert across the layer we are in (eq. 3.4).
         power *= layers[medium - 1].crossing_transmittance(dir.z);
