@@ -233,3 +233,72 @@ fn identical_materials_are_compiled_once_per_process() {
     assert_eq!(cached(&nudged, 31), None);
     assert_eq!(cached(&brdf, 32), None);
 }
+
+/// A fresh, empty folder for one disk-cache test.
+fn scratch_dir(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!(
+        "lapidary-compile-speed-{}-{name}",
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+#[test]
+fn disk_cache_returns_the_computed_table_bit_for_bit() {
+    use lapidary::brdf::cache::{cache_file, load, material_key, store};
+    let dir = scratch_dir("round-trip");
+    let brdf = coated(1.61, 0.0, Rgb::ZERO, lambert(Rgb::new(0.7, 0.3, 0.05)));
+    let key = material_key(&brdf, 5);
+    assert_eq!(load(&dir, &key), None, "nothing stored yet");
+    let computed = Compensation::compute(&brdf, 5).expect("a coat over a bright base");
+    store(&dir, &key, Some(&computed)).unwrap();
+    assert!(cache_file(&dir, &key).is_file());
+    let loaded = load(&dir, &key).expect("stored").expect("a table");
+    // `Debug` writes every f64 in shortest round-trip form: equal text is
+    // equal bits, for every field (the private lookup table included).
+    assert_eq!(format!("{loaded:?}"), format!("{computed:?}"));
+    // "No compensation needed" is stored too.
+    let black = coated(1.5, 0.0, Rgb::ZERO, Base::Black);
+    let black_key = material_key(&black, 5);
+    store(&dir, &black_key, None).unwrap();
+    assert_eq!(load(&dir, &black_key), Some(None));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_corrupt_or_foreign_cache_file_is_ignored() {
+    use lapidary::brdf::cache::{cache_file, load, material_key, store};
+    let dir = scratch_dir("corrupt");
+    let brdf = coated(1.62, 0.0, Rgb::ZERO, lambert(Rgb::new(0.6, 0.6, 0.2)));
+    let key = material_key(&brdf, 5);
+    let computed = Compensation::compute(&brdf, 5).unwrap();
+    store(&dir, &key, Some(&computed)).unwrap();
+    let path = cache_file(&dir, &key);
+    let good = std::fs::read_to_string(&path).unwrap();
+    let lines: Vec<&str> = good.lines().collect();
+    let cases = [
+        ("garbage", "not a cache file\n".to_string()),
+        ("empty", String::new()),
+        ("truncated", lines[..lines.len() - 1].join("\n") + "\n"),
+        ("bad hex", {
+            let mut bad = lines.clone();
+            let broken = format!("zzzz{}", &lines[5][4..]);
+            bad[5] = &broken;
+            bad.join("\n") + "\n"
+        }),
+        ("other version", good.replacen(" v1\n", " v0\n", 1)),
+    ];
+    for (what, text) in cases {
+        std::fs::write(&path, text).unwrap();
+        assert_eq!(load(&dir, &key), None, "{what}");
+    }
+    // Another material's file under this name (a hash collision): a miss.
+    let other = material_key(&brdf, 6);
+    std::fs::write(&path, good.replacen(&key, &other, 1)).unwrap();
+    assert_eq!(load(&dir, &key), None, "foreign key");
+    // Back to the good file: found again.
+    std::fs::write(&path, &good).unwrap();
+    assert_eq!(load(&dir, &key), Some(Some(computed)));
+    let _ = std::fs::remove_dir_all(&dir);
+}

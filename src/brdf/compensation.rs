@@ -307,7 +307,23 @@ impl Compensation {
             .collect();
         let single_albedo: Vec<Rgb> = rows.iter().map(|r| r.0).collect();
         let stack_albedo: Vec<Rgb> = rows.iter().map(|r| r.1).collect();
-        let deficit: Vec<Rgb> = rows.iter().map(|(s, t)| *t - *s).collect();
+        Self::from_albedos(single_albedo, stack_albedo)
+    }
+
+    /// The tables from E_single and E_stack at the [`TABLE_NODES`] nodes
+    /// (everything else follows from them deterministically, so a table
+    /// stored as these two columns is rebuilt bit for bit; see
+    /// [`crate::brdf::cache`]). None when the deficit is below 3·10⁻³ at
+    /// every node, or when the columns are not [`TABLE_NODES`] long.
+    pub fn from_albedos(single_albedo: Vec<Rgb>, stack_albedo: Vec<Rgb>) -> Option<Self> {
+        if single_albedo.len() != TABLE_NODES || stack_albedo.len() != TABLE_NODES {
+            return None;
+        }
+        let deficit: Vec<Rgb> = single_albedo
+            .iter()
+            .zip(&stack_albedo)
+            .map(|(s, t)| *t - *s)
+            .collect();
         if deficit.iter().all(|d| d.abs().max_element() < 3e-3) {
             return None;
         }
