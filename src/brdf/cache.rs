@@ -28,7 +28,7 @@ use crate::brdf::Rgb;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Mutex, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// Version of the on-disk format (and of the way tables are computed, as
 /// far as the program's identity does not already cover it).
@@ -38,6 +38,40 @@ pub const DISK_FORMAT_VERSION: u32 = 1;
 fn tables() -> &'static Mutex<HashMap<String, Option<Compensation>>> {
     static TABLES: OnceLock<Mutex<HashMap<String, Option<Compensation>>>> = OnceLock::new();
     TABLES.get_or_init(Default::default)
+}
+
+/// E_single with a black and with a white diffuse base under each coat
+/// computed so far (see `Compensation::compute`), by [`material_key`] of
+/// the white material.
+type AlbedoPair = (Vec<Rgb>, Vec<Rgb>);
+
+/// One cell per coat: the first material to need it computes it, the
+/// others (compiled at the same time on other threads) wait for it.
+type PairCell = Arc<OnceLock<AlbedoPair>>;
+
+fn single_albedo_pairs() -> &'static Mutex<HashMap<String, PairCell>> {
+    static PAIRS: OnceLock<Mutex<HashMap<String, PairCell>>> = OnceLock::new();
+    PAIRS.get_or_init(Default::default)
+}
+
+/// The black- and white-base E_single tables of the coat of `white` (a
+/// material with a white diffuse base), from `compute` once per process;
+/// other threads asking meanwhile wait (so a gem's materials, compiled in
+/// parallel, share one computation). `compute` must not use rayon: a
+/// worker waiting here must never be the one that would run its jobs.
+pub(crate) fn single_albedo_pair(
+    white: &LayeredBrdf,
+    seed: u64,
+    compute: impl FnOnce() -> AlbedoPair,
+) -> AlbedoPair {
+    let key = material_key(white, seed);
+    let cell = single_albedo_pairs()
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .entry(key)
+        .or_default()
+        .clone();
+    cell.get_or_init(compute).clone()
 }
 
 /// The exact parameters of `brdf` and `seed` as a key: equal keys give

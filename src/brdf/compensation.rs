@@ -275,6 +275,67 @@ impl SmoothCoatOverLambert {
     }
 }
 
+/// The colour of a diffuse base (None for other bases).
+fn base_colour(brdf: &LayeredBrdf) -> Rgb {
+    match brdf.base {
+        Base::Diffuse { colour, .. } => colour,
+        _ => Rgb::ZERO,
+    }
+}
+
+/// (1 − ρ)·E₀ + ρ·E₁ per channel: E_single for base colour ρ from the
+/// albedos with a black (E₀) and a white (E₁) base.
+fn colour_mix(black: Rgb, white: Rgb, colour: Rgb) -> Rgb {
+    black * (Rgb::ONE - colour) + white * colour
+}
+
+/// For a Lambertian base, E_single at every node with the base black and
+/// with it white, computed once per process for each coat (the interfaces
+/// and the seed), None for other bases (Oren-Nayar included).
+///
+/// The single-crossing BRDF is linear in the base colour ρ: the base enters
+/// f = f₁ + T₁₂·a·t·f₂/η² once, through f₂ = ρ/π (Lambert), so
+/// E_single(ρ) = (1 − ρ)·E_single(0) +
+/// ρ·E_single(1) exactly, per channel. Materials that differ only in their
+/// base colour (the lavender lepidolite's 14 tiles under one coat) then
+/// share one pair of tables. Each of the pair has the noise of the direct
+/// estimate, and so has their convex combination.
+fn single_albedo_black_and_white(brdf: &LayeredBrdf, seed: u64) -> Option<(Vec<Rgb>, Vec<Rgb>)> {
+    let Base::Diffuse {
+        oren_nayar_sigma_rad,
+        ..
+    } = brdf.base
+    else {
+        return None;
+    };
+    // Oren-Nayar is not linear in ρ (its interreflection term goes as ρ²).
+    if oren_nayar_sigma_rad > 0.0 {
+        return None;
+    }
+    let with_colour = |colour: Rgb| {
+        LayeredBrdf::new(
+            &brdf.name,
+            brdf.model,
+            brdf.interfaces.clone(),
+            Base::Diffuse {
+                colour,
+                oren_nayar_sigma_rad,
+            },
+        )
+    };
+    let (black, white) = (with_colour(Rgb::ZERO), with_colour(Rgb::ONE));
+    let pair = crate::brdf::cache::single_albedo_pair(&white, seed, || {
+        // Sequential (see `single_albedo_pair`).
+        let albedos = |b: &LayeredBrdf| -> Vec<Rgb> {
+            (0..TABLE_NODES)
+                .map(|k| single_crossing_albedo(b, node_cosine(k), seed ^ 0xa1b2))
+                .collect()
+        };
+        (albedos(&black), albedos(&white))
+    });
+    Some(pair)
+}
+
 /// How [`Compensation::compute`] finds E_stack.
 enum StackMethod {
     /// Exactly, for one smooth coat over a Lambertian or black base.
@@ -291,11 +352,15 @@ impl Compensation {
             Some(c) => StackMethod::ClosedForm(c),
             None => StackMethod::Walk(WalkTables::new(brdf)),
         };
+        let single_by_colour = single_albedo_black_and_white(brdf, seed);
         let rows: Vec<(Rgb, Rgb)> = (0..TABLE_NODES)
             .into_par_iter()
             .map(|k| {
                 let mu = node_cosine(k);
-                let single = single_crossing_albedo(brdf, mu, seed ^ 0xa1b2);
+                let single = match &single_by_colour {
+                    Some((black, white)) => colour_mix(black[k], white[k], base_colour(brdf)),
+                    None => single_crossing_albedo(brdf, mu, seed ^ 0xa1b2),
+                };
                 let stack = match &method {
                     StackMethod::ClosedForm(c) => c.albedo(mu),
                     StackMethod::Walk(tables) => {
