@@ -27,7 +27,10 @@
 //! a Lambertian or black base needs no walk, its series sums in closed form
 //! ([`SmoothCoatOverLambert`]); other stacks trace stratified batches of
 //! walks only until the node's standard error is below 10⁻³
-//! ([`adaptive_walk_albedo`]).
+//! ([`adaptive_walk_albedo`]); E_single of a Lambertian base is mixed from
+//! a black- and a white-base table shared by every colour under the same
+//! coat; and [`crate::brdf::cache`] keeps finished tables per process and
+//! on disk.
 
 use crate::brdf::fresnel;
 use crate::brdf::layer::Base;
