@@ -22,8 +22,20 @@
 //! whose albedo at every angle is exactly P(μ) − X(μ) = D(μ) (Kulla & Conty,
 //! eq. 3, with 1 − E replaced by the deficit), per colour channel. The sum
 //! with the single-crossing BRDF is clamped at zero by the caller.
+//!
+//! Cost (issue 6: compiling must not dominate a render): a smooth coat over
+//! a Lambertian or black base needs no walk, its series sums in closed form
+//! ([`SmoothCoatOverLambert`]); other stacks trace stratified batches of
+//! walks only until the node's standard error is below 10⁻³
+//! ([`adaptive_walk_albedo`]); E_single of a Lambertian base is mixed from
+//! a black- and a white-base table shared by every colour under the same
+//! coat; and [`crate::brdf::cache`] keeps finished tables per process and
+//! on disk.
 
-use crate::brdf::reference::{reference_albedo_with, WalkTables};
+use crate::brdf::fresnel;
+use crate::brdf::layer::Base;
+use crate::brdf::microfacet::MIN_ROUGHNESS_DEG;
+use crate::brdf::reference::{trace_path_with, PresetUniforms, WalkTables};
 use crate::brdf::stack::LayeredBrdf;
 use crate::brdf::Rgb;
 use glam::DVec3;
@@ -38,10 +50,23 @@ pub const TABLE_NODES: usize = 24;
 pub fn node_cosine(k: usize) -> f64 {
     ((k as f64 + 0.5) / TABLE_NODES as f64 * std::f64::consts::FRAC_PI_2).cos()
 }
-/// Random walks per node for E_stack (standard error ≲ 0.003 for the library).
-const WALKS_PER_NODE: usize = 8192;
-/// Stratified samples per node for E_single (a 64 × 64 grid).
-const SINGLE_SAMPLES_SIDE: usize = 64;
+/// The most random walks per node for E_stack (the fixed count of the
+/// first version, whose standard error is ≲ 0.003 for the library).
+const MAX_WALKS_PER_NODE: usize = 8192;
+/// Walks are traced in stratified batches of this many squared (64) until
+/// the estimated standard error of the node is below
+/// [`TARGET_STANDARD_ERROR`] (or the maximum).
+const WALK_BATCH_SIDE: usize = 8;
+/// The fewest walks per node, enough for a trustworthy variance estimate.
+const MIN_WALKS_PER_NODE: usize = 1024;
+/// Standard error at which a node stops tracing walks: the first version's
+/// actual noise for the library's rough coats (~10⁻³ with 8192 independent
+/// walks, documented as ≲ 3·10⁻³), so stopping early keeps the tables as
+/// accurate as before.
+const TARGET_STANDARD_ERROR: f64 = 1e-3;
+/// Stratified samples per node for E_single: a 64 × 64 grid (32 × 32 doubles
+/// its noise: ~5·10⁻³ near the normal, ~2·10⁻² at grazing for rough coats).
+pub const SINGLE_SAMPLES_SIDE: usize = 64;
 
 /// The tabulated deficit of a material and its cosine-weighted average.
 #[derive(Clone, Debug, PartialEq)]
@@ -87,11 +112,19 @@ fn direction_at_cosine(mu: f64) -> DVec3 {
 }
 
 /// Directional albedo ∫ f(ωᵢ, ωₒ) cosθᵢ dωᵢ of the single-crossing model at
-/// outgoing cosine `mu`, by stratified importance sampling.
+/// outgoing cosine `mu`, by stratified importance sampling (the table's
+/// [`SINGLE_SAMPLES_SIDE`]² samples).
 pub fn single_crossing_albedo(brdf: &LayeredBrdf, mu: f64, seed: u64) -> Rgb {
+    single_crossing_albedo_sampled(brdf, mu, seed, SINGLE_SAMPLES_SIDE)
+}
+
+/// [`single_crossing_albedo`] with `side`² samples (a `side` × `side`
+/// jittered grid over the two uniforms that pick the direction), so tests
+/// can compare the table's count with a finer one.
+pub fn single_crossing_albedo_sampled(brdf: &LayeredBrdf, mu: f64, seed: u64, side: usize) -> Rgb {
     let wo = direction_at_cosine(mu);
     let mut rng = crate::sampling::Rng::new(seed, mu.to_bits());
-    let n = SINGLE_SAMPLES_SIDE;
+    let n = side.max(1);
     let mut sum = Rgb::ZERO;
     for a in 0..n {
         for b in 0..n {
@@ -108,29 +141,257 @@ pub fn single_crossing_albedo(brdf: &LayeredBrdf, mu: f64, seed: u64) -> Rgb {
     sum / (n * n) as f64
 }
 
+/// E_stack(μ) by random walks in batches of s² = 64, stopping once the
+/// standard error of every channel is below [`TARGET_STANDARD_ERROR`] or
+/// after [`MAX_WALKS_PER_NODE`] walks (at least [`MIN_WALKS_PER_NODE`]).
+///
+/// In each batch the walks' first two uniforms (the top interface's
+/// micro-facet normal, or a bare base's sample) lie on a jittered s × s grid
+/// and the next two (the first base bounce below a coat) on a second grid in
+/// random order, so every batch is stratified. The standard error is
+/// estimated as if the walks were independent, √(Var/n) over single paths:
+/// stratification only lowers the true error, so the estimate errs on the
+/// safe side (the variance of batch means would be too noisy a guide: with
+/// rare bright paths it stops early on a lucky, low value). The batches are
+/// traced one after another from one generator: the result depends only on
+/// `seed`, never on the number of threads.
+pub fn adaptive_walk_albedo(brdf: &LayeredBrdf, tables: &WalkTables, mu: f64, seed: u64) -> Rgb {
+    let wi = direction_at_cosine(mu);
+    let mut rng = crate::sampling::Rng::new(seed, 0x5eed_a1be);
+    let side = WALK_BATCH_SIDE;
+    let batch = side * side;
+    let (mut sum, mut sum_sq) = (Rgb::ZERO, Rgb::ZERO);
+    let mut paths = 0usize;
+    let mut order: Vec<usize> = (0..batch).collect();
+    while paths < MAX_WALKS_PER_NODE {
+        // Fisher-Yates shuffle pairing the cells of the two grids.
+        for i in (1..batch).rev() {
+            let j = ((rng.next_f64() * (i + 1) as f64) as usize).min(i);
+            order.swap(i, j);
+        }
+        for (cell, other) in order.iter().enumerate() {
+            let jitter = |c: usize, rng: &mut crate::sampling::Rng| {
+                [
+                    ((c / side) as f64 + rng.next_f64()) / side as f64,
+                    ((c % side) as f64 + rng.next_f64()) / side as f64,
+                ]
+            };
+            let (a, b) = (jitter(cell, &mut rng), jitter(*other, &mut rng));
+            let mut uniforms = PresetUniforms {
+                preset: [a[0], a[1], b[0], b[1]],
+                used: 0,
+                rng: &mut rng,
+            };
+            let mut path_total = Rgb::ZERO;
+            trace_path_with(brdf, tables, wi, &mut uniforms, |_, p| path_total += p);
+            sum += path_total;
+            sum_sq += path_total * path_total;
+        }
+        paths += batch;
+        if paths >= MIN_WALKS_PER_NODE {
+            let n = paths as f64;
+            let mean = sum / n;
+            // √(Var/n) with the unbiased variance of single paths.
+            let variance = ((sum_sq - mean * mean * n) / (n - 1.0)).max(Rgb::ZERO);
+            if (variance / n).max_element().sqrt() < TARGET_STANDARD_ERROR {
+                break;
+            }
+        }
+    }
+    sum / paths as f64
+}
+
+/// The closed form of E_stack for one smooth dielectric coat (roughness 0,
+/// i.e. the clamp [`MIN_ROUGHNESS_DEG`]) over a Lambertian (σ = 0) or black
+/// base, the only stack where the random walk's series sums exactly:
+///
+/// E_stack(μ) = F(μ) + (1 − F(μ))·T(μ′)·ρ·a_esc / (1 − ρ·a_ref),
+///
+/// with μ′ the refracted cosine (Snell, eq. 3.2), T(ν) = exp(−αd/ν) the
+/// layer's Beer transmittance (eq. 3.4), and for the cosine-distributed
+/// light leaving the Lambertian base a_esc = 2∫T(ν)(1 − F_in(ν))ν dν the
+/// part that escapes and a_ref = 2∫T(ν)²F_in(ν)ν dν the part reflected back
+/// to the base (F_in: Fresnel from inside, 1 beyond the critical angle).
+/// Without absorption a_esc = 1 − F_dr and a_ref = F_dr: the ρ/(1 − ρ·F_dr)
+/// series of the module docs. A Lambertian base forgets the direction of
+/// the light, so each bounce meets the same a_esc and a_ref.
+#[derive(Clone, Debug)]
+pub struct SmoothCoatOverLambert {
+    /// Relative index η of the coat.
+    eta: f64,
+    /// Lambertian albedo ρ of the base (0 for a black base).
+    colour: Rgb,
+    /// The coat, for its Beer transmittance.
+    coat: crate::brdf::layer::Interface,
+    /// ρ·a_esc / (1 − ρ·a_ref) per channel.
+    bounce_series: Rgb,
+}
+
+/// Midpoint steps of the cosine integrals of [`SmoothCoatOverLambert`]
+/// (error ~10⁻⁷, the integrand's only kink is at the critical angle).
+const CLOSED_FORM_STEPS: usize = 8192;
+
+impl SmoothCoatOverLambert {
+    /// The closed form for `brdf` when it is one smooth coat over a
+    /// Lambertian or black base; None for every other stack.
+    pub fn of(brdf: &LayeredBrdf) -> Option<Self> {
+        let [coat] = brdf.interfaces.as_slice() else {
+            return None;
+        };
+        if coat.own_lobe.roughness_deg > MIN_ROUGHNESS_DEG {
+            return None;
+        }
+        let colour = match brdf.base {
+            Base::Diffuse {
+                colour,
+                oren_nayar_sigma_rad,
+            } if oren_nayar_sigma_rad <= 0.0 => colour,
+            Base::Black => Rgb::ZERO,
+            _ => return None,
+        };
+        let (mut escape, mut reflect) = (Rgb::ZERO, Rgb::ZERO);
+        let step = 1.0 / CLOSED_FORM_STEPS as f64;
+        for i in 0..CLOSED_FORM_STEPS {
+            let nu = (i as f64 + 0.5) * step;
+            let f_inside = fresnel::dielectric(nu, 1.0 / coat.eta);
+            let t = coat.crossing_transmittance(nu);
+            escape += t * ((1.0 - f_inside) * 2.0 * nu * step);
+            reflect += t * t * (f_inside * 2.0 * nu * step);
+        }
+        Some(SmoothCoatOverLambert {
+            eta: coat.eta,
+            colour,
+            coat: coat.clone(),
+            bounce_series: colour * escape / (Rgb::ONE - colour * reflect),
+        })
+    }
+
+    /// E_stack(μ) for light arriving at cosine `mu`.
+    pub fn albedo(&self, mu: f64) -> Rgb {
+        let f = fresnel::dielectric(mu, self.eta);
+        let sin2_inside = (1.0 - mu * mu) / (self.eta * self.eta);
+        if sin2_inside >= 1.0 || self.colour == Rgb::ZERO {
+            return Rgb::splat(f);
+        }
+        let mu_inside = (1.0 - sin2_inside).sqrt();
+        Rgb::splat(f) + self.coat.crossing_transmittance(mu_inside) * self.bounce_series * (1.0 - f)
+    }
+}
+
+/// The colour of a diffuse base (None for other bases).
+fn base_colour(brdf: &LayeredBrdf) -> Rgb {
+    match brdf.base {
+        Base::Diffuse { colour, .. } => colour,
+        _ => Rgb::ZERO,
+    }
+}
+
+/// (1 − ρ)·E₀ + ρ·E₁ per channel: E_single for base colour ρ from the
+/// albedos with a black (E₀) and a white (E₁) base.
+fn colour_mix(black: Rgb, white: Rgb, colour: Rgb) -> Rgb {
+    black * (Rgb::ONE - colour) + white * colour
+}
+
+/// For a Lambertian base, E_single at every node with the base black and
+/// with it white, computed once per process for each coat (the interfaces
+/// and the seed), None for other bases (Oren-Nayar included).
+///
+/// The single-crossing BRDF is linear in the base colour ρ: the base enters
+/// f = f₁ + T₁₂·a·t·f₂/η² once, through f₂ = ρ/π (Lambert), so
+/// E_single(ρ) = (1 − ρ)·E_single(0) +
+/// ρ·E_single(1) exactly, per channel. Materials that differ only in their
+/// base colour (the lavender lepidolite's 14 tiles under one coat) then
+/// share one pair of tables. Each of the pair has the noise of the direct
+/// estimate, and so has their convex combination.
+fn single_albedo_black_and_white(brdf: &LayeredBrdf, seed: u64) -> Option<(Vec<Rgb>, Vec<Rgb>)> {
+    let Base::Diffuse {
+        oren_nayar_sigma_rad,
+        ..
+    } = brdf.base
+    else {
+        return None;
+    };
+    // Oren-Nayar is not linear in ρ (its interreflection term goes as ρ²).
+    if oren_nayar_sigma_rad > 0.0 {
+        return None;
+    }
+    let with_colour = |colour: Rgb| {
+        LayeredBrdf::new(
+            &brdf.name,
+            brdf.model,
+            brdf.interfaces.clone(),
+            Base::Diffuse {
+                colour,
+                oren_nayar_sigma_rad,
+            },
+        )
+    };
+    let (black, white) = (with_colour(Rgb::ZERO), with_colour(Rgb::ONE));
+    let pair = crate::brdf::cache::single_albedo_pair(&white, seed, || {
+        // Sequential (see `single_albedo_pair`).
+        let albedos = |b: &LayeredBrdf| -> Vec<Rgb> {
+            (0..TABLE_NODES)
+                .map(|k| single_crossing_albedo(b, node_cosine(k), seed ^ 0xa1b2))
+                .collect()
+        };
+        (albedos(&black), albedos(&white))
+    });
+    Some(pair)
+}
+
+/// How [`Compensation::compute`] finds E_stack.
+enum StackMethod {
+    /// Exactly, for one smooth coat over a Lambertian or black base.
+    ClosedForm(SmoothCoatOverLambert),
+    /// By random walks through the stack.
+    Walk(WalkTables),
+}
+
 impl Compensation {
     /// Tabulate the deficit of `brdf`; None when it is below 3·10⁻³ at every
     /// node (the noise level of the tables).
     pub fn compute(brdf: &LayeredBrdf, seed: u64) -> Option<Self> {
-        let tables = WalkTables::new(brdf);
+        let method = match SmoothCoatOverLambert::of(brdf) {
+            Some(c) => StackMethod::ClosedForm(c),
+            None => StackMethod::Walk(WalkTables::new(brdf)),
+        };
+        let single_by_colour = single_albedo_black_and_white(brdf, seed);
         let rows: Vec<(Rgb, Rgb)> = (0..TABLE_NODES)
             .into_par_iter()
             .map(|k| {
                 let mu = node_cosine(k);
-                let single = single_crossing_albedo(brdf, mu, seed ^ 0xa1b2);
-                let (stack, _) = reference_albedo_with(
-                    brdf,
-                    &tables,
-                    direction_at_cosine(mu),
-                    WALKS_PER_NODE,
-                    seed ^ k as u64,
-                );
+                let single = match &single_by_colour {
+                    Some((black, white)) => colour_mix(black[k], white[k], base_colour(brdf)),
+                    None => single_crossing_albedo(brdf, mu, seed ^ 0xa1b2),
+                };
+                let stack = match &method {
+                    StackMethod::ClosedForm(c) => c.albedo(mu),
+                    StackMethod::Walk(tables) => {
+                        adaptive_walk_albedo(brdf, tables, mu, seed ^ k as u64)
+                    }
+                };
                 (single, stack.min(Rgb::ONE))
             })
             .collect();
         let single_albedo: Vec<Rgb> = rows.iter().map(|r| r.0).collect();
         let stack_albedo: Vec<Rgb> = rows.iter().map(|r| r.1).collect();
-        let deficit: Vec<Rgb> = rows.iter().map(|(s, t)| *t - *s).collect();
+        Self::from_albedos(single_albedo, stack_albedo)
+    }
+
+    /// The tables from E_single and E_stack at the [`TABLE_NODES`] nodes
+    /// (everything else follows from them deterministically, so a table
+    /// stored as these two columns is rebuilt bit for bit; see
+    /// [`crate::brdf::cache`]). None when the deficit is below 3·10⁻³ at
+    /// every node, or when the columns are not [`TABLE_NODES`] long.
+    pub fn from_albedos(single_albedo: Vec<Rgb>, stack_albedo: Vec<Rgb>) -> Option<Self> {
+        if single_albedo.len() != TABLE_NODES || stack_albedo.len() != TABLE_NODES {
+            return None;
+        }
+        let deficit: Vec<Rgb> = single_albedo
+            .iter()
+            .zip(&stack_albedo)
+            .map(|(s, t)| *t - *s)
+            .collect();
         if deficit.iter().all(|d| d.abs().max_element() < 3e-3) {
             return None;
         }

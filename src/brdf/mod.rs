@@ -12,6 +12,7 @@
 //! * [`albedo`]: directional albedo estimators.
 
 pub mod albedo;
+pub mod cache;
 pub mod classify;
 pub mod compensation;
 pub mod diffuse;

@@ -30,18 +30,23 @@ use crate::brdf::stack::LayeredBrdf;
 use crate::brdf::Rgb;
 use crate::sampling::{cosine_hemisphere, Rng};
 use glam::DVec3;
+use rayon::prelude::*;
 use std::f64::consts::PI;
 
-/// Paths stop once every channel of their power is below this.
-const MIN_THROUGHPUT: f64 = 1e-4;
+/// Below this power (largest channel) a path plays Russian roulette: it
+/// goes on with probability q = power / this, its power divided by q, so
+/// its expected contribution is unchanged (unbiased), while light trapped
+/// between a smooth coat and a bright metal (hundreds of bounces) stops
+/// after a few.
+const ROULETTE_BELOW: f64 = 0.01;
 /// Paths stop after this many scattering events (never reached in practice
 /// for the library: with IOR ≤ 2 a bounce keeps at most ~0.9 of the power).
 const MAX_EVENTS: usize = 512;
 
 /// Cosine nodes of the micro-facet albedo tables.
 const WALK_TABLE_NODES: usize = 32;
-/// Micro-facet normals per node when tabulating.
-const WALK_TABLE_SAMPLES: usize = 2048;
+/// Micro-facet normals per node when tabulating: a 32 × 32 jittered grid.
+const WALK_TABLE_SIDE: usize = 32;
 
 /// Average micro-facet weight E(μ) of each interaction of the walk (the
 /// single-scattering albedo of the microsurface, Fresnel split included),
@@ -54,6 +59,22 @@ pub struct WalkTables {
     from_below: Vec<Vec<f64>>,
     /// The conductor base (geometry only), empty for other bases.
     base: Vec<f64>,
+    /// The conductor base's Fresnel reflectance (eq. 3.3) at cosines
+    /// j/[`FRESNEL_TABLE_INTERVALS`], j = 0…N (linear interpolation is
+    /// within ~10⁻⁶ of the exact value, which costs a complex square root
+    /// and divisions per channel at every bounce); empty for other bases.
+    base_fresnel: Vec<Rgb>,
+}
+
+/// Intervals of [`WalkTables`]'s conductor Fresnel table.
+const FRESNEL_TABLE_INTERVALS: usize = 2048;
+
+/// The conductor Fresnel table at cosine `cos` (in [0, 1]).
+fn lookup_fresnel(table: &[Rgb], cos: f64) -> Rgb {
+    let x = cos.clamp(0.0, 1.0) * FRESNEL_TABLE_INTERVALS as f64;
+    let j = (x as usize).min(FRESNEL_TABLE_INTERVALS - 1);
+    let t = x - j as f64;
+    table[j] * (1.0 - t) + table[j + 1] * t
 }
 
 fn lookup(table: &[f64], mu: f64) -> f64 {
@@ -68,16 +89,30 @@ fn lookup(table: &[f64], mu: f64) -> f64 {
     e.max(1e-3)
 }
 
-fn tabulate(mut weight_at: impl FnMut(DVec3, &mut Rng) -> f64) -> Vec<f64> {
+/// E(μ) at [`WALK_TABLE_NODES`] cosines, each the mean of `weight_at` over
+/// a jittered √N × √N grid of the two uniforms that pick the micro-facet
+/// normal (stratified: far less noise than N independent draws). The nodes
+/// are independent (one generator each), so running them in parallel gives
+/// the same table on any number of threads.
+fn tabulate(weight_at: impl Fn(DVec3, [f64; 2]) -> f64 + Sync) -> Vec<f64> {
     (0..WALK_TABLE_NODES)
+        .into_par_iter()
         .map(|k| {
             let mu = (k as f64 + 0.5) / WALK_TABLE_NODES as f64;
             let w = DVec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
             let mut rng = Rng::new(0x7ab1e, k as u64);
-            let sum: f64 = (0..WALK_TABLE_SAMPLES)
-                .map(|_| weight_at(w, &mut rng))
-                .sum();
-            sum / WALK_TABLE_SAMPLES as f64
+            let side = WALK_TABLE_SIDE as f64;
+            let mut sum = 0.0;
+            for a in 0..WALK_TABLE_SIDE {
+                for b in 0..WALK_TABLE_SIDE {
+                    let u = [
+                        (a as f64 + rng.next_f64()) / side,
+                        (b as f64 + rng.next_f64()) / side,
+                    ];
+                    sum += weight_at(w, u);
+                }
+            }
+            sum / (WALK_TABLE_SIDE * WALK_TABLE_SIDE) as f64
         })
         .collect()
 }
@@ -86,7 +121,7 @@ impl WalkTables {
     /// Tabulate E(μ) for every interface (both sides) and a conductor base.
     pub fn new(brdf: &LayeredBrdf) -> Self {
         let dielectric_weight = |lobe: Microfacet, eta: f64| {
-            move |w: DVec3, rng: &mut Rng| match scatter_dielectric(&lobe, w, eta, 1.0, rng) {
+            move |w: DVec3, u: [f64; 2]| match scatter_dielectric(&lobe, w, eta, 1.0, u) {
                 Some(s) => {
                     s.fresnel * s.reflected.map_or(0.0, |r| r.1)
                         + (1.0 - s.fresnel) * s.transmitted.map_or(0.0, |t| t.1)
@@ -105,8 +140,8 @@ impl WalkTables {
             .map(|i| tabulate(dielectric_weight(i.own_lobe, 1.0 / i.eta)))
             .collect();
         let base = match &brdf.base {
-            Base::Conductor { own_lobe, .. } => tabulate(|w, rng| {
-                let h = own_lobe.sample_normal(rng.next_f64(), rng.next_f64());
+            Base::Conductor { own_lobe, .. } => tabulate(|w, u| {
+                let h = own_lobe.sample_normal(u[0], u[1]);
                 let wh = w.dot(h);
                 let r = reflect(w, h);
                 if wh <= 0.0 || r.z <= 0.0 {
@@ -117,12 +152,69 @@ impl WalkTables {
             }),
             _ => Vec::new(),
         };
+        let base_fresnel = match &brdf.base {
+            Base::Conductor {
+                n_relative,
+                k_relative,
+                ..
+            } => (0..=FRESNEL_TABLE_INTERVALS)
+                .map(|j| {
+                    let cos = j as f64 / FRESNEL_TABLE_INTERVALS as f64;
+                    fresnel::conductor(cos, *n_relative, *k_relative)
+                })
+                .collect(),
+            _ => Vec::new(),
+        };
         WalkTables {
             from_above,
             from_below,
             base,
+            base_fresnel,
         }
     }
+}
+
+/// A source of uniform numbers in [0, 1) for the walk: the generator itself,
+/// or [`PresetUniforms`] whose first numbers are chosen by the caller.
+pub trait Uniforms {
+    /// The next uniform number.
+    fn next_f64(&mut self) -> f64;
+}
+
+impl Uniforms for Rng {
+    fn next_f64(&mut self) -> f64 {
+        Rng::next_f64(self)
+    }
+}
+
+/// Uniforms whose first four are given (e.g. a point of a stratified set,
+/// so that the first micro-facet normal and the first base bounce of a
+/// batch of walks are stratified), the rest drawn from a generator.
+pub struct PresetUniforms<'a> {
+    /// The first four numbers handed out.
+    pub preset: [f64; 4],
+    /// How many of `preset` have been handed out.
+    pub used: usize,
+    /// Where the numbers after the preset ones come from.
+    pub rng: &'a mut Rng,
+}
+
+impl Uniforms for PresetUniforms<'_> {
+    fn next_f64(&mut self) -> f64 {
+        match self.preset.get(self.used) {
+            Some(u) => {
+                self.used += 1;
+                *u
+            }
+            None => self.rng.next_f64(),
+        }
+    }
+}
+
+/// Two uniforms from `rng`, in order.
+fn uniform_pair(rng: &mut impl Uniforms) -> [f64; 2] {
+    let u1 = rng.next_f64();
+    [u1, rng.next_f64()]
 }
 
 /// Flip a direction between the frame of the upper and lower side.
@@ -143,15 +235,15 @@ struct DielectricScatter {
 /// Draw a micro-facet normal and compute both outcomes for light arriving
 /// from `w_away` (pointing away from the interface, z > 0); `eta` is
 /// n_other_side / n_this_side; weights are divided by `albedo`, the
-/// interface's tabulated E(μ) (1 while tabulating).
+/// interface's tabulated E(μ) (1 while tabulating); `u` picks the normal.
 fn scatter_dielectric(
     lobe: &Microfacet,
     w_away: DVec3,
     eta: f64,
     albedo: f64,
-    rng: &mut Rng,
+    u: [f64; 2],
 ) -> Option<DielectricScatter> {
-    let h = lobe.sample_normal(rng.next_f64(), rng.next_f64());
+    let h = lobe.sample_normal(u[0], u[1]);
     let wh = w_away.dot(h);
     if wh <= 0.0 || w_away.z <= 0.0 {
         return None;
@@ -176,7 +268,7 @@ fn scatter_base(
     base: &Base,
     tables: &WalkTables,
     w_away: DVec3,
-    rng: &mut Rng,
+    rng: &mut impl Uniforms,
 ) -> Option<(DVec3, Rgb)> {
     match base {
         Base::Diffuse { .. } => {
@@ -184,12 +276,7 @@ fn scatter_base(
             // weight f·cos/pdf with pdf = cos/π
             Some((w, base.eval(w_away, w) * PI))
         }
-        Base::Conductor {
-            n_relative,
-            k_relative,
-            own_lobe,
-            ..
-        } => {
+        Base::Conductor { own_lobe, .. } => {
             let h = own_lobe.sample_normal(rng.next_f64(), rng.next_f64());
             let wh = w_away.dot(h);
             if wh <= 0.0 {
@@ -201,7 +288,7 @@ fn scatter_base(
             }
             let weight =
                 own_lobe.g(w_away, w, h) * wh / (w_away.z * h.z) / lookup(&tables.base, w_away.z);
-            Some((w, fresnel::conductor(wh, *n_relative, *k_relative) * weight))
+            Some((w, lookup_fresnel(&tables.base_fresnel, wh) * weight))
         }
         Base::Black => None,
     }
@@ -214,6 +301,17 @@ pub fn trace_path(
     tables: &WalkTables,
     wi: DVec3,
     rng: &mut Rng,
+    tally: impl FnMut(DVec3, Rgb),
+) {
+    trace_path_with(brdf, tables, wi, rng, tally)
+}
+
+/// [`trace_path`] drawing its random numbers from any [`Uniforms`].
+pub fn trace_path_with(
+    brdf: &LayeredBrdf,
+    tables: &WalkTables,
+    wi: DVec3,
+    rng: &mut impl Uniforms,
     mut tally: impl FnMut(DVec3, Rgb),
 ) {
     let layers = &brdf.interfaces;
@@ -226,8 +324,13 @@ pub fn trace_path(
     // Entering the top interface from above: tally the reflection, carry on
     // with the transmitted power.
     let top_albedo = lookup(&tables.from_above[0], wi.z);
-    let Some(s) = scatter_dielectric(&layers[0].own_lobe, wi, layers[0].eta, top_albedo, rng)
-    else {
+    let Some(s) = scatter_dielectric(
+        &layers[0].own_lobe,
+        wi,
+        layers[0].eta,
+        top_albedo,
+        uniform_pair(rng),
+    ) else {
         return;
     };
     if let Some((r, w)) = s.reflected {
@@ -240,8 +343,13 @@ pub fn trace_path(
     // `medium` = 1 + index of the interface above the current position.
     let mut medium = 1usize;
     for _ in 0..MAX_EVENTS {
-        if power.max_element() < MIN_THROUGHPUT {
-            return;
+        let strongest = power.max_element();
+        if strongest < ROULETTE_BELOW {
+            let survival = strongest / ROULETTE_BELOW;
+            if strongest <= 0.0 || rng.next_f64() >= survival {
+                return;
+            }
+            power /= survival;
         }
         // Beer-Lambert across the layer we are in (eq. 3.4).
         power *= layers[medium - 1].crossing_transmittance(dir.z);
@@ -256,7 +364,9 @@ pub fn trace_path(
                 // Inner interface from above: reflect or refract at random.
                 let itf = &layers[medium];
                 let albedo = lookup(&tables.from_above[medium], -dir.z);
-                let Some(s) = scatter_dielectric(&itf.own_lobe, -dir, itf.eta, albedo, rng) else {
+                let Some(s) =
+                    scatter_dielectric(&itf.own_lobe, -dir, itf.eta, albedo, uniform_pair(rng))
+                else {
                     return;
                 };
                 let choice = if rng.next_f64() < s.fresnel {
@@ -273,8 +383,13 @@ pub fn trace_path(
             // Interface above, hit from below: work in the flipped frame.
             let itf = &layers[medium - 1];
             let albedo = lookup(&tables.from_below[medium - 1], dir.z);
-            let Some(s) = scatter_dielectric(&itf.own_lobe, flip(-dir), 1.0 / itf.eta, albedo, rng)
-            else {
+            let Some(s) = scatter_dielectric(
+                &itf.own_lobe,
+                flip(-dir),
+                1.0 / itf.eta,
+                albedo,
+                uniform_pair(rng),
+            ) else {
                 return;
             };
             if medium == 1 {

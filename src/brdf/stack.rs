@@ -90,9 +90,10 @@ impl LayeredBrdf {
     }
 
     /// The same material with its multiple-scattering compensation table
-    /// computed (see [`crate::brdf::compensation`]).
+    /// computed (see [`crate::brdf::compensation`]), once per process for
+    /// each distinct set of parameters (see [`crate::brdf::cache`]).
     pub fn with_compensation(mut self, seed: u64) -> Self {
-        self.compensation = Compensation::compute(&self, seed);
+        self.compensation = crate::brdf::cache::compensation(&self, seed);
         self
     }
 
