@@ -639,3 +639,24 @@ fn bad_files_give_errors_naming_the_file() {
     std::fs::create_dir(&subdir).unwrap();
     assert!(error_text(&subdir).contains("directory"));
 }
+
+#[test]
+fn radiance_and_pdf_together_equal_the_separate_calls() {
+    let envs = [
+        Environment::studio(1.0, 20.0),
+        Environment::Map(small_map(30.0)),
+        Environment::constant(Rgb::new(0.5, 0.6, 0.7)),
+    ];
+    let mut rng = Rng::new(12, 3);
+    for env in &envs {
+        for _ in 0..5_000 {
+            let d = DVec3::new(
+                rng.next_f64() - 0.5,
+                rng.next_f64() - 0.5,
+                rng.next_f64() - 0.5,
+            )
+            .normalize();
+            assert_eq!(env.radiance_and_pdf(d), (env.radiance(d), env.pdf(d)));
+        }
+    }
+}

@@ -283,6 +283,16 @@ impl Environment {
         }
     }
 
+    /// [`Environment::radiance`] and [`Environment::pdf`] of one direction,
+    /// converting it to map coordinates once (an `acos` and an `atan2`
+    /// fewer): what a path escaping to a light-sampled sky needs.
+    pub fn radiance_and_pdf(&self, direction: DVec3) -> (Rgb, f64) {
+        match self {
+            Environment::Constant(_) => (self.radiance(direction), self.pdf(direction)),
+            Environment::Map(map) => map.radiance_and_pdf(direction),
+        }
+    }
+
     /// Draws a direction with density proportional to luminance (a map)
     /// or uniform over the sphere (a constant). `None` for a map that is
     /// black everywhere, and, with probability ~1e−16, when rounding puts
@@ -487,18 +497,29 @@ impl EnvironmentMap {
     /// Radiance from the unit world `direction`: the texel it falls in.
     pub fn radiance(&self, direction: DVec3) -> Rgb {
         match self.direction_to_uv(direction) {
-            Some(uv) => {
-                let col = ((uv.x * self.width as f64) as usize).min(self.width - 1);
-                let row = ((uv.y * self.height as f64) as usize).min(self.height - 1);
-                self.texels[row * self.width + col]
-            }
+            Some(uv) => self.texel_at(uv),
             None => Rgb::ZERO,
         }
     }
 
+    /// The texel holding map coordinates `uv`.
+    fn texel_at(&self, uv: DVec2) -> Rgb {
+        let col = ((uv.x * self.width as f64) as usize).min(self.width - 1);
+        let row = ((uv.y * self.height as f64) as usize).min(self.height - 1);
+        self.texels[row * self.width + col]
+    }
+
     /// Solid-angle density of [`Self::sample`]: `p(u, v) / (2π² sinθ)`.
     pub fn pdf(&self, direction: DVec3) -> f64 {
-        let (Some(dist), Some(uv)) = (&self.distribution, self.direction_to_uv(direction)) else {
+        match self.direction_to_uv(direction) {
+            Some(uv) => self.pdf_at(uv),
+            None => 0.0,
+        }
+    }
+
+    /// [`Self::pdf`] at map coordinates `uv`.
+    fn pdf_at(&self, uv: DVec2) -> f64 {
+        let Some(dist) = &self.distribution else {
             return 0.0;
         };
         let sin_theta = (PI * uv.y).sin();
@@ -506,6 +527,15 @@ impl EnvironmentMap {
             return 0.0;
         }
         dist.pdf(uv) / (2.0 * PI * PI * sin_theta)
+    }
+
+    /// [`Self::radiance`] and [`Self::pdf`] of one direction, from one
+    /// conversion to map coordinates; equal to the separate calls.
+    pub fn radiance_and_pdf(&self, direction: DVec3) -> (Rgb, f64) {
+        match self.direction_to_uv(direction) {
+            Some(uv) => (self.texel_at(uv), self.pdf_at(uv)),
+            None => (Rgb::ZERO, 0.0),
+        }
     }
 
     /// Draws a direction with density ∝ luminance per solid angle; radiance
@@ -517,13 +547,13 @@ impl EnvironmentMap {
         // Re-derive both from the direction: the trigonometric round trip may
         // move a point on a texel edge into its neighbour, and the MIS
         // weights need radiance and pdf of the very direction returned.
-        let pdf = self.pdf(direction);
+        let (radiance, pdf) = self.radiance_and_pdf(direction);
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
         Some(EnvironmentSample {
             direction,
-            radiance: self.radiance(direction),
+            radiance,
             pdf,
         })
     }

@@ -208,13 +208,14 @@ impl RenderScene {
                 }
             }
             let Some(hit) = hit else {
-                let weight = match previous {
+                let (sky, weight) = match previous {
                     Some((_, brdf_pdf)) if self.samples_environment() => {
-                        power_heuristic(brdf_pdf, self.environment.pdf(direction))
+                        let (sky, light_pdf) = self.environment.radiance_and_pdf(direction);
+                        (sky, power_heuristic(brdf_pdf, light_pdf))
                     }
-                    _ => 1.0,
+                    _ => (self.environment.radiance(direction), 1.0),
                 };
-                radiance += throughput * self.environment.radiance(direction) * weight;
+                radiance += throughput * sky * weight;
                 break;
             };
             if bounce > self.max_bounces {
