@@ -660,3 +660,18 @@ fn radiance_and_pdf_together_equal_the_separate_calls() {
         }
     }
 }
+
+#[test]
+fn large_maps_are_sampled_by_blocks_small_and_odd_ones_by_texels() {
+    use lapidary::render::environment::sampling_block;
+    // The studio (1024 × 512) by 4 × 4 blocks: a 256 × 128 grid.
+    assert_eq!(sampling_block(1024, 512), 4);
+    // A 4k × 2k HDR by 16 × 16, a 2k × 1k one by 8 × 8.
+    assert_eq!(sampling_block(4096, 2048), 16);
+    assert_eq!(sampling_block(2048, 1024), 8);
+    // Never below a 256-wide grid, and only by blocks that tile the map.
+    assert_eq!(sampling_block(512, 256), 2);
+    assert_eq!(sampling_block(8, 4), 1);
+    assert_eq!(sampling_block(1023, 512), 1);
+    assert_eq!(sampling_block(1000, 500), 2);
+}

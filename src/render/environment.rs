@@ -384,21 +384,26 @@ impl EnvironmentMap {
         }
         // Weight = luminance × (texel solid angle / texel uv area), so the
         // density per solid angle follows luminance (pbrt-v4 §12.5.2 uses
-        // sinθ at the texel centre; the exact band area is used here).
-        let mut weights = Vec::with_capacity(width * height);
+        // sinθ at the texel centre; the exact band area is used here),
+        // summed over blocks of `block × block` texels (see
+        // [`sampling_block`]).
+        let block = sampling_block(width, height);
+        let (grid_width, grid_height) = (width / block, height / block);
+        let mut weights = vec![0.0; grid_width * grid_height];
         for row in 0..height {
             let band = row_solid_angle(row, height) / (TAU / width as f64);
             let per_uv = band * height as f64;
-            for t in &texels[row * width..(row + 1) * width] {
-                weights.push(luminance(*t) * per_uv);
+            for (col, t) in texels[row * width..(row + 1) * width].iter().enumerate() {
+                weights[(row / block) * grid_width + col / block] += luminance(*t) * per_uv;
             }
         }
-        let distribution = match Distribution2D::new(&weights, width, height) {
+        let distribution = match Distribution2D::new(&weights, grid_width, grid_height) {
             Ok(d) => Some(d),
             Err(DistributionError::AllZero) => None,
             // Shape and values were checked above; a weight can still
             // overflow for texels near f64::MAX.
             Err(DistributionError::BadWeight { x, y, .. }) => {
+                let (x, y) = (x * block, y * block);
                 return Err(EnvironmentError::BadTexel {
                     origin,
                     x,
@@ -558,6 +563,30 @@ impl EnvironmentMap {
         })
     }
 }
+
+/// Side in texels of the square blocks the environment is importance-
+/// sampled by: the largest power of two dividing both sides that keeps the
+/// sampling grid at least [`SAMPLING_GRID_WIDTH`] × [`SAMPLING_GRID_WIDTH`]/2.
+/// A 1024 × 512 map (the studio) is sampled by 4 × 4 blocks: its 256 × 128
+/// grid's tables (≈ 0.6 MB) stay in cache where the per-texel ones (≈ 10 MB)
+/// made every light sample wait on memory (a fifth of a studio render).
+/// Radiance is still looked up per texel and the density is that of the
+/// blocks, so sampling stays unbiased; within a block it is uniform in uv,
+/// which costs a little variance only where one texel outshines its block.
+pub fn sampling_block(width: usize, height: usize) -> usize {
+    let mut block = 1;
+    while width % (2 * block) == 0
+        && height % (2 * block) == 0
+        && width / (2 * block) >= SAMPLING_GRID_WIDTH
+        && height / (2 * block) >= SAMPLING_GRID_WIDTH / 2
+    {
+        block *= 2;
+    }
+    block
+}
+
+/// Smallest sampling-grid width [`sampling_block`] coarsens to.
+pub const SAMPLING_GRID_WIDTH: usize = 256;
 
 /// Rec. 709 / sRGB luminance of linear RGB, the importance of a texel.
 pub fn luminance(c: Rgb) -> f64 {
