@@ -344,3 +344,45 @@ fn ctrl_c_stops_a_long_render_promptly_and_writes_nothing() {
     // Exit 1 with "interrupted" and no file means the render stopped
     // before it finished (a finished render exits 0 and writes the PNG).
 }
+
+#[test]
+fn the_material_cache_never_changes_a_byte_cold_warm_off_or_damaged() {
+    // Green aventurine's flake materials go through the random walk, so
+    // their tables are real computations, not the closed form.
+    let dir = scratch("cache");
+    let cache = dir.join("cache");
+    let render = |name: &str, cache_setting: Option<&str>| {
+        let out_path = dir.join(name);
+        let mut command = Command::new(env!("CARGO_BIN_EXE_lapidary"));
+        command.args([
+            "render",
+            "-o",
+            out_path.to_str().unwrap(),
+            "--size",
+            "24",
+            "--spp",
+            "1",
+            "-q",
+        ]);
+        command.env("LAPIDARY_CACHE_DIR", &cache);
+        match cache_setting {
+            Some(setting) => command.env("LAPIDARY_CACHE", setting),
+            None => command.env_remove("LAPIDARY_CACHE"),
+        };
+        let out = command.output().unwrap();
+        assert!(out.status.success(), "{name}: {}", stderr(&out));
+        std::fs::read(out_path).unwrap()
+    };
+    let off = render("off.png", Some("off"));
+    assert!(!cache.exists(), "LAPIDARY_CACHE=off wrote a cache");
+    let cold = render("cold.png", None);
+    let tables = files_in(&cache);
+    assert!(!tables.is_empty(), "a cold render fills the cache");
+    let warm = render("warm.png", None);
+    // Damage every table: the renderer must notice and recompute.
+    for name in &tables {
+        std::fs::write(cache.join(name), "compensation table, damaged\n1 2 3").unwrap();
+    }
+    let damaged = render("damaged.png", None);
+    assert!(off == cold && cold == warm && warm == damaged);
+}
