@@ -409,7 +409,7 @@ impl EnvironmentMap {
                     x,
                     y,
                     value: texels[y * width + x],
-                })
+                });
             }
             Err(DistributionError::BadShape { len, .. }) => {
                 return Err(EnvironmentError::WrongTexelCount {
