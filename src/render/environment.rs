@@ -575,8 +575,8 @@ impl EnvironmentMap {
 /// which costs a little variance only where one texel outshines its block.
 pub fn sampling_block(width: usize, height: usize) -> usize {
     let mut block = 1;
-    while width % (2 * block) == 0
-        && height % (2 * block) == 0
+    while width.is_multiple_of(2 * block)
+        && height.is_multiple_of(2 * block)
         && width / (2 * block) >= SAMPLING_GRID_WIDTH
         && height / (2 * block) >= SAMPLING_GRID_WIDTH / 2
     {
