@@ -104,13 +104,29 @@ impl LayeredBrdf {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return Rgb::ZERO;
         }
-        let single = self.eval_single_crossing(wi, wo);
+        self.plus_compensation(self.eval_single_crossing(wi, wo), wi, wo)
+    }
+
+    /// The single-crossing value `single` plus the compensation lobe, if
+    /// the material has one.
+    fn plus_compensation(&self, single: Rgb, wi: DVec3, wo: DVec3) -> Rgb {
         match &self.compensation {
             // The negative part of the lobe can undershoot where the single
             // crossing is small: a BRDF is never negative.
             Some(c) => (single + c.eval(wi, wo)).max(Rgb::ZERO),
             None => single,
         }
+    }
+
+    /// The density of [`LayeredBrdf::sample`] given the stack's own density
+    /// `stack_pdf`: the mixture with the compensation lobe's cosine sampling.
+    fn mixture_pdf(&self, stack_pdf: f64, wi: DVec3, wo: DVec3) -> f64 {
+        let p_comp = self.compensation_weight(wo);
+        let mut pdf = (1.0 - p_comp) * stack_pdf;
+        if p_comp > 0.0 {
+            pdf += p_comp * cosine_hemisphere_pdf(wi);
+        }
+        pdf
     }
 
     /// The seed-faithful model: light crosses each layer once.
@@ -304,16 +320,10 @@ impl LayeredBrdf {
                 )
             }
         };
-        let p_comp = self.compensation_weight(wo);
-        let mut pdf = (1.0 - p_comp) * stack_pdf;
-        if p_comp > 0.0 {
-            pdf += p_comp * cosine_hemisphere_pdf(wi);
-        }
-        let value = match &self.compensation {
-            Some(c) => (single + c.eval(wi, wo)).max(Rgb::ZERO),
-            None => single,
-        };
-        (value, pdf)
+        (
+            self.plus_compensation(single, wi, wo),
+            self.mixture_pdf(stack_pdf, wi, wo),
+        )
     }
 
     /// Density of [`LayeredBrdf::sample`] with respect to solid angle.
@@ -321,12 +331,7 @@ impl LayeredBrdf {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return 0.0;
         }
-        let p_comp = self.compensation_weight(wo);
-        let mut pdf = (1.0 - p_comp) * self.pdf_from(0, wi, wo);
-        if p_comp > 0.0 {
-            pdf += p_comp * cosine_hemisphere_pdf(wi);
-        }
-        pdf
+        self.mixture_pdf(self.pdf_from(0, wi, wo), wi, wo)
     }
 
     /// Sample of the single-crossing model alone (used to tabulate its albedo).
