@@ -245,6 +245,65 @@ fn hits_lie_on_the_surface_with_outward_unit_normals() {
 }
 
 #[test]
+fn rays_leaving_a_stone_outwards_never_meet_it_again() {
+    // Every cabochon is convex (convex outline gauge, profile exponent
+    // > 1, planes cutting half-spaces), so the plane tangent at a surface
+    // point has the whole stone behind it: a ray starting just outside the
+    // surface and pointing to the normal's side cannot come back. The
+    // renderer relies on it to skip the stone a shadow ray or a bounce
+    // leaves (`World::intersect_leaving`); here it is checked on every
+    // shape, including nearly tangent rays, and the same rays pointing
+    // inwards (not grazing) must all hit (so the test can fail).
+    let mut rng = Rng(23);
+    for (name, stone) in stones() {
+        let size = stone.size();
+        let (lo, hi) = stone.bounds();
+        let centre = 0.5 * (lo + hi);
+        let mut leaving = 0;
+        for _ in 0..400 {
+            let origin = centre + 3.0 * size * rng.direction();
+            let Some(hit) =
+                stone.intersect(origin, rng.in_box(lo, hi) - origin, 0.0, f64::INFINITY)
+            else {
+                continue;
+            };
+            let start = hit.point + hit.normal * (1e-7 * size);
+            for k in 0..20 {
+                let mut d = rng.direction();
+                if d.dot(hit.normal) < 0.0 {
+                    d -= 2.0 * d.dot(hit.normal) * hit.normal;
+                }
+                if k < 5 {
+                    // Nearly tangent: cos = 10⁻⁶ … 10⁻².
+                    let tangent = (d - d.dot(hit.normal) * hit.normal).normalize();
+                    let cos = 10f64.powi(-2 - k);
+                    d = tangent * (1.0 - cos * cos).sqrt() + hit.normal * cos;
+                }
+                leaving += 1;
+                assert!(
+                    stone.intersect(start, d, 0.0, f64::INFINITY).is_none(),
+                    "{name}: a ray leaving {} along {d} (normal {}) met the stone again",
+                    hit.point,
+                    hit.normal
+                );
+                // Started just outside, an inward ray must not be too
+                // grazing to dip into the stone (the surface curves away).
+                if k >= 5 && d.dot(hit.normal) > 0.1 {
+                    let inward = -d;
+                    assert!(
+                        stone.intersect(start, inward, 0.0, f64::INFINITY).is_some(),
+                        "{name}: the inward ray from {} along {inward} (normal {}) missed",
+                        hit.point,
+                        hit.normal
+                    );
+                }
+            }
+        }
+        assert!(leaving > 2000, "{name}: only {leaving} rays tested");
+    }
+}
+
+#[test]
 fn every_ray_crosses_the_surface_an_even_number_of_times() {
     let mut rng = Rng(23);
     let all = stones();

@@ -192,10 +192,15 @@ impl RenderScene {
         // Where the previous BRDF sample came from and its pdf (None for
         // the camera ray, whose emitters count in full).
         let mut previous: Option<(DVec3, f64)> = None;
+        // The stone the current segment leaves (outwards), which it cannot
+        // meet again: every cabochon is convex.
+        let mut leaving: Option<usize> = None;
         let mut bounce = 0;
         loop {
             counts.traced += 1;
-            let hit = self.world.intersect(origin, direction, 0.0, f64::INFINITY);
+            let hit = self
+                .world
+                .intersect_leaving(origin, direction, 0.0, f64::INFINITY, leaving);
             let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
             // An emitter in front of the surface (or of the sky).
             if let Some((light, t, emitted)) = self.nearest_light(origin, direction, t_hit) {
@@ -296,6 +301,7 @@ impl RenderScene {
                 break;
             }
             previous = Some((point, sample.pdf));
+            leaving = hit.stone_index();
             origin = point;
             direction = wi_world;
             bounce += 1;
@@ -330,7 +336,10 @@ impl RenderScene {
         let local = cosine_hemisphere(rng.next_f64(), rng.next_f64());
         let direction = Frame::new(hit.normal).to_world(local);
         counts.shadow += 1;
-        if self.world.occluded(point, direction, distance) {
+        if self
+            .world
+            .occluded_leaving(point, direction, distance, hit.stone_index())
+        {
             0.0
         } else {
             1.0
@@ -388,7 +397,10 @@ impl RenderScene {
         } else {
             f64::INFINITY
         };
-        if self.world.occluded(point, direction, reach) {
+        if self
+            .world
+            .occluded_leaving(point, direction, reach, hit.stone_index())
+        {
             return Rgb::ZERO;
         }
         let weight = if is_delta {

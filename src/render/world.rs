@@ -101,6 +101,16 @@ pub struct SurfaceHit {
     pub surface: Surface,
 }
 
+impl SurfaceHit {
+    /// The index of the stone hit, `None` for the ground.
+    pub fn stone_index(&self) -> Option<usize> {
+        match self.surface {
+            Surface::Stone { index, .. } => Some(index),
+            Surface::Ground => None,
+        }
+    }
+}
+
 /// A stone's rotation as matrices and its world box in f64, precomputed
 /// once: a matrix-vector product is half the work of rotating by a
 /// quaternion, and every ray does two.
@@ -223,6 +233,25 @@ impl World {
         t_min: f64,
         t_max: f64,
     ) -> Option<SurfaceHit> {
+        self.intersect_leaving(origin, direction, t_min, t_max, None)
+    }
+
+    /// [`World::intersect`] for a ray that leaves the outside of stone
+    /// number `leaving` (`None` for a camera ray or one leaving the ground),
+    /// pointing away from its geometric normal at the start (direction · n >
+    /// 0, which the integrator checks). Every cabochon is convex (see
+    /// [`crate::geometry::outline`]): the plane tangent at the start point
+    /// has the whole stone behind it, so such a ray cannot meet that stone
+    /// again and it is not tested. A stone vertex's shadow ray and its next
+    /// path segment each skip one stone intersection.
+    pub fn intersect_leaving(
+        &self,
+        origin: DVec3,
+        direction: DVec3,
+        t_min: f64,
+        t_max: f64,
+        leaving: Option<usize>,
+    ) -> Option<SurfaceHit> {
         // The ground first: it bounds the search among the stones.
         let mut best: Option<SurfaceHit> = None;
         let mut limit = t_max;
@@ -244,13 +273,17 @@ impl World {
                 }
             }
         }
+        if self.nothing_else_to_test(leaving) {
+            return best;
+        }
         let inverse_direction = direction.recip();
-        if self.stones.is_empty()
-            || !ray_hits_box(origin, inverse_direction, limit, self.stones_bounds)
-        {
+        if !ray_hits_box(origin, inverse_direction, limit, self.stones_bounds) {
             return best;
         }
         let mut try_stone = |index: usize, limit: &mut f64| -> bool {
+            if Some(index) == leaving {
+                return false;
+            }
             match self.stones[index].intersect(
                 &self.placements[index],
                 origin,
@@ -271,8 +304,10 @@ impl World {
         };
         match &self.bvh {
             None => {
+                // With one stone its box is the one just tested.
+                let single = self.placements.len() == 1;
                 for (index, placement) in self.placements.iter().enumerate() {
-                    if ray_hits_box(origin, inverse_direction, limit, placement.bounds) {
+                    if single || ray_hits_box(origin, inverse_direction, limit, placement.bounds) {
                         try_stone(index, &mut limit);
                     }
                 }
@@ -296,32 +331,50 @@ impl World {
     /// True if anything blocks the segment from `origin` along `direction`
     /// up to `distance` (a shadow ray).
     pub fn occluded(&self, origin: DVec3, direction: DVec3, distance: f64) -> bool {
+        self.occluded_leaving(origin, direction, distance, None)
+    }
+
+    /// [`World::occluded`] for a shadow ray leaving the outside of stone
+    /// number `leaving`, which cannot block it (see
+    /// [`World::intersect_leaving`]).
+    pub fn occluded_leaving(
+        &self,
+        origin: DVec3,
+        direction: DVec3,
+        distance: f64,
+        leaving: Option<usize>,
+    ) -> bool {
         if let Some(h) = self.ground_height {
             if direction.z < 0.0 && origin.z > h && (h - origin.z) / direction.z < distance {
                 return true;
             }
         }
+        if self.nothing_else_to_test(leaving) {
+            return false;
+        }
         let inverse_direction = direction.recip();
-        if self.stones.is_empty()
-            || !ray_hits_box(origin, inverse_direction, distance, self.stones_bounds)
-        {
+        if !ray_hits_box(origin, inverse_direction, distance, self.stones_bounds) {
             return false;
         }
         // Any crossing before `distance` blocks.
         let blocks = |index: usize| {
-            self.stones[index]
-                .intersect(&self.placements[index], origin, direction, 0.0, distance)
-                .is_some()
+            Some(index) != leaving
+                && self.stones[index]
+                    .intersect(&self.placements[index], origin, direction, 0.0, distance)
+                    .is_some()
         };
         match &self.bvh {
-            None => self
-                .placements
-                .iter()
-                .enumerate()
-                .any(|(index, placement)| {
-                    ray_hits_box(origin, inverse_direction, distance, placement.bounds)
-                        && blocks(index)
-                }),
+            None => {
+                let single = self.placements.len() == 1;
+                self.placements
+                    .iter()
+                    .enumerate()
+                    .any(|(index, placement)| {
+                        (single
+                            || ray_hits_box(origin, inverse_direction, distance, placement.bounds))
+                            && blocks(index)
+                    })
+            }
             Some(bvh) => {
                 let ray = Ray::new(to_f32(origin), to_f32(direction), 0.0, f32_up(distance));
                 // A blocker is reported inside the ray's range so the
@@ -334,6 +387,18 @@ impl World {
                     }
                 })
             }
+        }
+    }
+}
+
+impl World {
+    /// True when no stone can be met: there are none, or the only one is
+    /// the stone the ray leaves.
+    fn nothing_else_to_test(&self, leaving: Option<usize>) -> bool {
+        match self.stones.len() {
+            0 => true,
+            1 => leaving == Some(0),
+            _ => false,
         }
     }
 }
@@ -352,5 +417,89 @@ fn f32_up(x: f64) -> f32 {
         f32::from_bits(y.to_bits() + 1)
     } else {
         y
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{CabochonParams, Outline};
+    use crate::sampling::Rng;
+
+    /// `count` oval stones in a row along x, each turned differently, so
+    /// that rays leaving one can meet its neighbours.
+    fn row_of_stones(count: usize) -> World {
+        let stones = (0..count)
+            .map(|i| StoneInstance {
+                cabochon: Cabochon::new(CabochonParams {
+                    outline: Outline::Oval,
+                    length: 2.0,
+                    width: 1.4,
+                    ..CabochonParams::default()
+                })
+                .unwrap(),
+                rotation: DQuat::from_rotation_z(0.7 * i as f64),
+                position: DVec3::new(2.2 * i as f64, 0.0, 0.0),
+                gem: 0,
+            })
+            .collect();
+        World::new(stones, Some(0.0))
+    }
+
+    #[test]
+    fn skipping_the_stone_a_ray_leaves_changes_no_answer() {
+        // The skip is only sound because a ray leaving a convex stone
+        // outwards cannot meet it again: every answer with the skip must
+        // equal the full search, with the direct box tests (3 stones) and
+        // with the BVH (7 stones), and many rays must meet a neighbour.
+        for count in [1, 3, 7] {
+            let world = row_of_stones(count);
+            let mut rng = Rng::new(4, count as u64);
+            let (mut tested, mut met_other, mut blocked) = (0, 0, 0);
+            for _ in 0..3000 {
+                let [a, b, c] = rng.next_3();
+                let target = DVec3::new(2.2 * (count - 1) as f64 * a, 1.4 * (b - 0.5), 0.5 * c);
+                let origin = target + DVec3::new(0.0, -6.0, 4.0);
+                let Some(hit) =
+                    world.intersect(origin, (target - origin).normalize(), 0.0, f64::INFINITY)
+                else {
+                    continue;
+                };
+                let Some(index) = hit.stone_index() else {
+                    continue;
+                };
+                let [u, v, w] = rng.next_3();
+                let mut d = DVec3::new(u - 0.5, v - 0.5, w - 0.5).normalize();
+                if d.dot(hit.normal) <= 0.0 {
+                    d -= 2.0 * d.dot(hit.normal) * hit.normal;
+                }
+                let start = hit.point + hit.normal * RAY_OFFSET;
+                let full = world.intersect(start, d, 0.0, f64::INFINITY);
+                let skipping = world.intersect_leaving(start, d, 0.0, f64::INFINITY, Some(index));
+                assert_eq!(
+                    full, skipping,
+                    "{count} stones, leaving stone {index} along {d}"
+                );
+                if full.is_some_and(|h| h.stone_index().is_some()) {
+                    met_other += 1;
+                }
+                for distance in [0.5, 3.0, f64::INFINITY] {
+                    let occluded = world.occluded(start, d, distance);
+                    assert_eq!(
+                        occluded,
+                        world.occluded_leaving(start, d, distance, Some(index))
+                    );
+                    blocked += usize::from(occluded);
+                }
+                tested += 1;
+            }
+            assert!(tested > 1000, "{count} stones: {tested} rays");
+            if count > 1 {
+                assert!(
+                    met_other > 20 && blocked > 20,
+                    "{count}: {met_other} {blocked}"
+                );
+            }
+        }
     }
 }
