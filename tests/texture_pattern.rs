@@ -667,3 +667,131 @@ fn pattern_types_are_send_and_sync() {
     check::<Pattern>();
     check::<lapidary::texture::pattern::Resolved>();
 }
+
+/// Marbles of several shapes: the recipe defaults, the lepidolite's, a
+/// negative gain (turbulence then alternates in sign), a negative
+/// amplitude and a single octave (nothing to skip).
+fn marble_variants() -> Vec<Marble> {
+    let with = |direction: DVec3, frequency: f64, amplitude: f64, octaves: u32, gain: f64| Marble {
+        direction,
+        frequency,
+        amplitude,
+        turbulence: Turbulence {
+            source: PerlinSource::new(17 + octaves as u64),
+            frequency: 1.5,
+            octaves,
+            lacunarity: 2.0,
+            gain,
+        },
+    };
+    vec![
+        marble(4),
+        with(DVec3::new(1.0, 0.3, 0.0), 6.0, 3.0, 4, 0.5),
+        with(DVec3::new(0.2, 1.0, -0.4), 3.0, 5.0, 6, -0.6),
+        with(DVec3::Z, 2.0, -4.0, 3, 0.7),
+        with(DVec3::X, 5.0, 2.5, 1, 0.5),
+    ]
+}
+
+/// Ranges over `[0, 1]` with the given inner boundaries, entry `i` for range `i`.
+fn ranges_with(boundaries: &[f64]) -> Vec<SwitchRange> {
+    let mut ends = vec![0.0];
+    ends.extend_from_slice(boundaries);
+    ends.push(1.0);
+    ends.windows(2)
+        .enumerate()
+        .map(|(i, w)| SwitchRange {
+            from: w[0],
+            to: w[1],
+            entry: Entry::Material(i as u32),
+        })
+        .collect()
+}
+
+#[test]
+fn marble_switch_early_exit_selects_what_the_full_value_selects() {
+    // The marble switch may stop after a few octaves (phase arcs); the entry
+    // must be the one the definition gives: the range of the full value.
+    let boundary_sets: [&[f64]; 5] = [
+        &[0.85],
+        &[0.3, 0.8],
+        &[0.1, 0.45, 0.5, 0.93],
+        &[0.5],
+        &[1e-8], // too close to 0: left to the general path
+    ];
+    let points = test_points(20_000, 99);
+    let mut checked = 0usize;
+    for m in marble_variants() {
+        for boundaries in boundary_sets {
+            let ranges = ranges_with(boundaries);
+            let switch = Switch::new(SwitchFunction::Marble(m), ranges.clone(), None).unwrap();
+            for p in &points {
+                let v = m.value(*p);
+                let i = ranges.partition_point(|r| r.to <= v).min(ranges.len() - 1);
+                assert_eq!(
+                    switch.select_at_sample(*p),
+                    ranges[i].entry,
+                    "at {p}, value {v}"
+                );
+                checked += 1;
+            }
+            // Points right on the boundaries' level sets: bisect the value
+            // along a segment that crosses a boundary, then check there.
+            for b in boundaries.iter() {
+                for p in points.iter().take(200) {
+                    let (mut lo, mut hi) = (*p, *p + DVec3::new(0.37, 0.11, -0.23));
+                    if (m.value(lo) - b) * (m.value(hi) - b) > 0.0 {
+                        continue;
+                    }
+                    for _ in 0..80 {
+                        let mid = 0.5 * (lo + hi);
+                        if (m.value(mid) - b) * (m.value(lo) - b) > 0.0 {
+                            lo = mid;
+                        } else {
+                            hi = mid;
+                        }
+                    }
+                    for q in [lo, hi] {
+                        let v = m.value(q);
+                        let i = ranges.partition_point(|r| r.to <= v).min(ranges.len() - 1);
+                        assert_eq!(
+                            switch.select_at_sample(q),
+                            ranges[i].entry,
+                            "at {q}, value {v}"
+                        );
+                        checked += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked > 500_000, "{checked}");
+}
+
+#[test]
+fn marble_phase_bounds_hold_the_final_phase_and_the_value_is_bit_exact() {
+    // `value_unless` must report intervals that contain the final phase
+    // (written out here from the definition), and fall back to exactly
+    // `value` when nothing settles.
+    let points = test_points(5_000, 7);
+    let mut intervals = 0usize;
+    for m in marble_variants() {
+        for p in &points {
+            let phase = m.frequency * p.dot(m.direction) + m.amplitude * m.turbulence.value(*p);
+            let mut previous_width = f64::INFINITY;
+            let result = m.value_unless(*p, |low, high| -> Option<()> {
+                assert!(
+                    low <= phase + 1e-12 && phase <= high + 1e-12,
+                    "{low} {phase} {high}"
+                );
+                assert!(high - low <= previous_width + 1e-12, "intervals shrink");
+                previous_width = high - low;
+                intervals += 1;
+                None
+            });
+            assert_eq!(result.unwrap_err().to_bits(), m.value(*p).to_bits());
+        }
+    }
+    // (3 + 3 + 5 + 2 + 0) checks per point.
+    assert_eq!(intervals, 13 * points.len());
+}

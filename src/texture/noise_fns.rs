@@ -354,4 +354,50 @@ impl Marble {
             self.frequency * p.dot(self.direction) + self.amplitude * self.turbulence.value(p);
         0.5 + 0.5 * phase.sin()
     }
+
+    /// [`Marble::value`], unless `settle` decides first: after each octave
+    /// but the last, `settle(lo, hi)` gets an interval of phases (radians)
+    /// sure to hold the final phase `frequency · p·direction + amplitude ·
+    /// turbulence(p)` (the octaves still to come add at most `|gain|ᵏ` each,
+    /// Perlin noise being clamped to `[-1, 1]`); when it returns `Some(r)`
+    /// the remaining octaves are skipped and `Ok(r)` returned. Otherwise
+    /// `Err(value)` with the value bit for bit equal to [`Marble::value`]
+    /// (same operations in the same order). A switch only needs to know
+    /// which range the value falls in, which is often settled after two or
+    /// three of the four octaves.
+    #[inline]
+    pub fn value_unless<R>(
+        &self,
+        p: DVec3,
+        mut settle: impl FnMut(f64, f64) -> Option<R>,
+    ) -> Result<R, f64> {
+        let t = &self.turbulence;
+        let linear = self.frequency * p.dot(self.direction);
+        // Σ_{k ≥ K} |gain|ᵏ for the octaves not yet summed, updated by
+        // subtraction (its rounding is far below the caller's margin).
+        let mut rest_bound = amplitude_bound(t.octaves, t.gain);
+        // Same loop as `octave_sum` (shape = abs): same sum, bit for bit.
+        let mut sum = 0.0;
+        let mut octave_frequency = t.frequency;
+        let mut amplitude = 1.0;
+        let mut shift = DVec3::ZERO;
+        for k in 0..t.octaves {
+            sum += amplitude * t.source.value(p * octave_frequency + shift).abs();
+            octave_frequency *= t.lacunarity;
+            rest_bound -= amplitude.abs();
+            amplitude *= t.gain;
+            shift += OCTAVE_SHIFT;
+            if k + 1 < t.octaves {
+                // Turbulence ∈ [sum − rest·[gain < 0], sum + rest].
+                let low = if t.gain < 0.0 { sum - rest_bound } else { sum };
+                let high = sum + rest_bound;
+                let (a, b) = (self.amplitude * low, self.amplitude * high);
+                if let Some(r) = settle(linear + a.min(b), linear + a.max(b)) {
+                    return Ok(r);
+                }
+            }
+        }
+        let phase = linear + self.amplitude * sum;
+        Err(0.5 + 0.5 * phase.sin())
+    }
 }

@@ -263,6 +263,110 @@ pub struct Switch {
     /// If set, the function is read at the feature point of the cell of
     /// this Voronoi that contains the point, so whole cells switch together.
     pub per_cell: Option<Voronoi>,
+    /// The ranges seen as arcs of marble phase (derived from `ranges` in
+    /// [`Switch::new`]; used when `function` is a marble).
+    marble_arcs: Option<PhaseArcs>,
+}
+
+/// A marble switch's ranges as arcs of the phase φ of
+/// `0.5 + 0.5 sin φ` (noise_fns, Marble): the value crosses the inner range
+/// boundary `t` only where `sin φ = 2t − 1`, at the *critical* phases
+/// `asin(2t − 1)` and `π − asin(2t − 1)` (mod 2π). Between two neighbouring
+/// critical phases the selected range cannot change, so a phase interval
+/// that lies inside one arc (with a margin far above rounding) settles the
+/// switch without the remaining octaves of turbulence.
+#[derive(Clone, Debug, PartialEq)]
+struct PhaseArcs {
+    /// Critical phases in `[0, 2π)`, increasing.
+    critical: Vec<f64>,
+    /// `entries[j]`: the entry of the arc ending at `critical[j]`; the last
+    /// one (arc after the last critical phase) equals `entries[0]` (wraps).
+    entries: Vec<Entry>,
+}
+
+/// Range boundaries with `|2t − 1|` above this are left to the general
+/// path: near an extremum of sin, rounding of the value maps to a wide
+/// phase uncertainty (√ of it).
+const MAX_ARC_SINE: f64 = 1.0 - 1e-6;
+
+impl PhaseArcs {
+    /// The arcs of `ranges` (partitioning `[0, 1]`); None when a boundary
+    /// sits too close to 0 or 1 (see [`MAX_ARC_SINE`]).
+    fn new(ranges: &[SwitchRange]) -> Option<Self> {
+        let mut critical = Vec::new();
+        for r in &ranges[..ranges.len() - 1] {
+            let s = 2.0 * r.to - 1.0;
+            if s.is_nan() || s.abs() >= MAX_ARC_SINE {
+                return None;
+            }
+            let a = s.asin();
+            critical.push(if a < 0.0 { a + TAU } else { a });
+            critical.push(std::f64::consts::PI - a);
+        }
+        critical.sort_by(f64::total_cmp);
+        let n = critical.len();
+        let entry_at = |phase: f64| {
+            let v = 0.5 + 0.5 * phase.sin();
+            let i = ranges.partition_point(|r| r.to <= v).min(ranges.len() - 1);
+            ranges[i].entry
+        };
+        let mut entries: Vec<Entry> = (0..n)
+            .map(|j| {
+                let start = if j == 0 {
+                    critical[n - 1] - TAU
+                } else {
+                    critical[j - 1]
+                };
+                entry_at(0.5 * (start + critical[j]))
+            })
+            .collect();
+        entries.push(entries.first().copied().unwrap_or(ranges[0].entry));
+        Some(PhaseArcs { critical, entries })
+    }
+
+    /// The entry if every phase in `[low, high]` (widened by a margin of
+    /// 10⁻⁹·(1 + |φ|) rad against rounding) lies inside one arc.
+    #[inline]
+    fn settle(&self, low: f64, high: f64) -> Option<Entry> {
+        let n = self.critical.len();
+        if n == 0 {
+            return Some(self.entries[0]);
+        }
+        // Also false for NaN: the general path then decides.
+        let width = high - low;
+        if width.is_nan() || width >= TAU {
+            return None;
+        }
+        let margin = 1e-9 * (1.0 + low.abs().max(high.abs()));
+        let turns = floor_fast(low / TAU);
+        let low_turn = low - turns * TAU;
+        let high_turn = low_turn + width;
+        let j = self.critical.partition_point(|c| *c <= low_turn);
+        let previous = if j == 0 {
+            self.critical[n - 1] - TAU
+        } else {
+            self.critical[j - 1]
+        };
+        let next = if j == n {
+            self.critical[0] + TAU
+        } else {
+            self.critical[j]
+        };
+        (low_turn - margin > previous && high_turn + margin < next).then(|| self.entries[j])
+    }
+}
+
+/// `floor` without a library call (see `voronoi::floor_fast`); exact below
+/// 2⁵², the identity above (NaN passes through).
+#[inline(always)]
+fn floor_fast(x: f64) -> f64 {
+    const ALL_INTEGERS_FROM: f64 = 4_503_599_627_370_496.0; // 2⁵²
+    if x.abs() < ALL_INTEGERS_FROM {
+        let truncated = (x as i64) as f64;
+        truncated - f64::from(u8::from(truncated > x))
+    } else {
+        x
+    }
 }
 
 /// Relative tolerance for ranges meeting the function's ends and each other.
@@ -336,10 +440,15 @@ impl Switch {
         for k in 1..ranges.len() {
             ranges[k].from = ranges[k - 1].to;
         }
+        let marble_arcs = match function {
+            SwitchFunction::Marble(_) => PhaseArcs::new(&ranges),
+            _ => None,
+        };
         Ok(Switch {
             function,
             ranges,
             per_cell,
+            marble_arcs,
         })
     }
 
@@ -375,6 +484,14 @@ impl Switch {
     /// result of [`Switch::sample_point`]).
     #[inline]
     pub fn select_at_sample(&self, sample: DVec3) -> Entry {
+        // A marble is often settled before its last octaves (`PhaseArcs`);
+        // the result is the same entry as the general path's, always.
+        if let (SwitchFunction::Marble(m), Some(arcs)) = (&self.function, &self.marble_arcs) {
+            return match m.value_unless(sample, |low, high| arcs.settle(low, high)) {
+                Ok(entry) => entry,
+                Err(v) => self.ranges[self.range_index(v)].entry,
+            };
+        }
         let v = self.function.value(sample);
         self.ranges[self.range_index(v)].entry
     }
