@@ -243,12 +243,27 @@ fn sample_cone(axis: DVec3, cos_max: f64, u: [f64; 2]) -> (DVec3, f64) {
     let cos_theta = 1.0 - u[0] * (1.0 - cos_max);
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
     let (sin_phi, cos_phi) = crate::sampling::sin_cos_turns(u[1]);
-    let (t, b) = axis.any_orthonormal_pair();
+    let (t, b) = orthonormal_pair(axis);
     // Unit by construction (t, b, axis orthonormal and sin² + cos² = 1, to
     // within 10⁻¹³): no normalisation, whose division and square root are a
     // tenth of a light sample's time.
     let direction = t * (sin_theta * cos_phi) + b * (sin_theta * sin_phi) + axis * cos_theta;
     (direction, cos_theta)
+}
+
+/// Two unit vectors completing unit `n` to an orthonormal basis: glam's
+/// `any_orthonormal_pair` (Duff et al., "Building an Orthonormal Basis,
+/// Revisited", JCGT 2017, listing 3) with the sign of n.z taken by
+/// `copysign`, which equals `signum` for every number but NaN and skips its
+/// NaN test.
+fn orthonormal_pair(n: DVec3) -> (DVec3, DVec3) {
+    let sign = 1.0f64.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        DVec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
 }
 
 /// Nearest positive distance at which the ray enters the sphere.
@@ -290,6 +305,19 @@ mod tests {
                     assert!(d.dot(axis) >= cos_max - 1e-12);
                 }
             }
+        }
+    }
+
+    #[test]
+    fn the_orthonormal_pair_is_glams_bit_for_bit() {
+        let mut rng = Rng::new(4, 4);
+        let random = (0..5000).map(|_| {
+            let v = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 2.0 - 1.0;
+            v.normalize()
+        });
+        let axes = [DVec3::Z, -DVec3::Z, DVec3::X, DVec3::new(0.6, 0.8, -0.0)];
+        for n in axes.into_iter().chain(random) {
+            assert_eq!(orthonormal_pair(n), n.any_orthonormal_pair(), "n = {n}");
         }
     }
 

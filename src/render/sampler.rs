@@ -66,7 +66,9 @@ pub struct SampleStream<'a> {
 }
 
 impl SampleStream<'_> {
-    /// The next two numbers in [0, 1).
+    /// The next two numbers in [0, 1). Inlined: a call's set-up (the
+    /// result through memory, saved registers) is a tenth of its cost.
+    #[inline(always)]
     pub fn next_2d(&mut self) -> [f64; 2] {
         let pair = self.next_pair;
         self.next_pair += 1;
