@@ -364,7 +364,7 @@ mod tests {
                 let mut stream = pixel.stream(i);
                 let mut tail = Rng::new(pixel_seed, u64::from(i));
                 for pair in 0..SOBOL_PAIRS {
-                    let expected = owen_sobol_2d(i, pixel_seed ^ u64::from(pair) * 0x9e37_79b9);
+                    let expected = owen_sobol_2d(i, pixel_seed ^ (u64::from(pair) * 0x9e37_79b9));
                     assert_eq!(
                         stream.next_2d(),
                         expected,
