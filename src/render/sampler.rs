@@ -98,6 +98,8 @@ impl SampleStream<'_> {
     }
 
     /// Three numbers for a BRDF sample: a Sobol pair and one more.
+    /// Inlined like [`SampleStream::next_2d`].
+    #[inline(always)]
     pub fn next_3d(&mut self) -> [f64; 3] {
         let [a, b] = self.next_2d();
         [a, b, self.next_1d()]
