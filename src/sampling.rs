@@ -55,14 +55,12 @@ pub fn mix64(mut z: u64) -> u64 {
 /// (π/4)¹⁵/15! ≈ 2·10⁻¹⁴ and (π/4)¹⁶/16! ≈ 10⁻¹⁵); several times faster
 /// than libm's `sin_cos`, which rounds correctly at a cost no sample needs.
 pub fn sin_cos_turns(t: f64) -> (f64, f64) {
-    // Round to the nearest quarter turn by adding and subtracting 1.5·2⁵²,
-    // which leaves no fraction bits (`f64::round` is a library call on
-    // x86-64 without SSE4.1); exact for |4t| < 2⁵¹.
-    const ROUNDER: f64 = 6_755_399_441_055_744.0;
-    let quarter = (t * 4.0 + ROUNDER) - ROUNDER;
+    let (quarter, quadrant) = nearest_quarter_turn(t);
     let x = (t - quarter * 0.25) * (2.0 * PI);
     let x2 = x * x;
-    // Horner forms of Σ (−1)ᵏ x²ᵏ⁺¹/(2k+1)! and Σ (−1)ᵏ x²ᵏ/(2k)!.
+    // Horner forms of Σ (−1)ᵏ x²ᵏ⁺¹/(2k+1)! and Σ (−1)ᵏ x²ᵏ/(2k)!, started
+    // at the highest coefficient (the same sums as folding from 0, where
+    // the first step c + x²·0 = c is exact, with two operations fewer).
     let sin_terms = [
         -1.0 / 6.0,
         1.0 / 120.0,
@@ -80,15 +78,31 @@ pub fn sin_cos_turns(t: f64) -> (f64, f64) {
         1.0 / 479_001_600.0,
         -1.0 / 87_178_291_200.0,
     ];
-    let sin = x * (1.0 + x2 * sin_terms.iter().rev().fold(0.0, |acc, c| c + x2 * acc));
-    let cos = 1.0 + x2 * cos_terms.iter().rev().fold(0.0, |acc, c| c + x2 * acc);
+    let horner = |terms: &[f64]| {
+        let (last, rest) = terms.split_last().expect("non-empty");
+        rest.iter().rev().fold(*last, |acc, c| c + x2 * acc)
+    };
+    let sin = x * (1.0 + x2 * horner(&sin_terms));
+    let cos = 1.0 + x2 * horner(&cos_terms);
     // sin and cos of q·π/2 + x.
-    match (quarter as i64) & 3 {
+    match quadrant {
         0 => (sin, cos),
         1 => (cos, -sin),
         2 => (-sin, -cos),
         _ => (-cos, sin),
     }
+}
+
+/// The nearest quarter turn q to `t` turns, as q and as q mod 4. Rounds by
+/// adding and subtracting 1.5·2⁵², which leaves no fraction bits
+/// (`f64::round` is a library call on x86-64 without SSE4.1); exact for
+/// |4t| < 2⁵¹. The sum 1.5·2⁵² + q has an ulp of 1, so its lowest
+/// mantissa bits are those of 2⁵¹ + q: q mod 4, read without a float to
+/// integer conversion.
+fn nearest_quarter_turn(t: f64) -> (f64, u64) {
+    const ROUNDER: f64 = 6_755_399_441_055_744.0;
+    let shifted = t * 4.0 + ROUNDER;
+    (shifted - ROUNDER, shifted.to_bits() & 3)
 }
 
 /// Cosine-weighted direction on the upper hemisphere (z up); pdf = cosθ/π.
@@ -132,5 +146,21 @@ mod tests {
         // Exact quarter turns give exact axes.
         assert_eq!(sin_cos_turns(0.0), (0.0, 1.0));
         assert_eq!(sin_cos_turns(0.25), (1.0, -0.0));
+    }
+
+    #[test]
+    fn the_quadrant_read_from_the_rounder_bits_is_the_quarter_count_mod_4() {
+        // Against the integer conversion, for negative and positive angles,
+        // on and beside the half-quarter seams where rounding flips.
+        let mut rng = Rng::new(5, 6);
+        let seams = (-40..=40).flat_map(|k| {
+            let seam = (2 * k + 1) as f64 / 8.0;
+            [seam, seam - 1e-12, seam + 1e-12, k as f64 / 4.0]
+        });
+        for t in seams.chain((0..10_000).map(|_| (rng.next_f64() - 0.5) * 1e6)) {
+            let (quarter, quadrant) = nearest_quarter_turn(t);
+            assert_eq!(quarter, (t * 4.0).round_ties_even(), "t = {t}");
+            assert_eq!(quadrant, (quarter as i64 & 3) as u64, "t = {t}");
+        }
     }
 }

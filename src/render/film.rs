@@ -1,7 +1,7 @@
 //! The film: every pixel's samples, filtered, averaged, with its AOVs.
 //!
 //! Pixels are independent: pixel (x, y) draws its samples from
-//! [`SampleStream`]s keyed by (seed, pixel, sample), so rows can be
+//! [`SampleStream`](crate::render::sampler::SampleStream)s keyed by (seed, pixel, sample), so rows can be
 //! rendered by any thread in any order and the result is the same bytes.
 //! The reconstruction filter is a tent of radius one pixel, applied by
 //! filter importance sampling (each sample's film position is drawn from
@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use crate::brdf::Rgb;
 use crate::render::camera::PinholeCamera;
 use crate::render::integrator::{RayCounts, RenderScene};
-use crate::render::sampler::SampleStream;
+use crate::render::sampler::PixelSampler;
 
 /// What to render.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -117,6 +117,7 @@ fn render_row(
     let spp = settings.samples_per_pixel;
     for x in 0..settings.width {
         let pixel_index = u64::from(y) * u64::from(settings.width) + u64::from(x);
+        let pixel = PixelSampler::new(settings.seed, pixel_index);
         let mut sum = Rgb::ZERO;
         let mut albedo = Rgb::ZERO;
         let mut normal = DVec3::ZERO;
@@ -124,7 +125,7 @@ fn render_row(
         let (mut cell, mut material) = (0, 0);
         let mut unoccluded = 0.0;
         for s in 0..spp {
-            let mut stream = SampleStream::new(settings.seed, pixel_index, s);
+            let mut stream = pixel.stream(s);
             let [fx, fy] = stream.next_2d();
             let ray = camera.ray(f64::from(x) + 0.5 + tent(fx), f64::from(y) + 0.5 + tent(fy));
             let mut counts = RayCounts::default();

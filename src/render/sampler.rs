@@ -16,10 +16,50 @@ use crate::sampling::{mix64, Rng};
 /// How many 2-D dimension pairs come from the scrambled Sobol sequence.
 pub const SOBOL_PAIRS: u32 = 6;
 
+/// The part of every sample stream of one pixel that does not depend on the
+/// sample index: the pixel's seed and the scrambling seeds of its Sobol
+/// pairs. Made once per pixel, so that the two hashes per pair are not
+/// redone for each of the pixel's samples.
+#[derive(Clone, Debug)]
+pub struct PixelSampler {
+    pixel_seed: u64,
+    /// (index shuffle, x, y) scrambling seeds of each Sobol pair.
+    pair_seeds: [[u32; 3]; SOBOL_PAIRS as usize],
+}
+
+impl PixelSampler {
+    /// The sampler of the pixel with flat index `pixel_index`, for the
+    /// render seed `seed`.
+    pub fn new(seed: u64, pixel_index: u64) -> Self {
+        let pixel_seed = mix64(seed ^ mix64(pixel_index.wrapping_add(0x5851_f42d_4c95_7f2d)));
+        let mut pair_seeds = [[0; 3]; SOBOL_PAIRS as usize];
+        for (pair, seeds) in (0u64..).zip(pair_seeds.iter_mut()) {
+            *seeds = scramble_seeds(pixel_seed ^ pair.wrapping_mul(0x9e37_79b9));
+        }
+        Self {
+            pixel_seed,
+            pair_seeds,
+        }
+    }
+
+    /// The stream of the pixel's sample `sample_index`.
+    pub fn stream(&self, sample_index: u32) -> SampleStream<'_> {
+        SampleStream {
+            pixel: self,
+            sample_index,
+            // rev by the low halves of the tables: four loads instead of a
+            // byte swap and three mask-and-shift steps.
+            reversed_index: rev_and_reversed_sobol_1(sample_index) as u32,
+            next_pair: 0,
+            tail: Rng::new(self.pixel_seed, u64::from(sample_index)),
+        }
+    }
+}
+
 /// The random numbers of one sample of one pixel, drawn in a fixed order.
 #[derive(Clone, Debug)]
-pub struct SampleStream {
-    pixel_seed: u64,
+pub struct SampleStream<'a> {
+    pixel: &'a PixelSampler,
     sample_index: u32,
     /// `sample_index` with its bits reversed, computed once per sample.
     reversed_index: u32,
@@ -27,27 +67,15 @@ pub struct SampleStream {
     tail: Rng,
 }
 
-impl SampleStream {
-    /// The stream of sample `sample_index` of the pixel with flat index
-    /// `pixel_index`, for the render seed `seed`.
-    pub fn new(seed: u64, pixel_index: u64, sample_index: u32) -> Self {
-        let pixel_seed = mix64(seed ^ mix64(pixel_index.wrapping_add(0x5851_f42d_4c95_7f2d)));
-        Self {
-            pixel_seed,
-            sample_index,
-            reversed_index: sample_index.reverse_bits(),
-            next_pair: 0,
-            tail: Rng::new(pixel_seed, u64::from(sample_index)),
-        }
-    }
-
-    /// The next two numbers in [0, 1).
+impl SampleStream<'_> {
+    /// The next two numbers in [0, 1). Inlined: a call's set-up (the
+    /// result through memory, saved registers) is a tenth of its cost.
+    #[inline(always)]
     pub fn next_2d(&mut self) -> [f64; 2] {
         let pair = self.next_pair;
         self.next_pair += 1;
         if pair < SOBOL_PAIRS {
-            let pair_seed = self.pixel_seed ^ u64::from(pair).wrapping_mul(0x9e37_79b9);
-            owen_sobol_2d_reversed(self.reversed_index, scramble_seeds(pair_seed))
+            owen_sobol_2d_reversed(self.reversed_index, self.pixel.pair_seeds[pair as usize])
         } else {
             [self.tail.next_f64(), self.tail.next_f64()]
         }
@@ -63,10 +91,15 @@ impl SampleStream {
     /// numbers must not shift the main stream: turning the option on leaves
     /// the beauty image unchanged.
     pub fn side_stream(&self, salt: u64) -> Rng {
-        Rng::new(mix64(self.pixel_seed ^ salt), u64::from(self.sample_index))
+        Rng::new(
+            mix64(self.pixel.pixel_seed ^ salt),
+            u64::from(self.sample_index),
+        )
     }
 
     /// Three numbers for a BRDF sample: a Sobol pair and one more.
+    /// Inlined like [`SampleStream::next_2d`].
+    #[inline(always)]
     pub fn next_3d(&mut self) -> [f64; 3] {
         let [a, b] = self.next_2d();
         [a, b, self.next_1d()]
@@ -89,14 +122,47 @@ fn scramble_seeds(seed: u64) -> [u32; 3] {
 /// x = nus(sobol₀(shuffled)) and y = nus(sobol₁(shuffled)) with
 /// shuffled = nus(index) and nus(v) = rev(LK(rev(v))); since sobol₀ = rev,
 /// the reversals cancel down to three per point: with r = LK(rev(index)),
-/// x = rev(LK(rev(r))) and y = rev(LK(rev ∘ sobol₁ ∘ rev(r))), the middle
-/// map being linear and tabulated like [`sobol_dimension_1`].
+/// x = rev(LK(rev(r))) and y = rev(LK(rev ∘ sobol₁ ∘ rev(r))). Both maps
+/// of r are linear over GF(2) and share one set of byte tables
+/// ([`REV_AND_REVERSED_SOBOL_1_TABLES`]); the last two reversals are done
+/// together on one 64-bit word (x86-64 has no bit-reverse instruction, so
+/// each reversal is a byte swap and three mask-and-shift steps).
 fn owen_sobol_2d_reversed(reversed_index: u32, seeds: [u32; 3]) -> [f64; 2] {
     let r = laine_karras_permutation(reversed_index, seeds[0]);
-    let x = laine_karras_permutation(r.reverse_bits(), seeds[1]).reverse_bits();
-    let y = laine_karras_permutation(by_byte_tables(&REVERSED_SOBOL_1_TABLES, r), seeds[2])
-        .reverse_bits();
-    [to_unit(x), to_unit(y)]
+    let both = rev_and_reversed_sobol_1(r);
+    let x = laine_karras_permutation(both as u32, seeds[1]);
+    let y = laine_karras_permutation((both >> 32) as u32, seeds[2]);
+    // rev(y ‖ x) = rev(x) ‖ rev(y).
+    let reversed = ((u64::from(y) << 32) | u64::from(x)).reverse_bits();
+    [to_unit((reversed >> 32) as u32), to_unit(reversed as u32)]
+}
+
+/// rev(r) in the low and rev(sobol₁(rev(r))) in the high 32 bits.
+fn rev_and_reversed_sobol_1(r: u32) -> u64 {
+    let [b0, b1, b2, b3] = r.to_le_bytes();
+    let t = &REV_AND_REVERSED_SOBOL_1_TABLES;
+    t[0][b0 as usize] ^ t[1][b1 as usize] ^ t[2][b2 as usize] ^ t[3][b3 as usize]
+}
+
+/// `REV_AND_REVERSED_SOBOL_1_TABLES[k][b]` holds, for v = b << 8k, rev(v)
+/// in the low and rev(sobol₁(rev(v))) in the high 32 bits: two GF(2)-linear
+/// maps looked up at once.
+static REV_AND_REVERSED_SOBOL_1_TABLES: [[u64; 256]; 4] = rev_and_reversed_sobol_1_tables();
+
+const fn rev_and_reversed_sobol_1_tables() -> [[u64; 256]; 4] {
+    let reversed_sobol = sobol_1_tables(true);
+    let mut tables = [[0u64; 256]; 4];
+    let mut k = 0;
+    while k < 4 {
+        let mut byte = 0;
+        while byte < 256 {
+            let v = (byte as u32) << (8 * k);
+            tables[k][byte] = (v.reverse_bits() as u64) | ((reversed_sobol[k][byte] as u64) << 32);
+            byte += 1;
+        }
+        k += 1;
+    }
+    tables
 }
 
 /// The first Sobol dimension: the base-2 radical inverse (van der Corput).
@@ -127,9 +193,9 @@ fn by_byte_tables(tables: &ByteTables, v: u32) -> u32 {
 
 /// `SOBOL_1_TABLES[k][b]` is the second Sobol dimension of `b << 8k`.
 static SOBOL_1_TABLES: ByteTables = sobol_1_tables(false);
-/// The same map conjugated by bit reversal: v ↦ rev(sobol₁(rev(v))).
-static REVERSED_SOBOL_1_TABLES: ByteTables = sobol_1_tables(true);
 
+/// The tables of sobol₁, or with `reversed` of the same map conjugated by
+/// bit reversal: v ↦ rev(sobol₁(rev(v))).
 const fn sobol_1_tables(reversed: bool) -> ByteTables {
     // The image of every single index bit.
     let mut image = [0u32; 32];
@@ -237,9 +303,10 @@ mod tests {
                 sobol_dimension_1_by_bits(i),
                 "index {i}"
             );
-            let conjugated = by_byte_tables(&REVERSED_SOBOL_1_TABLES, i);
+            let both = rev_and_reversed_sobol_1(i);
             let direct = sobol_dimension_1_by_bits(i.reverse_bits()).reverse_bits();
-            assert_eq!(conjugated, direct, "reversed, index {i}");
+            assert_eq!((both >> 32) as u32, direct, "reversed, index {i}");
+            assert_eq!(both as u32, i.reverse_bits(), "reversal, index {i}");
         }
         // Joe & Kuo's second dimension has m = 1, 3, 5, 15: direction
         // numbers 1/2, 3/4, 5/8, 15/16, so indices 1, 2, 3, 4, 8 give
@@ -271,17 +338,44 @@ mod tests {
 
     #[test]
     fn different_pixels_get_different_points() {
-        let a = SampleStream::new(1, 10, 0).next_2d();
-        let b = SampleStream::new(1, 11, 0).next_2d();
+        let a = PixelSampler::new(1, 10).stream(0).next_2d();
+        let b = PixelSampler::new(1, 11).stream(0).next_2d();
         assert_ne!(a, b);
     }
 
     #[test]
     fn a_stream_is_a_pure_function_of_its_coordinates() {
         let draw = || {
-            let mut s = SampleStream::new(9, 77, 5);
+            let pixel = PixelSampler::new(9, 77);
+            let mut s = pixel.stream(5);
             (0..10).map(|_| s.next_2d()).collect::<Vec<_>>()
         };
         assert_eq!(draw(), draw());
+    }
+
+    #[test]
+    fn per_pixel_seeds_give_the_per_sample_definition() {
+        // Each stream must be what it was when every call hashed its pair's
+        // seeds itself: pair p of sample i is point i of the sequence with
+        // seed pixel_seed ⊕ p·0x9e3779b9, and the tail is SplitMix64 stream
+        // i of pixel_seed.
+        for (seed, pixel_index) in [(0u64, 0u64), (1, 10), (0xfeed, 123_456), (u64::MAX, 7)] {
+            let pixel = PixelSampler::new(seed, pixel_index);
+            let pixel_seed = mix64(seed ^ mix64(pixel_index.wrapping_add(0x5851_f42d_4c95_7f2d)));
+            for i in [0u32, 1, 2, 3, 15, 16, 63, 1000, u32::MAX] {
+                let mut stream = pixel.stream(i);
+                let mut tail = Rng::new(pixel_seed, u64::from(i));
+                for pair in 0..SOBOL_PAIRS {
+                    let expected = owen_sobol_2d(i, pixel_seed ^ (u64::from(pair) * 0x9e37_79b9));
+                    assert_eq!(
+                        stream.next_2d(),
+                        expected,
+                        "pixel {pixel_index} sample {i} pair {pair}"
+                    );
+                }
+                assert_eq!(stream.next_2d(), [tail.next_f64(), tail.next_f64()]);
+                assert_eq!(stream.next_1d(), tail.next_f64());
+            }
+        }
     }
 }
