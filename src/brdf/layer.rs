@@ -1,7 +1,7 @@
 //! The compiled pieces of a layer stack: dielectric interfaces with the
 //! layer beneath them, and the base (diffuse, conductor, or black).
 
-use crate::brdf::diffuse::oren_nayar;
+use crate::brdf::diffuse::{lambert, oren_nayar};
 use crate::brdf::fresnel;
 use crate::brdf::microfacet::Microfacet;
 use crate::brdf::Rgb;
@@ -84,6 +84,18 @@ impl Base {
     /// The base BRDF f(wi, wo) in the frame of the medium above it.
     pub fn eval(&self, wi: DVec3, wo: DVec3) -> Rgb {
         match self {
+            // σ ≤ 0 is Lambert: `oren_nayar`'s own first two cases, here
+            // without the call (the base of every coat over Lambert).
+            Base::Diffuse {
+                colour,
+                oren_nayar_sigma_rad,
+            } if *oren_nayar_sigma_rad <= 0.0 => {
+                if wi.z <= 0.0 || wo.z <= 0.0 {
+                    Rgb::ZERO
+                } else {
+                    lambert(*colour)
+                }
+            }
             Base::Diffuse {
                 colour,
                 oren_nayar_sigma_rad,
@@ -133,6 +145,32 @@ impl Base {
                 ..
             } => fresnel::conductor(1.0, *n_relative, *k_relative).element_sum() / 3.0,
             Base::Black => 0.0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_lambert_base_evaluates_like_oren_nayar_with_zero_sigma() {
+        // The σ ≤ 0 arm of `Base::eval` against the general `oren_nayar`,
+        // including directions below the horizon (0 there).
+        let colour = Rgb::new(0.1, 0.5, 0.2);
+        for sigma in [0.0, -1.0] {
+            let base = Base::Diffuse {
+                colour,
+                oren_nayar_sigma_rad: sigma,
+            };
+            let mut rng = crate::sampling::Rng::new(1, 2);
+            for _ in 0..2000 {
+                let [a, b, c] = rng.next_3();
+                let [x, y, z] = rng.next_3();
+                let wi = DVec3::new(a - 0.5, b - 0.5, c - 0.3).normalize();
+                let wo = DVec3::new(x - 0.5, y - 0.5, z - 0.3).normalize();
+                assert_eq!(base.eval(wi, wo), oren_nayar(colour, sigma, wi, wo));
+            }
         }
     }
 }

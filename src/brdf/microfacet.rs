@@ -66,6 +66,13 @@ impl Microfacet {
             // appendix blinnD: (β + 2)/(2π) · cos^β θh
             MicrofacetModel::Blinn => {
                 let beta = self.blinn_exponent;
+                // cos^β = exp(β ln cosθh) with ln cosθh ≤ cosθh − 1: below
+                // β (cosθh − 1) < −800 the exponent is under −745, where exp
+                // is exactly 0 in f64, so skip the ln_1p and exp (most of
+                // the hemisphere for a smooth lobe: β ≈ 4.6·10⁷ at 0.01°).
+                if beta * (cos_h - 1.0) < -800.0 {
+                    return 0.0;
+                }
                 (beta + 2.0) * (0.5 / PI) * pow_cos(cos_h, beta)
             }
             MicrofacetModel::Beckmann => {
@@ -158,7 +165,7 @@ impl Microfacet {
         if h == DVec3::ZERO || wi.z <= 0.0 || wo.z <= 0.0 {
             return (0.0, DVec3::Z);
         }
-        let value = self.d(h) * self.g(wi, wo, h) / (4.0 * wi.z * wo.z);
+        let value = value_without_fresnel(self.d(h), || self.g(wi, wo, h), wi, wo);
         (value, h)
     }
 
@@ -171,7 +178,7 @@ impl Microfacet {
             return (0.0, 0.0, DVec3::Z);
         }
         let d = self.d(h);
-        let value = d * self.g(wi, wo, h) / (4.0 * wi.z * wo.z);
+        let value = value_without_fresnel(d, || self.g(wi, wo, h), wi, wo);
         let oh = wo.dot(h);
         let pdf = if oh <= 0.0 {
             0.0
@@ -205,6 +212,19 @@ impl Microfacet {
         }
         self.normal_pdf(h) / (4.0 * oh)
     }
+}
+
+/// D·G/(4 cosθᵢ cosθₒ) given D = `d` and G from `g`. Where D = 0 (off the
+/// peak of a smooth lobe) the value is 0·G/(4 cosθᵢ cosθₒ) = 0 for any G in
+/// [0, 1], so G is not evaluated; the same bits as the full product as long
+/// as the denominator has not underflowed to 0 (then 0/0 is NaN in both).
+#[inline]
+fn value_without_fresnel(d: f64, g: impl FnOnce() -> f64, wi: DVec3, wo: DVec3) -> f64 {
+    let denominator = 4.0 * wi.z * wo.z;
+    if d == 0.0 && denominator > 0.0 {
+        return 0.0;
+    }
+    d * g() / denominator
 }
 
 /// cos^β computed as exp(β ln cos) with ln_1p for cosines near 1, so that the
@@ -242,6 +262,56 @@ mod tests {
             let lobe = Microfacet::new(MicrofacetModel::Blinn, m);
             let at_m = DVec3::new(m.to_radians().sin(), 0.0, m.to_radians().cos());
             assert!((lobe.d(at_m) / lobe.d(DVec3::Z) - 0.5).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn blinn_shortcut_to_zero_equals_the_written_out_distribution() {
+        // D = (β + 2)/(2π) · exp(β ln_1p(cosθh − 1)) (appendix blinnD), at
+        // angles around where exp underflows, for smooth to rough lobes.
+        for m in [MIN_ROUGHNESS_DEG, 0.1, 1.0, 10.0, 45.0, 89.0] {
+            let lobe = Microfacet::new(MicrofacetModel::Blinn, m);
+            let beta = lobe.blinn_exponent;
+            let mut zeros = 0;
+            for k in 0..20_000 {
+                let theta = (k as f64 / 20_000.0).powi(3) * std::f64::consts::FRAC_PI_2;
+                let h = DVec3::new(theta.sin(), 0.0, theta.cos());
+                let expected = (beta + 2.0) * (0.5 / PI) * ((h.z - 1.0).ln_1p() * beta).exp();
+                assert_eq!(lobe.d(h).to_bits(), expected.to_bits(), "m {m} θ {theta}");
+                zeros += (expected == 0.0) as usize;
+            }
+            if m < 1.0 {
+                assert!(zeros > 1000, "m {m}: the shortcut is not exercised");
+            }
+        }
+    }
+
+    #[test]
+    fn reflection_value_skipping_g_equals_the_full_product() {
+        // D·G/(4 cosθi cosθo) written out, for a smooth and a rough lobe
+        // of each family, at random pairs (mostly D = 0 for the smooth one).
+        let mut rng = crate::sampling::Rng::new(3, 4);
+        for model in [
+            MicrofacetModel::Blinn,
+            MicrofacetModel::Beckmann,
+            MicrofacetModel::Ggx,
+        ] {
+            for m in [MIN_ROUGHNESS_DEG, 0.2, 20.0] {
+                let lobe = Microfacet::new(model, m);
+                for _ in 0..5000 {
+                    let [a, b, c] = rng.next_3();
+                    let [x, y, _] = rng.next_3();
+                    let wi = DVec3::new(a - 0.5, b - 0.5, c + 0.01).normalize();
+                    let wo = DVec3::new(0.5 - a, 0.5 - b + 0.02 * (x - 0.5), c + 0.01 + y * 1e-3);
+                    let wo = wo.normalize();
+                    let h = (wi + wo).normalize();
+                    let expected = lobe.d(h) * lobe.g(wi, wo, h) / (4.0 * wi.z * wo.z);
+                    let (value, pdf, _) = lobe.reflection_value_and_pdf(wi, wo);
+                    assert_eq!(value.to_bits(), expected.to_bits(), "{model:?} {m}");
+                    assert_eq!(lobe.reflection_without_fresnel(wi, wo).0, value);
+                    assert_eq!(pdf, lobe.reflection_pdf(wi, wo));
+                }
+            }
         }
     }
 

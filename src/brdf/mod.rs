@@ -6,7 +6,8 @@
 //! * [`microfacet`]: Blinn (V-cavity), Beckmann and GGX (Smith) lobes;
 //! * [`diffuse`]: Lambert and Oren-Nayar;
 //! * [`layer`]: compiled interfaces (with Beer absorption) and bases;
-//! * [`stack`]: the layered BRDF with eval, sample and pdf;
+//! * [`stack`]: the layered BRDF with eval, sample and pdf, and its form
+//!   prepared for one outgoing direction ([`BrdfAt`], one per path vertex);
 //! * [`compensation`]: the multiple-scattering lobe restoring lost energy;
 //! * [`reference`](mod@reference): the Monte Carlo random walk the model is measured against;
 //! * [`albedo`]: directional albedo estimators.
@@ -28,4 +29,4 @@ pub type Rgb = glam::DVec3;
 
 pub use layer::{Base, Interface};
 pub use microfacet::{Microfacet, MicrofacetModel};
-pub use stack::{BrdfSample, LayeredBrdf};
+pub use stack::{BrdfAt, BrdfSample, LayeredBrdf};

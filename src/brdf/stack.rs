@@ -21,12 +21,14 @@
 //!   the light that the single crossing of the model loses.
 
 use crate::brdf::compensation::Compensation;
+use crate::brdf::diffuse::lambert;
 use crate::brdf::fresnel;
 use crate::brdf::layer::{Base, Interface};
 use crate::brdf::microfacet::{refract, MicrofacetModel};
 use crate::brdf::Rgb;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use glam::DVec3;
+use std::f64::consts::FRAC_1_PI;
 
 /// A compiled layered material: interfaces from top to bottom over a base.
 #[derive(Clone, Debug)]
@@ -144,17 +146,35 @@ impl LayeredBrdf {
             return self.base.eval(wi, wo);
         };
         let (lobe_value, h) = itf.lobe.reflection_without_fresnel(wi, wo);
-        self.eval_level(level, wi, wo, lobe_value, h)
+        self.eval_level(level, wi, wo, lobe_value, h, || {
+            fresnel::dielectric(wo.z, itf.eta)
+        })
     }
 
     /// [`LayeredBrdf::eval_from`] at an interface whose micro-facet lobe
-    /// D·G/(4 cosθᵢ cosθₒ) at the half vector `h` is already known.
-    fn eval_level(&self, level: usize, wi: DVec3, wo: DVec3, lobe_value: f64, h: DVec3) -> Rgb {
+    /// D·G/(4 cosθᵢ cosθₒ) at the half vector `h` is already known;
+    /// `fresnel_out` gives F(cosθₒ) at the macro-normal (called only when
+    /// the layers below contribute, so that a per-vertex caller can pass a
+    /// value it already has and the recursion computes it only when needed).
+    fn eval_level(
+        &self,
+        level: usize,
+        wi: DVec3,
+        wo: DVec3,
+        lobe_value: f64,
+        h: DVec3,
+        fresnel_out: impl FnOnce() -> f64,
+    ) -> Rgb {
         let itf = &self.interfaces[level];
         // f₁: Torrance-Sparrow reflection at the interface (appendix
         // torranceSparrowReflector), with the dielectric Fresnel factor.
-        let f_in = fresnel::dielectric(wi.dot(h), itf.eta);
-        let f_top = Rgb::splat(lobe_value * f_in);
+        // (A lobe value of 0, everywhere off the peak of a smooth coat,
+        // gives 0 for any F in [0, 1]: skip the Fresnel factor.)
+        let f_top = if lobe_value == 0.0 {
+            Rgb::ZERO
+        } else {
+            Rgb::splat(lobe_value * fresnel::dielectric(wi.dot(h), itf.eta))
+        };
 
         // Refract both directions through the micro-facet normal h (appendix:
         // refract(Ln, -H, 1/eta)); expressed pointing up inside the layer.
@@ -180,7 +200,7 @@ impl LayeredBrdf {
                                                                         // Its (1 − F) is T₂₁ (by the Stokes relations F(ω′ₒ, 1/η) = F(ωₒ, η)),
                                                                         // so T₂₁ is not multiplied again (deviation from the formula).
         let g_inside = itf.lobe.g(wi_in, wo_in, h);
-        let f_out = fresnel::dielectric(wo.z, itf.eta);
+        let f_out = fresnel_out();
         let tir = (1.0 - g_inside) + (1.0 - f_out) * g_inside;
         let absorption = itf.round_trip_transmittance(wi_in, wo_in); // a, eq. 3.4
                                                                      // 1/η²: radiance compression (missing in the seed).
@@ -191,8 +211,14 @@ impl LayeredBrdf {
     /// Mixture probabilities (top lobe, rest of the stack) at `level` for
     /// outgoing `wo`, proportional to rough albedo guesses.
     fn level_weights(&self, level: usize, wo: DVec3) -> (f64, f64) {
+        let f = fresnel::dielectric(wo.z, self.interfaces[level].eta);
+        self.level_weights_from_fresnel(level, f)
+    }
+
+    /// [`LayeredBrdf::level_weights`] given the interface's Fresnel
+    /// reflectance `f` = F(cosθₒ) at the macro-normal.
+    fn level_weights_from_fresnel(&self, level: usize, f: f64) -> (f64, f64) {
         let itf = &self.interfaces[level];
-        let f = fresnel::dielectric(wo.z, itf.eta);
         let top = if itf.eta == 1.0 { 0.0 } else { f.max(0.02) };
         let below = (1.0 - f) * self.below_albedo_guess[level];
         let total = top + below;
@@ -208,13 +234,28 @@ impl LayeredBrdf {
         let Some(itf) = self.interfaces.get(level) else {
             return self.base.sample(wo, u[1], u[2]);
         };
-        let (p_top, p_below) = self.level_weights(level, wo);
+        let weights = self.level_weights(level, wo);
+        self.sample_level(level, wo, u, weights, || refract(wo, DVec3::Z, itf.eta))
+    }
+
+    /// [`LayeredBrdf::sample_from`] at an interface whose mixture weights
+    /// are known; `wo_refracted` gives refract(wo, z, η) (called only when
+    /// the sample goes below).
+    fn sample_level(
+        &self,
+        level: usize,
+        wo: DVec3,
+        u: [f64; 3],
+        (p_top, p_below): (f64, f64),
+        wo_refracted: impl FnOnce() -> Option<DVec3>,
+    ) -> Option<DVec3> {
+        let itf = &self.interfaces[level];
         if u[0] < p_top {
             itf.lobe.sample_reflection(wo, u[1], u[2])
         } else if p_below > 0.0 {
             // Refract wo through the macro normal, sample below, refract out.
             let u0 = ((u[0] - p_top) / p_below).min(1.0 - f64::EPSILON);
-            let wo_in = -refract(wo, DVec3::Z, itf.eta)?;
+            let wo_in = -wo_refracted()?;
             let wi_in = self.sample_from(level + 1, wo_in, [u0, u[1], u[2]])?;
             refract(-wi_in, -DVec3::Z, 1.0 / itf.eta)
         } else {
@@ -233,18 +274,21 @@ impl LayeredBrdf {
         } else {
             0.0
         };
-        self.pdf_level(level, wi, wo, (p_top, p_below), top_pdf)
+        self.pdf_level(level, wi, (p_top, p_below), top_pdf, || {
+            refract(wo, DVec3::Z, itf.eta)
+        })
     }
 
     /// [`LayeredBrdf::pdf_from`] at an interface whose mixture weights and
-    /// reflection-lobe density are already known.
+    /// reflection-lobe density are already known; `wo_refracted` gives
+    /// refract(wo, z, η) (called only when the layers below are sampled).
     fn pdf_level(
         &self,
         level: usize,
         wi: DVec3,
-        wo: DVec3,
         (p_top, p_below): (f64, f64),
         top_pdf: f64,
+        wo_refracted: impl FnOnce() -> Option<DVec3>,
     ) -> f64 {
         let itf = &self.interfaces[level];
         let mut pdf = 0.0;
@@ -252,10 +296,7 @@ impl LayeredBrdf {
             pdf += p_top * top_pdf;
         }
         if p_below > 0.0 {
-            if let (Some(ti), Some(to)) = (
-                refract(wi, DVec3::Z, itf.eta),
-                refract(wo, DVec3::Z, itf.eta),
-            ) {
+            if let (Some(ti), Some(to)) = (refract(wi, DVec3::Z, itf.eta), wo_refracted()) {
                 let (wi_in, wo_in) = (-ti, -to);
                 // Change of variables through Snell: dω′ = cosθ dω / (η² cosθ′).
                 let jacobian = wi.z / (itf.eta * itf.eta * wi_in.z);
@@ -278,25 +319,24 @@ impl LayeredBrdf {
 
     /// Importance-sample the incident direction for outgoing `wo` from three
     /// uniform numbers. Returns None when the sample carries no energy.
+    /// Same as `self.at(wo).sample(u)`.
+    #[inline]
     pub fn sample(&self, wo: DVec3, u: [f64; 3]) -> Option<BrdfSample> {
-        if wo.z <= 0.0 {
-            return None;
+        // The bare Lambert shortcut inline in the caller, the rest out of
+        // line (building a `BrdfAt` in the caller costs more than it saves).
+        if let Some(value) = self.bare_lambert() {
+            if wo.z <= 0.0 {
+                return None;
+            }
+            return lambert_sample(value, u);
         }
-        let p_comp = self.compensation_weight(wo);
-        let wi = if u[0] < p_comp {
-            cosine_hemisphere(u[1], u[2])
-        } else {
-            let u0 = ((u[0] - p_comp) / (1.0 - p_comp)).min(1.0 - f64::EPSILON);
-            self.sample_from(0, wo, [u0, u[1], u[2]])?
-        };
-        if wi.z <= 0.0 {
-            return None;
-        }
-        let (value, pdf) = self.eval_and_pdf(wi, wo);
-        if pdf.is_nan() || pdf <= 0.0 || !pdf.is_finite() || !value.is_finite() {
-            return None;
-        }
-        Some(BrdfSample { wi, value, pdf })
+        self.sample_layered(wo, u)
+    }
+
+    /// [`LayeredBrdf::sample`] of a material that is not bare Lambert.
+    #[inline(never)]
+    fn sample_layered(&self, wo: DVec3, u: [f64; 3]) -> Option<BrdfSample> {
+        self.at(wo).sample(u)
     }
 
     /// [`LayeredBrdf::eval`] and [`LayeredBrdf::pdf`] together, sharing the
@@ -304,26 +344,102 @@ impl LayeredBrdf {
     /// `ln_1p` per call for the seed's Blinn lobes), its mixture weights and
     /// the compensation lookups: what the renderer needs at every light
     /// sample and every BRDF sample. Equal to the two separate calls.
+    /// Same as `self.at(wo).eval_and_pdf(wi)`.
+    #[inline]
     pub fn eval_and_pdf(&self, wi: DVec3, wo: DVec3) -> (Rgb, f64) {
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return (Rgb::ZERO, 0.0);
-        }
-        let (single, stack_pdf) = match self.interfaces.first() {
-            None => (self.base.eval(wi, wo), self.base.pdf(wi, wo)),
-            Some(itf) => {
-                let (lobe_value, top_pdf, h) = itf.lobe.reflection_value_and_pdf(wi, wo);
-                let weights = self.level_weights(0, wo);
-                let top_pdf = if weights.0 > 0.0 { top_pdf } else { 0.0 };
-                (
-                    self.eval_level(0, wi, wo, lobe_value, h),
-                    self.pdf_level(0, wi, wo, weights, top_pdf),
-                )
+        if let Some(value) = self.bare_lambert() {
+            if wi.z <= 0.0 || wo.z <= 0.0 {
+                return (Rgb::ZERO, 0.0);
             }
+            return (value, cosine_hemisphere_pdf(wi));
+        }
+        self.eval_and_pdf_layered(wi, wo)
+    }
+
+    /// [`LayeredBrdf::eval_and_pdf`] of a material that is not bare Lambert.
+    #[inline(never)]
+    fn eval_and_pdf_layered(&self, wi: DVec3, wo: DVec3) -> (Rgb, f64) {
+        self.at(wo).eval_and_pdf(wi)
+    }
+
+    /// The material prepared for one outgoing direction `wo`: everything
+    /// that depends on wo alone (the compensation lookup D(μₒ) and the lobe
+    /// probability, the top interface's F(cosθₒ), mixture weights and
+    /// refracted wo) is computed here once, and shared by the
+    /// [`BrdfAt::eval_and_pdf`] and [`BrdfAt::sample`] calls made at that
+    /// vertex. A bare Lambert material (no layers, σ = 0, no compensation)
+    /// takes a shortcut: f = colour/π with cosine-weighted sampling.
+    ///
+    /// The shortcut is recognised here, from the public fields, rather than
+    /// cached in [`LayeredBrdf::new`], so that it can never go stale.
+    #[inline]
+    pub fn at(&self, wo: DVec3) -> BrdfAt<'_> {
+        let form = if wo.z <= 0.0 {
+            Form::Below
+        } else if let Some(value) = self.bare_lambert() {
+            Form::Lambert { value }
+        } else {
+            Form::General(self.prepare(wo))
         };
-        (
-            self.plus_compensation(single, wi, wo),
-            self.mixture_pdf(stack_pdf, wi, wo),
-        )
+        BrdfAt {
+            brdf: self,
+            wo,
+            form,
+        }
+    }
+
+    /// colour/π when the material is a bare Lambert surface: no layers, a
+    /// diffuse base with σ ≤ 0 (where `oren_nayar` is exactly
+    /// `lambert(colour)`) and no compensation lobe.
+    #[inline]
+    fn bare_lambert(&self) -> Option<Rgb> {
+        match (&self.compensation, self.interfaces.is_empty(), &self.base) {
+            (
+                None,
+                true,
+                Base::Diffuse {
+                    colour,
+                    oren_nayar_sigma_rad,
+                },
+            ) if *oren_nayar_sigma_rad <= 0.0 => Some(lambert(*colour)),
+            _ => None,
+        }
+    }
+
+    /// The wo-dependent quantities of the general form (wo.z > 0); kept
+    /// out of line so that the bare Lambert path stays small enough to
+    /// inline into the renderer.
+    #[inline(never)]
+    fn prepare(&self, wo: DVec3) -> Prepared {
+        let (p_comp, compensation_albedo_o) = match &self.compensation {
+            Some(c) => {
+                let albedo_o = c.albedo(wo.z);
+                // As `compensation_weight`, with added_albedo = max(D, 0).
+                let d = albedo_o.max(Rgb::ZERO).element_sum() / 3.0;
+                ((d / (d + 0.5)).min(0.5), albedo_o)
+            }
+            None => (0.0, Rgb::ZERO),
+        };
+        let top = self.interfaces.first().map(|itf| {
+            let fresnel_out = fresnel::dielectric(wo.z, itf.eta);
+            let weights = self.level_weights_from_fresnel(0, fresnel_out);
+            // Used only where the layers below are sampled (p_below > 0).
+            let wo_refracted = if weights.1 > 0.0 {
+                refract(wo, DVec3::Z, itf.eta)
+            } else {
+                None
+            };
+            TopAt {
+                fresnel_out,
+                weights,
+                wo_refracted,
+            }
+        });
+        Prepared {
+            p_comp,
+            compensation_albedo_o,
+            top,
+        }
     }
 
     /// Density of [`LayeredBrdf::sample`] with respect to solid angle.
@@ -349,12 +465,308 @@ impl LayeredBrdf {
     }
 }
 
+/// A [`LayeredBrdf`] prepared for one outgoing direction (see
+/// [`LayeredBrdf::at`]): evaluate and sample at one path vertex without
+/// recomputing what depends on wo alone. Results are bit-identical to the
+/// general [`LayeredBrdf::eval`], [`LayeredBrdf::pdf`] (same operations in
+/// the same order).
+#[derive(Clone, Copy, Debug)]
+pub struct BrdfAt<'a> {
+    brdf: &'a LayeredBrdf,
+    wo: DVec3,
+    form: Form,
+}
+
+/// Which evaluation a [`BrdfAt`] uses.
+#[derive(Clone, Copy, Debug)]
+enum Form {
+    /// wo at or below the horizon: nothing is reflected.
+    Below,
+    /// No layers, Lambert base, no compensation: f = `value` = colour/π.
+    Lambert { value: Rgb },
+    /// Everything else: the layered model with its wo-dependent parts.
+    General(Prepared),
+}
+
+/// The wo-dependent quantities of the general form.
+#[derive(Clone, Copy, Debug)]
+struct Prepared {
+    /// Probability of sampling the compensation lobe (0 without one).
+    p_comp: f64,
+    /// D(μₒ) of the compensation table (zero without one).
+    compensation_albedo_o: Rgb,
+    /// The top interface's quantities; None for a bare base.
+    top: Option<TopAt>,
+}
+
+/// wo-dependent quantities of the top interface.
+#[derive(Clone, Copy, Debug)]
+struct TopAt {
+    /// F(cosθₒ) at the macro-normal (exit factor and mixture weights).
+    fresnel_out: f64,
+    /// Mixture probabilities (top lobe, layers below).
+    weights: (f64, f64),
+    /// refract(wo, z, η) when the layers below are sampled, else None.
+    wo_refracted: Option<DVec3>,
+}
+
+impl BrdfAt<'_> {
+    /// f(wi, wo) and the density of [`BrdfAt::sample`] at `wi`; equal to
+    /// [`LayeredBrdf::eval`] and [`LayeredBrdf::pdf`].
+    #[inline]
+    pub fn eval_and_pdf(&self, wi: DVec3) -> (Rgb, f64) {
+        if wi.z <= 0.0 {
+            return (Rgb::ZERO, 0.0);
+        }
+        match &self.form {
+            Form::Below => (Rgb::ZERO, 0.0),
+            // The mixture with no compensation lobe is (1 − 0)·pdf = pdf.
+            Form::Lambert { value } => (*value, cosine_hemisphere_pdf(wi)),
+            Form::General(prepared) => self.eval_and_pdf_general(prepared, wi),
+        }
+    }
+
+    /// The general form of [`BrdfAt::eval_and_pdf`] (wi.z > 0).
+    #[inline(never)]
+    fn eval_and_pdf_general(&self, prepared: &Prepared, wi: DVec3) -> (Rgb, f64) {
+        let (brdf, wo) = (self.brdf, self.wo);
+        let (single, stack_pdf) = match (brdf.interfaces.first(), &prepared.top) {
+            (Some(itf), Some(top)) => {
+                let (lobe_value, top_pdf, h) = itf.lobe.reflection_value_and_pdf(wi, wo);
+                let top_pdf = if top.weights.0 > 0.0 { top_pdf } else { 0.0 };
+                (
+                    brdf.eval_level(0, wi, wo, lobe_value, h, || top.fresnel_out),
+                    brdf.pdf_level(0, wi, top.weights, top_pdf, || top.wo_refracted),
+                )
+            }
+            _ => (brdf.base.eval(wi, wo), brdf.base.pdf(wi, wo)),
+        };
+        // As `plus_compensation` and `mixture_pdf`, with D(μₒ) and the lobe
+        // probability from `prepare`.
+        let value = match &brdf.compensation {
+            Some(c) => {
+                let lobe = compensation_value(c, c.albedo(wi.z), prepared.compensation_albedo_o);
+                (single + lobe).max(Rgb::ZERO)
+            }
+            None => single,
+        };
+        let p_comp = prepared.p_comp;
+        let mut pdf = (1.0 - p_comp) * stack_pdf;
+        if p_comp > 0.0 {
+            pdf += p_comp * cosine_hemisphere_pdf(wi);
+        }
+        (value, pdf)
+    }
+
+    /// Importance-sample the incident direction from three uniform
+    /// numbers; equal to [`LayeredBrdf::sample`]. None when the sample
+    /// carries no energy.
+    #[inline]
+    pub fn sample(&self, u: [f64; 3]) -> Option<BrdfSample> {
+        match &self.form {
+            Form::Below => None,
+            Form::Lambert { value } => lambert_sample(*value, u),
+            Form::General(prepared) => self.sample_general(prepared, u),
+        }
+    }
+
+    /// The general form of [`BrdfAt::sample`]: the compensation lobe's
+    /// cosine sampling or the stack's, then f and the mixture density.
+    #[inline(never)]
+    fn sample_general(&self, prepared: &Prepared, u: [f64; 3]) -> Option<BrdfSample> {
+        let p_comp = prepared.p_comp;
+        let wi = if u[0] < p_comp {
+            cosine_hemisphere(u[1], u[2])
+        } else {
+            let u0 = ((u[0] - p_comp) / (1.0 - p_comp)).min(1.0 - f64::EPSILON);
+            self.sample_stack(prepared, [u0, u[1], u[2]])?
+        };
+        if wi.z <= 0.0 {
+            return None;
+        }
+        let (value, pdf) = self.eval_and_pdf_general(prepared, wi);
+        accept(wi, value, pdf)
+    }
+
+    /// `LayeredBrdf::sample_from(0, wo, u)` with the top interface's
+    /// weights and refracted wo from `prepare`.
+    fn sample_stack(&self, prepared: &Prepared, u: [f64; 3]) -> Option<DVec3> {
+        let brdf = self.brdf;
+        match &prepared.top {
+            Some(top) => brdf.sample_level(0, self.wo, u, top.weights, || top.wo_refracted),
+            None => brdf.base.sample(self.wo, u[1], u[2]),
+        }
+    }
+}
+
+/// [`BrdfAt::sample`] of a bare Lambert material with f = `value`: the
+/// base's cosine sampling (with p_comp = 0 both branches of the general
+/// form draw this same direction from u₁, u₂) and its density cosθᵢ/π.
+#[inline]
+fn lambert_sample(value: Rgb, u: [f64; 3]) -> Option<BrdfSample> {
+    let wi = cosine_hemisphere(u[1], u[2]);
+    if wi.z <= 0.0 {
+        return None;
+    }
+    accept(wi, value, cosine_hemisphere_pdf(wi))
+}
+
+/// The sample (wi, f, pdf) unless it carries no usable energy: the density
+/// must be positive and finite and the value finite.
+#[inline]
+fn accept(wi: DVec3, value: Rgb, pdf: f64) -> Option<BrdfSample> {
+    // `&` rather than `&&`: no branch per channel.
+    let finite = value.x.is_finite() & value.y.is_finite() & value.z.is_finite();
+    if pdf > 0.0 && pdf < f64::INFINITY && finite {
+        Some(BrdfSample { wi, value, pdf })
+    } else {
+        None
+    }
+}
+
+/// [`Compensation::eval`] from the two table lookups D(μᵢ), D(μₒ) (so that
+/// a vertex looks D(μₒ) up once): f_ms = P(μᵢ)P(μₒ)/(πP̄) − X(μᵢ)X(μₒ)/(πX̄)
+/// per channel, with P = max(D, 0), X = max(−D, 0); the same operations in
+/// the same order (pinned by a test against `Compensation::eval`).
+fn compensation_value(c: &Compensation, albedo_i: Rgb, albedo_o: Rgb) -> Rgb {
+    let positive = albedo_i.max(Rgb::ZERO) * albedo_o.max(Rgb::ZERO);
+    let negative = (-albedo_i).max(Rgb::ZERO) * (-albedo_o).max(Rgb::ZERO);
+    (per_channel_div(positive, c.positive_average) - per_channel_div(negative, c.negative_average))
+        * FRAC_1_PI
+}
+
+/// a / b per channel, 0 where b ≤ 10⁻¹² (as in the compensation module).
+fn per_channel_div(a: Rgb, b: Rgb) -> Rgb {
+    let safe_div = |a: f64, b: f64| if b > 1e-12 { a / b } else { 0.0 };
+    Rgb::new(safe_div(a.x, b.x), safe_div(a.y, b.y), safe_div(a.z, b.z))
+}
+
 #[cfg(test)]
 mod tests {
+    use super::{compensation_value, BrdfSample, Form, LayeredBrdf};
+    use crate::brdf::{Base, MicrofacetModel, Rgb};
     use crate::recipe::library::builtin_material_names;
     use crate::recipe::load_material;
-    use crate::sampling::Rng;
+    use crate::sampling::{cosine_hemisphere, Rng};
     use glam::DVec3;
+    use std::f64::consts::PI;
+
+    /// Every library material, plus a bare Lambert and a bare Oren-Nayar
+    /// ground (no layers, no compensation) like the renderer's grounds.
+    fn materials() -> Vec<LayeredBrdf> {
+        let mut all: Vec<LayeredBrdf> = builtin_material_names()
+            .map(|name| load_material(name).unwrap())
+            .collect();
+        for sigma in [0.0, 0.3] {
+            all.push(LayeredBrdf::new(
+                "ground",
+                MicrofacetModel::Blinn,
+                vec![],
+                Base::Diffuse {
+                    colour: Rgb::new(0.5, 0.4, 0.3),
+                    oren_nayar_sigma_rad: sigma,
+                },
+            ));
+        }
+        all
+    }
+
+    /// The sampling procedure written out on the general, per-call path
+    /// (the code before `LayeredBrdf::at`): mixture with the compensation
+    /// lobe, the recursive stack sampler, then the separate `eval` and `pdf`.
+    fn reference_sample(brdf: &LayeredBrdf, wo: DVec3, u: [f64; 3]) -> Option<BrdfSample> {
+        if wo.z <= 0.0 {
+            return None;
+        }
+        let p_comp = brdf.compensation_weight(wo);
+        let wi = if u[0] < p_comp {
+            cosine_hemisphere(u[1], u[2])
+        } else {
+            let u0 = ((u[0] - p_comp) / (1.0 - p_comp)).min(1.0 - f64::EPSILON);
+            brdf.sample_from(0, wo, [u0, u[1], u[2]])?
+        };
+        if wi.z <= 0.0 {
+            return None;
+        }
+        let (value, pdf) = (brdf.eval(wi, wo), brdf.pdf(wi, wo));
+        if pdf.is_nan() || pdf <= 0.0 || !pdf.is_finite() || !value.is_finite() {
+            return None;
+        }
+        Some(BrdfSample { wi, value, pdf })
+    }
+
+    fn parts(s: Option<BrdfSample>) -> Option<(DVec3, Rgb, f64)> {
+        s.map(|s| (s.wi, s.value, s.pdf))
+    }
+
+    #[test]
+    fn prepared_sampling_equals_the_general_path_bit_for_bit() {
+        let mut rng = Rng::new(7, 8);
+        for brdf in materials() {
+            let mut accepted = 0;
+            for _ in 0..200 {
+                let [a, b, c] = rng.next_3();
+                // Some wo below the horizon, which must give None.
+                let wo = DVec3::new(a - 0.5, b - 0.5, c - 0.1).normalize();
+                let at = brdf.at(wo);
+                for _ in 0..5 {
+                    let u = rng.next_3();
+                    let fast = parts(at.sample(u));
+                    assert_eq!(fast, parts(reference_sample(&brdf, wo, u)), "{}", brdf.name);
+                    assert_eq!(fast, parts(brdf.sample(wo, u)), "{}", brdf.name);
+                    accepted += fast.is_some() as usize;
+                }
+            }
+            assert!(accepted > 100, "{}: only {accepted} samples", brdf.name);
+        }
+    }
+
+    #[test]
+    fn a_bare_lambert_ground_is_colour_over_pi_with_cosine_density() {
+        let colour = Rgb::new(0.5, 0.4, 0.3);
+        let brdfs = materials();
+        let ground = brdfs.iter().rev().nth(1).unwrap(); // σ = 0
+        let wo = DVec3::new(0.3, -0.4, 0.5).normalize();
+        assert!(matches!(ground.at(wo).form, Form::Lambert { .. }));
+        let oren_nayar = brdfs.last().unwrap(); // σ = 0.3: not a shortcut
+        assert!(matches!(oren_nayar.at(wo).form, Form::General(_)));
+        let mut rng = Rng::new(9, 10);
+        for _ in 0..1000 {
+            let [a, b, c] = rng.next_3();
+            let wi = DVec3::new(a - 0.5, b - 0.5, c - 0.2).normalize();
+            let (value, pdf) = ground.at(wo).eval_and_pdf(wi);
+            // Lambert: f = ρ/π; cosine sampling: p = cosθᵢ/π, both 0 below.
+            let expected = if wi.z > 0.0 {
+                (colour / PI, wi.z / PI)
+            } else {
+                (Rgb::ZERO, 0.0)
+            };
+            assert!((value - expected.0).abs().max_element() < 1e-16);
+            assert!((pdf - expected.1).abs() < 1e-16);
+            assert_eq!((value, pdf), (ground.eval(wi, wo), ground.pdf(wi, wo)));
+        }
+    }
+
+    #[test]
+    fn compensation_from_two_lookups_equals_the_lobe() {
+        let mut rng = Rng::new(11, 12);
+        let mut compensated = 0;
+        for brdf in materials() {
+            let Some(c) = &brdf.compensation else {
+                continue;
+            };
+            compensated += 1;
+            for _ in 0..300 {
+                let [a, b, _] = rng.next_3();
+                let [x, y, _] = rng.next_3();
+                let wi = DVec3::new(x - 0.5, y - 0.5, a).normalize();
+                let wo = DVec3::new(y - 0.5, 0.5 - x, b).normalize();
+                let split = compensation_value(c, c.albedo(wi.z), c.albedo(wo.z));
+                assert_eq!(split, c.eval(wi, wo), "{}", brdf.name);
+            }
+        }
+        assert!(compensated > 0, "no compensated material to test");
+    }
 
     #[test]
     fn fused_eval_and_pdf_equal_the_separate_calls_for_every_library_material() {
