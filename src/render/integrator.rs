@@ -9,7 +9,7 @@
 
 use glam::DVec3;
 
-use crate::brdf::{LayeredBrdf, Rgb};
+use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
 use crate::render::environment::Environment;
 use crate::render::lights::Light;
 use crate::render::sampler::SampleStream;
@@ -237,6 +237,9 @@ impl RenderScene {
                 break; // seen from behind (a ray leaving from inside a surface)
             }
             let point = hit.point + hit.normal * RAY_OFFSET;
+            // What depends on wo alone, computed once for the light samples
+            // and the BRDF sample of this vertex.
+            let brdf_at = shading.brdf.at(wo);
 
             // Next-event estimation: every light, then the environment.
             for light in &self.lights {
@@ -246,9 +249,9 @@ impl RenderScene {
                 };
                 let contribution = self.direct(
                     &shading,
+                    &brdf_at,
                     &hit,
                     point,
-                    wo,
                     sample.direction,
                     sample.distance,
                     sample.radiance,
@@ -265,9 +268,9 @@ impl RenderScene {
             {
                 let contribution = self.direct(
                     &shading,
+                    &brdf_at,
                     &hit,
                     point,
-                    wo,
                     sample.direction,
                     f64::INFINITY,
                     sample.radiance,
@@ -279,7 +282,7 @@ impl RenderScene {
             }
 
             // Continue the path by sampling the BRDF.
-            let sample = shading.brdf.sample(wo, stream.next_3d());
+            let sample = brdf_at.sample(stream.next_3d());
             if bounce == 0 {
                 first = FirstHit {
                     depth: hit.t,
@@ -370,9 +373,9 @@ impl RenderScene {
     fn direct(
         &self,
         shading: &Shading<'_>,
+        brdf_at: &BrdfAt<'_>,
         hit: &SurfaceHit,
         point: DVec3,
-        wo: DVec3,
         direction: DVec3,
         distance: f64,
         incoming: Rgb,
@@ -387,7 +390,7 @@ impl RenderScene {
         if wi.z <= 0.0 {
             return Rgb::ZERO;
         }
-        let (f, brdf_pdf) = shading.brdf.eval_and_pdf(wi, wo);
+        let (f, brdf_pdf) = brdf_at.eval_and_pdf(wi);
         if f.max_element() <= 0.0 || incoming.max_element() <= 0.0 {
             return Rgb::ZERO;
         }
