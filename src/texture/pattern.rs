@@ -46,7 +46,7 @@ use std::fmt;
 
 use super::hash::{derive_stream, unit_f64};
 use super::noise_fns::{Fbm, Marble, PerlinNoise, Turbulence};
-use super::voronoi::{Voronoi, VoronoiNearest};
+use super::voronoi::{floor_fast, Voronoi, VoronoiNearest};
 
 /// Stream of a surface-map cell's entry choice.
 pub const STREAM_ENTRY: u64 = 1;
@@ -353,19 +353,6 @@ impl PhaseArcs {
             self.critical[j]
         };
         (low_turn - margin > previous && high_turn + margin < next).then(|| self.entries[j])
-    }
-}
-
-/// `floor` without a library call (see `voronoi::floor_fast`); exact below
-/// 2⁵², the identity above (NaN passes through).
-#[inline(always)]
-fn floor_fast(x: f64) -> f64 {
-    const ALL_INTEGERS_FROM: f64 = 4_503_599_627_370_496.0; // 2⁵²
-    if x.abs() < ALL_INTEGERS_FROM {
-        let truncated = (x as i64) as f64;
-        truncated - f64::from(u8::from(truncated > x))
-    } else {
-        x
     }
 }
 

@@ -166,7 +166,7 @@ const MAX_RING: i32 = 4;
 /// integer conversion truncates exactly; at and above, every `f64` is
 /// already an integer (NaN passes through).
 #[inline(always)]
-fn floor_fast(x: f64) -> f64 {
+pub(crate) fn floor_fast(x: f64) -> f64 {
     const ALL_INTEGERS_FROM: f64 = 4_503_599_627_370_496.0; // 2⁵²
     if x.abs() < ALL_INTEGERS_FROM {
         let truncated = (x as i64) as f64;
