@@ -435,9 +435,23 @@ impl Compensation {
         self.albedo(mu).max(Rgb::ZERO)
     }
 
+    /// Probability with which a layered BRDF samples this lobe for an
+    /// outgoing direction whose table value is D(μₒ) = `d_o`: the mean added
+    /// albedo d mapped to d / (d + 0.5), at most one half.
+    pub fn sampling_probability(d_o: Rgb) -> f64 {
+        let d = d_o.max(Rgb::ZERO).element_sum() / 3.0;
+        (d / (d + 0.5)).min(0.5)
+    }
+
     /// f_ms(ωᵢ, ωₒ) = P(μᵢ)P(μₒ)/(πP̄) − X(μᵢ)X(μₒ)/(πX̄) per channel (signed).
     pub fn eval(&self, wi: DVec3, wo: DVec3) -> Rgb {
-        let (di, d_o) = (self.albedo(wi.z), self.albedo(wo.z));
+        self.eval_from_albedos(self.albedo(wi.z), self.albedo(wo.z))
+    }
+
+    /// [`Self::eval`] from the two table values D(μᵢ) = `di` and D(μₒ) =
+    /// `d_o`, so that a path vertex looks D(μₒ) up once for all its
+    /// evaluations (see `BrdfAt`).
+    pub fn eval_from_albedos(&self, di: Rgb, d_o: Rgb) -> Rgb {
         let positive = di.max(Rgb::ZERO) * d_o.max(Rgb::ZERO);
         let negative = (-di).max(Rgb::ZERO) * (-d_o).max(Rgb::ZERO);
         (per_channel_div(positive, self.positive_average)

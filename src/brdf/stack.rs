@@ -28,7 +28,6 @@ use crate::brdf::microfacet::{refract, MicrofacetModel};
 use crate::brdf::Rgb;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use glam::DVec3;
-use std::f64::consts::FRAC_1_PI;
 
 /// A compiled layered material: interfaces from top to bottom over a base.
 #[derive(Clone, Debug)]
@@ -309,10 +308,7 @@ impl LayeredBrdf {
     /// Probability of sampling the compensation lobe for outgoing `wo`.
     fn compensation_weight(&self, wo: DVec3) -> f64 {
         match &self.compensation {
-            Some(c) => {
-                let d = c.added_albedo(wo.z).element_sum() / 3.0;
-                (d / (d + 0.5)).min(0.5)
-            }
+            Some(c) => Compensation::sampling_probability(c.albedo(wo.z)),
             None => 0.0,
         }
     }
@@ -322,20 +318,6 @@ impl LayeredBrdf {
     /// Same as `self.at(wo).sample(u)`.
     #[inline]
     pub fn sample(&self, wo: DVec3, u: [f64; 3]) -> Option<BrdfSample> {
-        // The bare Lambert shortcut inline in the caller, the rest out of
-        // line (building a `BrdfAt` in the caller costs more than it saves).
-        if let Some(value) = self.bare_lambert() {
-            if wo.z <= 0.0 {
-                return None;
-            }
-            return lambert_sample(value, u);
-        }
-        self.sample_layered(wo, u)
-    }
-
-    /// [`LayeredBrdf::sample`] of a material that is not bare Lambert.
-    #[inline(never)]
-    fn sample_layered(&self, wo: DVec3, u: [f64; 3]) -> Option<BrdfSample> {
         self.at(wo).sample(u)
     }
 
@@ -347,18 +329,6 @@ impl LayeredBrdf {
     /// Same as `self.at(wo).eval_and_pdf(wi)`.
     #[inline]
     pub fn eval_and_pdf(&self, wi: DVec3, wo: DVec3) -> (Rgb, f64) {
-        if let Some(value) = self.bare_lambert() {
-            if wi.z <= 0.0 || wo.z <= 0.0 {
-                return (Rgb::ZERO, 0.0);
-            }
-            return (value, cosine_hemisphere_pdf(wi));
-        }
-        self.eval_and_pdf_layered(wi, wo)
-    }
-
-    /// [`LayeredBrdf::eval_and_pdf`] of a material that is not bare Lambert.
-    #[inline(never)]
-    fn eval_and_pdf_layered(&self, wi: DVec3, wo: DVec3) -> (Rgb, f64) {
         self.at(wo).eval_and_pdf(wi)
     }
 
@@ -414,9 +384,7 @@ impl LayeredBrdf {
         let (p_comp, compensation_albedo_o) = match &self.compensation {
             Some(c) => {
                 let albedo_o = c.albedo(wo.z);
-                // As `compensation_weight`, with added_albedo = max(D, 0).
-                let d = albedo_o.max(Rgb::ZERO).element_sum() / 3.0;
-                ((d / (d + 0.5)).min(0.5), albedo_o)
+                (Compensation::sampling_probability(albedo_o), albedo_o)
             }
             None => (0.0, Rgb::ZERO),
         };
@@ -545,7 +513,7 @@ impl BrdfAt<'_> {
         // probability from `prepare`.
         let value = match &brdf.compensation {
             Some(c) => {
-                let lobe = compensation_value(c, c.albedo(wi.z), prepared.compensation_albedo_o);
+                let lobe = c.eval_from_albedos(c.albedo(wi.z), prepared.compensation_albedo_o);
                 (single + lobe).max(Rgb::ZERO)
             }
             None => single,
@@ -624,26 +592,9 @@ fn accept(wi: DVec3, value: Rgb, pdf: f64) -> Option<BrdfSample> {
     }
 }
 
-/// [`Compensation::eval`] from the two table lookups D(μᵢ), D(μₒ) (so that
-/// a vertex looks D(μₒ) up once): f_ms = P(μᵢ)P(μₒ)/(πP̄) − X(μᵢ)X(μₒ)/(πX̄)
-/// per channel, with P = max(D, 0), X = max(−D, 0); the same operations in
-/// the same order (pinned by a test against `Compensation::eval`).
-fn compensation_value(c: &Compensation, albedo_i: Rgb, albedo_o: Rgb) -> Rgb {
-    let positive = albedo_i.max(Rgb::ZERO) * albedo_o.max(Rgb::ZERO);
-    let negative = (-albedo_i).max(Rgb::ZERO) * (-albedo_o).max(Rgb::ZERO);
-    (per_channel_div(positive, c.positive_average) - per_channel_div(negative, c.negative_average))
-        * FRAC_1_PI
-}
-
-/// a / b per channel, 0 where b ≤ 10⁻¹² (as in the compensation module).
-fn per_channel_div(a: Rgb, b: Rgb) -> Rgb {
-    let safe_div = |a: f64, b: f64| if b > 1e-12 { a / b } else { 0.0 };
-    Rgb::new(safe_div(a.x, b.x), safe_div(a.y, b.y), safe_div(a.z, b.z))
-}
-
 #[cfg(test)]
 mod tests {
-    use super::{compensation_value, BrdfSample, Form, LayeredBrdf};
+    use super::{BrdfSample, Form, LayeredBrdf};
     use crate::brdf::{Base, MicrofacetModel, Rgb};
     use crate::recipe::library::builtin_material_names;
     use crate::recipe::load_material;
@@ -745,27 +696,6 @@ mod tests {
             assert!((pdf - expected.1).abs() < 1e-16);
             assert_eq!((value, pdf), (ground.eval(wi, wo), ground.pdf(wi, wo)));
         }
-    }
-
-    #[test]
-    fn compensation_from_two_lookups_equals_the_lobe() {
-        let mut rng = Rng::new(11, 12);
-        let mut compensated = 0;
-        for brdf in materials() {
-            let Some(c) = &brdf.compensation else {
-                continue;
-            };
-            compensated += 1;
-            for _ in 0..300 {
-                let [a, b, _] = rng.next_3();
-                let [x, y, _] = rng.next_3();
-                let wi = DVec3::new(x - 0.5, y - 0.5, a).normalize();
-                let wo = DVec3::new(y - 0.5, 0.5 - x, b).normalize();
-                let split = compensation_value(c, c.albedo(wi.z), c.albedo(wo.z));
-                assert_eq!(split, c.eval(wi, wo), "{}", brdf.name);
-            }
-        }
-        assert!(compensated > 0, "no compensated material to test");
     }
 
     #[test]

@@ -97,13 +97,7 @@ pub fn run(args: GalleryArgs) -> Result<(), String> {
     check_only(&args.only, &gems)?;
     prepare_dir(&args.output)?;
     let wanted = |name: &str| args.only.is_empty() || args.only.iter().any(|n| n == name);
-    let mut pool = rayon::ThreadPoolBuilder::new();
-    if let Some(threads) = args.threads {
-        pool = pool.num_threads(threads);
-    }
-    let pool = pool
-        .build()
-        .map_err(|e| format!("cannot start worker threads: {e}"))?;
+    let pool = super::worker_pool(args.threads)?;
     let started = Instant::now();
     // Gems are encoded as `lapidary render` encodes them (same bytes);
     // the sheets at the best compression (many renders in one PNG).

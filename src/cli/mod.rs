@@ -111,6 +111,17 @@ pub fn emit(line: &str) {
     }
 }
 
+/// The rayon pool a command renders in: `threads` workers, or one per
+/// core when `None` (`--threads`); the message names what failed.
+pub fn worker_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> {
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(threads) = threads {
+        pool = pool.num_threads(threads);
+    }
+    pool.build()
+        .map_err(|e| format!("cannot start worker threads: {e}"))
+}
+
 /// Parse the command line and run; returns the process exit code.
 pub fn run() -> i32 {
     let cli = match Cli::try_parse() {

@@ -237,13 +237,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         samples_per_pixel: args.spp,
         seed: args.seed,
     };
-    let mut pool = rayon::ThreadPoolBuilder::new();
-    if let Some(threads) = args.threads {
-        pool = pool.num_threads(threads);
-    }
-    let pool = pool
-        .build()
-        .map_err(|e| format!("cannot start worker threads: {e}"))?;
+    let pool = super::worker_pool(args.threads)?;
     let bar = if !quiet && std::io::stderr().is_terminal() {
         let bar = ProgressBar::new(u64::from(width) * u64::from(height));
         bar.set_style(
