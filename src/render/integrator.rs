@@ -110,6 +110,15 @@ struct Frame {
 }
 
 impl Frame {
+    /// The frame around +z, the ground's normal: exactly what
+    /// `Frame::new(DVec3::Z)` builds (Duff et al.'s basis gives x, y for
+    /// z), without computing it at every ground hit.
+    const UP: Frame = Frame {
+        t: DVec3::X,
+        b: DVec3::Y,
+        n: DVec3::Z,
+    };
+
     fn new(n: DVec3) -> Self {
         let (t, b) = n.any_orthonormal_pair();
         Self { t, b, n }
@@ -122,11 +131,19 @@ impl Frame {
     }
 }
 
-/// The BRDF and frame at a hit.
+/// The BRDF and frame at a hit, and which material the pattern picked.
 struct Shading<'a> {
     brdf: &'a LayeredBrdf,
     frame: Frame,
-    first_hit: FirstHit,
+    pick: MaterialPick,
+}
+
+/// The pattern's choice at a hit, as the first-hit AOVs report it.
+#[derive(Clone, Copy)]
+struct MaterialPick {
+    material_id: u32,
+    surface_cell: u32,
+    glitter: bool,
 }
 
 impl RenderScene {
@@ -136,10 +153,15 @@ impl RenderScene {
         match hit.surface {
             Surface::Ground => Some(Shading {
                 brdf: self.ground_brdf.as_ref()?,
-                frame: Frame::new(hit.normal),
-                first_hit: FirstHit {
+                frame: if hit.normal == DVec3::Z {
+                    Frame::UP
+                } else {
+                    Frame::new(hit.normal)
+                },
+                pick: MaterialPick {
                     material_id: MATERIAL_ID_GROUND,
-                    ..FirstHit::default()
+                    surface_cell: 0,
+                    glitter: false,
                 },
             }),
             Surface::Stone {
@@ -163,11 +185,10 @@ impl RenderScene {
                 Some(Shading {
                     brdf: &gem.brdfs[resolved.material as usize],
                     frame: Frame::new(normal),
-                    first_hit: FirstHit {
+                    pick: MaterialPick {
                         surface_cell: resolved.surface_cell as u32,
                         glitter: resolved.glitter_cell.is_some(),
                         material_id: gem.material_id_base + resolved.material,
-                        ..FirstHit::default()
                     },
                 })
             }
@@ -289,7 +310,9 @@ impl RenderScene {
                     normal: shading.frame.n,
                     albedo: sample.map_or(Rgb::ZERO, |s| s.weight()),
                     unoccluded: self.unoccluded(&hit, point, stream, counts),
-                    ..shading.first_hit
+                    surface_cell: shading.pick.surface_cell,
+                    glitter: shading.pick.glitter,
+                    material_id: shading.pick.material_id,
                 };
             }
             let Some(sample) = sample else {
@@ -406,11 +429,14 @@ impl RenderScene {
         {
             return Rgb::ZERO;
         }
-        let weight = if is_delta {
-            1.0
+        // cosθ·w/pdf with the power heuristic w = pdf²/(pdf² + pdf_brdf²)
+        // (eq. 9.13) folds into cosθ·pdf/(pdf² + pdf_brdf²): one division
+        // on the path's critical chain instead of two (pdf > 0 here).
+        let scale = if is_delta {
+            wi.z / pdf
         } else {
-            power_heuristic(pdf, brdf_pdf)
+            wi.z * pdf / (pdf * pdf + brdf_pdf * brdf_pdf)
         };
-        f * incoming * (wi.z * weight / pdf)
+        f * incoming * scale
     }
 }
