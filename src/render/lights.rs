@@ -454,6 +454,71 @@ mod tests {
     }
 
     #[test]
+    fn the_inlined_sphere_hit_is_the_first_root_of_the_ray_sphere_quadratic() {
+        // `hit` tests spheres inline and every other kind behind a call:
+        // check the inline test against |o + t·d − c|² = r² solved the
+        // textbook way (a = 1, b = 2 oc·d, c = |oc|² − r², t = (−b ∓ √(b² −
+        // 4c))/2): a ray from outside meets the light at the smaller root
+        // if it is positive; a ray from inside sees the inside of the
+        // surface, which emits outwards only (as `sample` gives nothing to
+        // a point inside), so never. Rays that miss, graze, start inside,
+        // point away and stop short at t_max.
+        let centre = DVec3::new(0.5, -1.0, 2.0);
+        let radius = 0.75;
+        let light = Light::Sphere {
+            centre,
+            radius,
+            radiance: Rgb::new(1.0, 2.0, 3.0),
+        };
+        let mut rng = Rng::new(11, 2);
+        let (mut hits, mut misses) = (0, 0);
+        for i in 0..20_000 {
+            let origin = centre
+                + (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5)
+                    * if i % 4 == 0 { 1.0 } else { 6.0 };
+            let aim = centre + (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5);
+            let direction = if i % 3 == 0 {
+                (origin - aim).normalize() // mostly away from the sphere
+            } else {
+                (aim - origin).normalize()
+            };
+            let t_max = if i % 5 == 0 { 2.0 } else { f64::INFINITY };
+            let oc = origin - centre;
+            let (b, c) = (
+                2.0 * oc.dot(direction),
+                oc.length_squared() - radius * radius,
+            );
+            let disc = b * b - 4.0 * c;
+            let expected = (disc >= 0.0)
+                .then(|| {
+                    let near = (-b - disc.sqrt()) / 2.0;
+                    (c > 0.0 && near > 0.0).then_some(near)
+                })
+                .flatten()
+                .filter(|t| *t < t_max);
+            match (light.hit(origin, direction, t_max), expected) {
+                (Some((t, emitted)), Some(want)) => {
+                    hits += 1;
+                    assert!((t - want).abs() < 1e-9 * want.max(1.0), "{t} vs {want}");
+                    assert_eq!(emitted, Rgb::new(1.0, 2.0, 3.0));
+                }
+                (None, None) => misses += 1,
+                (got, want) => panic!("ray {i}: hit {got:?}, expected {want:?}"),
+            }
+        }
+        assert!(hits > 2000 && misses > 2000, "{hits} hits, {misses} misses");
+        // The other kinds go through the out-of-line path.
+        let point = Light::Point {
+            position: DVec3::ZERO,
+            intensity: Rgb::ONE,
+        };
+        assert_eq!(point.hit(DVec3::Z, -DVec3::Z, f64::INFINITY), None);
+        let sun = Light::sun(DVec3::Z, 1.0, Rgb::ONE);
+        assert!(sun.hit(DVec3::ZERO, DVec3::Z, f64::INFINITY).is_some());
+        assert_eq!(sun.hit(DVec3::ZERO, DVec3::Z, 5.0), None);
+    }
+
+    #[test]
     fn a_rect_light_subtends_its_analytic_solid_angle() {
         // Solid angle of a square of side 2 at distance 1 on its axis:
         // Ω = 4·asin(sin a · sin b) with tan a = tan b = 1 → 4·asin(1/2) = 2π/3.
