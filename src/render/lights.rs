@@ -292,32 +292,34 @@ fn cone_pdf(cos_max: f64) -> f64 {
 /// A direction uniformly distributed in the cone around unit `axis`, and
 /// the cosine of its angle to the axis. Inlined: passing the sample and
 /// the direction through memory is a tenth of its cost.
+///
+/// The direction is p·t + q·b + c·n for n = `axis`, (p, q, c) = (sinθ cosφ,
+/// sinθ sinφ, cosθ) and (t, b) the orthonormal pair of Duff et al.,
+/// "Building an Orthonormal Basis, Revisited" (JCGT 2017, listing 3; glam's
+/// `any_orthonormal_pair`): with s = sign(n.z), a = −1/(s + n.z),
+/// t = (1 + s·x²·a, s·x·y·a, −s·x) and b = (x·y·a, s + y²·a, −y). Collecting
+/// the terms in x and y, with w = s·x·p + y·q and m = a·w + c,
+///
+///   direction = (p + x·m, s·q + y·m, z·c − w),
+///
+/// the same vector without building t and b (half the multiplications).
+/// Unit by construction (sin² + cos² = 1 and an orthonormal basis, to
+/// within 10⁻¹³): no normalisation, whose division and square root are a
+/// tenth of a light sample's time.
 #[inline(always)]
 fn sample_cone(axis: DVec3, cos_max: f64, u: [f64; 2]) -> (DVec3, f64) {
     let cos_theta = 1.0 - u[0] * (1.0 - cos_max);
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
     let (sin_phi, cos_phi) = crate::sampling::sin_cos_turns(u[1]);
-    let (t, b) = orthonormal_pair(axis);
-    // Unit by construction (t, b, axis orthonormal and sin² + cos² = 1, to
-    // within 10⁻¹³): no normalisation, whose division and square root are a
-    // tenth of a light sample's time.
-    let direction = t * (sin_theta * cos_phi) + b * (sin_theta * sin_phi) + axis * cos_theta;
+    let (p, q) = (sin_theta * cos_phi, sin_theta * sin_phi);
+    // The sign of n.z by `copysign`, which equals `signum` for every number
+    // but NaN and skips its NaN test; |s + z| ≥ 1, so a never overflows.
+    let s = 1.0f64.copysign(axis.z);
+    let a = -1.0 / (s + axis.z);
+    let w = s * axis.x * p + axis.y * q;
+    let m = a * w + cos_theta;
+    let direction = DVec3::new(p + axis.x * m, s * q + axis.y * m, axis.z * cos_theta - w);
     (direction, cos_theta)
-}
-
-/// Two unit vectors completing unit `n` to an orthonormal basis: glam's
-/// `any_orthonormal_pair` (Duff et al., "Building an Orthonormal Basis,
-/// Revisited", JCGT 2017, listing 3) with the sign of n.z taken by
-/// `copysign`, which equals `signum` for every number but NaN and skips its
-/// NaN test.
-fn orthonormal_pair(n: DVec3) -> (DVec3, DVec3) {
-    let sign = 1.0f64.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (
-        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        DVec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
 }
 
 /// Nearest positive distance at which the ray enters the sphere.
@@ -364,15 +366,36 @@ mod tests {
     }
 
     #[test]
-    fn the_orthonormal_pair_is_glams_bit_for_bit() {
+    fn the_collected_cone_direction_is_the_sample_in_glams_orthonormal_basis() {
+        // sample_cone collects the terms of p·t + q·b + c·n; build the same
+        // sum from glam's any_orthonormal_pair (Duff et al. 2017) and the
+        // spherical coordinates written out with libm's sin and cos.
         let mut rng = Rng::new(4, 4);
         let random = (0..5000).map(|_| {
             let v = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 2.0 - 1.0;
             v.normalize()
         });
-        let axes = [DVec3::Z, -DVec3::Z, DVec3::X, DVec3::new(0.6, 0.8, -0.0)];
-        for n in axes.into_iter().chain(random) {
-            assert_eq!(orthonormal_pair(n), n.any_orthonormal_pair(), "n = {n}");
+        let axes: Vec<DVec3> = [DVec3::Z, -DVec3::Z, DVec3::X, DVec3::new(0.6, 0.8, -0.0)]
+            .into_iter()
+            .chain(random)
+            .collect();
+        let mut rng = Rng::new(5, 5);
+        for n in axes {
+            let (t, b) = n.any_orthonormal_pair();
+            for cos_max in [0.999, 0.5, -1.0] {
+                let u = [rng.next_f64(), rng.next_f64()];
+                let cos_theta = 1.0 - u[0] * (1.0 - cos_max);
+                let sin_theta = (1.0 - cos_theta * cos_theta).sqrt();
+                let (sin_phi, cos_phi) = (2.0 * PI * u[1]).sin_cos();
+                let expected =
+                    t * (sin_theta * cos_phi) + b * (sin_theta * sin_phi) + n * cos_theta;
+                let (direction, c) = sample_cone(n, cos_max, u);
+                assert_eq!(c, cos_theta);
+                assert!(
+                    (direction - expected).length() < 1e-13,
+                    "n = {n}: {direction} vs {expected}"
+                );
+            }
         }
     }
 
