@@ -45,7 +45,27 @@ impl LightSpec {
     }
 
     /// Choose a direction towards the light seen from `point`.
+    ///
+    /// Inlined, with the sphere light (the one the benchmark scenes use)
+    /// handled here and the other kinds behind a call: with [`Light::hit`]
+    /// inlined the same way, the lights' share of the peer scene's
+    /// instructions fell by 15 % (the call, the sample passed back through
+    /// memory and the dispatch on the kind).
+    #[inline(always)]
     pub fn sample(&self, point: DVec3, u: [f64; 2]) -> Option<LightSample> {
+        match *self {
+            Light::Sphere {
+                centre,
+                radius,
+                radiance,
+            } => sample_sphere(centre, radius, radiance, point, u),
+            _ => self.sample_other(point, u),
+        }
+    }
+
+    /// [`Light::sample`] for every kind but the sphere.
+    #[inline(never)]
+    fn sample_other(&self, point: DVec3, u: [f64; 2]) -> Option<LightSample> {
         match *self {
             Light::Point {
                 position,
@@ -69,32 +89,7 @@ impl LightSpec {
                 centre,
                 radius,
                 radiance,
-            } => {
-                let to = centre - point;
-                let d2 = to.length_squared();
-                let r2 = radius * radius;
-                if d2 <= r2 {
-                    return None;
-                }
-                let d = d2.sqrt();
-                let axis = to / d;
-                let cos_max = (1.0 - r2 / d2).max(0.0).sqrt();
-                let (direction, cos_theta) = sample_cone(axis, cos_max, u);
-                // The sampled ray meets the sphere at the nearer root of
-                // t² − 2t·d·cosθ + d² − r² = 0 (the law of cosines in the
-                // triangle point–centre–hit), t = d·cosθ − √(r² − d²·sin²θ):
-                // no second ray–sphere test. Inside the cone d·sinθ ≤ r up
-                // to rounding, which the clamp absorbs (the tangent point).
-                let sin2_theta = 1.0 - cos_theta * cos_theta;
-                let distance = d * cos_theta - (r2 - d2 * sin2_theta).max(0.0).sqrt();
-                Some(LightSample {
-                    direction,
-                    distance,
-                    radiance,
-                    pdf: cone_pdf(cos_max),
-                    is_delta: false,
-                })
-            }
+            } => sample_sphere(centre, radius, radiance, point, u),
             Light::Rect {
                 centre,
                 normal,
@@ -140,7 +135,28 @@ impl LightSpec {
     /// Where a ray from `origin` along unit `direction` first meets the
     /// light's emitting surface, if before `t_max`: (distance, radiance).
     /// The sun is met only by rays that escape (`t_max` infinite).
+    ///
+    /// Inlined, with the sphere light tested here and the other kinds
+    /// behind a call: every traced ray is tested against every light and
+    /// almost every test misses at the discriminant, a few instructions
+    /// next to those of a call and a dispatch on the kind.
+    #[inline(always)]
     pub fn hit(&self, origin: DVec3, direction: DVec3, t_max: f64) -> Option<(f64, Rgb)> {
+        match *self {
+            Light::Sphere {
+                centre,
+                radius,
+                radiance,
+            } => sphere_entry(origin, direction, centre, radius)
+                .filter(|t| *t < t_max)
+                .map(|t| (t, radiance)),
+            _ => self.hit_other(origin, direction, t_max),
+        }
+    }
+
+    /// [`Light::hit`] for every kind but the sphere.
+    #[inline(never)]
+    fn hit_other(&self, origin: DVec3, direction: DVec3, t_max: f64) -> Option<(f64, Rgb)> {
         match *self {
             Light::Point { .. } => None,
             Light::Sphere {
@@ -220,6 +236,43 @@ impl LightSpec {
     }
 }
 
+/// [`Light::sample`] for a sphere light of `radius` around `centre`: a
+/// direction uniform in the cone the sphere subtends from `point` (Shirley
+/// et al. 1996; pbrt-v4 §6.2.4), pdf 1/(2π(1 − cosθ_max)).
+#[inline(always)]
+fn sample_sphere(
+    centre: DVec3,
+    radius: f64,
+    radiance: Rgb,
+    point: DVec3,
+    u: [f64; 2],
+) -> Option<LightSample> {
+    let to = centre - point;
+    let d2 = to.length_squared();
+    let r2 = radius * radius;
+    if d2 <= r2 {
+        return None;
+    }
+    let d = d2.sqrt();
+    let axis = to / d;
+    let cos_max = (1.0 - r2 / d2).max(0.0).sqrt();
+    let (direction, cos_theta) = sample_cone(axis, cos_max, u);
+    // The sampled ray meets the sphere at the nearer root of
+    // t² − 2t·d·cosθ + d² − r² = 0 (the law of cosines in the
+    // triangle point–centre–hit), t = d·cosθ − √(r² − d²·sin²θ):
+    // no second ray–sphere test. Inside the cone d·sinθ ≤ r up
+    // to rounding, which the clamp absorbs (the tangent point).
+    let sin2_theta = 1.0 - cos_theta * cos_theta;
+    let distance = d * cos_theta - (r2 - d2 * sin2_theta).max(0.0).sqrt();
+    Some(LightSample {
+        direction,
+        distance,
+        radiance,
+        pdf: cone_pdf(cos_max),
+        is_delta: false,
+    })
+}
+
 /// cos of the sun disc's angular radius.
 fn sun_cos_radius(angular_diameter_deg: f64) -> f64 {
     (angular_diameter_deg * 0.5).to_radians().cos()
@@ -240,35 +293,40 @@ fn cone_pdf(cos_max: f64) -> f64 {
 /// A direction uniformly distributed in the cone around unit `axis`, and
 /// the cosine of its angle to the axis. Inlined: passing the sample and
 /// the direction through memory is a tenth of its cost.
+///
+/// The direction is p·t + q·b + c·n for n = `axis`, (p, q, c) = (sinθ cosφ,
+/// sinθ sinφ, cosθ) and (t, b) the orthonormal pair of Duff et al.,
+/// "Building an Orthonormal Basis, Revisited" (JCGT 2017, listing 3; glam's
+/// `any_orthonormal_pair`): with s = sign(n.z), a = −1/(s + n.z),
+/// t = (1 + s·x²·a, s·x·y·a, −s·x) and b = (x·y·a, s + y²·a, −y). Collecting
+/// the terms in x and y, with w = s·x·p + y·q and m = a·w + c,
+///
+///   direction = (p + x·m, s·q + y·m, z·c − w),
+///
+/// the same vector without building t and b: 10 multiplications instead of
+/// 20 (3.6 instructions fewer per light sample as compiled), equal to the
+/// sum over the basis to rounding.
+/// Unit by construction (sin² + cos² = 1 and an orthonormal basis, to
+/// within 10⁻¹³): no normalisation, whose division and square root are a
+/// tenth of a light sample's time.
 #[inline(always)]
 fn sample_cone(axis: DVec3, cos_max: f64, u: [f64; 2]) -> (DVec3, f64) {
     let cos_theta = 1.0 - u[0] * (1.0 - cos_max);
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
     let (sin_phi, cos_phi) = crate::sampling::sin_cos_turns(u[1]);
-    let (t, b) = orthonormal_pair(axis);
-    // Unit by construction (t, b, axis orthonormal and sin² + cos² = 1, to
-    // within 10⁻¹³): no normalisation, whose division and square root are a
-    // tenth of a light sample's time.
-    let direction = t * (sin_theta * cos_phi) + b * (sin_theta * sin_phi) + axis * cos_theta;
+    let (p, q) = (sin_theta * cos_phi, sin_theta * sin_phi);
+    // The sign of n.z by `copysign`, which equals `signum` for every number
+    // but NaN and skips its NaN test; |s + z| ≥ 1, so a never overflows.
+    let s = 1.0f64.copysign(axis.z);
+    let a = -1.0 / (s + axis.z);
+    let w = s * axis.x * p + axis.y * q;
+    let m = a * w + cos_theta;
+    let direction = DVec3::new(p + axis.x * m, s * q + axis.y * m, axis.z * cos_theta - w);
     (direction, cos_theta)
 }
 
-/// Two unit vectors completing unit `n` to an orthonormal basis: glam's
-/// `any_orthonormal_pair` (Duff et al., "Building an Orthonormal Basis,
-/// Revisited", JCGT 2017, listing 3) with the sign of n.z taken by
-/// `copysign`, which equals `signum` for every number but NaN and skips its
-/// NaN test.
-fn orthonormal_pair(n: DVec3) -> (DVec3, DVec3) {
-    let sign = 1.0f64.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (
-        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        DVec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
-}
-
 /// Nearest positive distance at which the ray enters the sphere.
+#[inline(always)]
 fn sphere_entry(origin: DVec3, direction: DVec3, centre: DVec3, radius: f64) -> Option<f64> {
     let oc = origin - centre;
     let b = oc.dot(direction);
@@ -311,15 +369,36 @@ mod tests {
     }
 
     #[test]
-    fn the_orthonormal_pair_is_glams_bit_for_bit() {
+    fn the_collected_cone_direction_is_the_sample_in_glams_orthonormal_basis() {
+        // sample_cone collects the terms of p·t + q·b + c·n; build the same
+        // sum from glam's any_orthonormal_pair (Duff et al. 2017) and the
+        // spherical coordinates written out with libm's sin and cos.
         let mut rng = Rng::new(4, 4);
         let random = (0..5000).map(|_| {
             let v = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 2.0 - 1.0;
             v.normalize()
         });
-        let axes = [DVec3::Z, -DVec3::Z, DVec3::X, DVec3::new(0.6, 0.8, -0.0)];
-        for n in axes.into_iter().chain(random) {
-            assert_eq!(orthonormal_pair(n), n.any_orthonormal_pair(), "n = {n}");
+        let axes: Vec<DVec3> = [DVec3::Z, -DVec3::Z, DVec3::X, DVec3::new(0.6, 0.8, -0.0)]
+            .into_iter()
+            .chain(random)
+            .collect();
+        let mut rng = Rng::new(5, 5);
+        for n in axes {
+            let (t, b) = n.any_orthonormal_pair();
+            for cos_max in [0.999, 0.5, -1.0] {
+                let u = [rng.next_f64(), rng.next_f64()];
+                let cos_theta = 1.0 - u[0] * (1.0 - cos_max);
+                let sin_theta = (1.0 - cos_theta * cos_theta).sqrt();
+                let (sin_phi, cos_phi) = (2.0 * PI * u[1]).sin_cos();
+                let expected =
+                    t * (sin_theta * cos_phi) + b * (sin_theta * sin_phi) + n * cos_theta;
+                let (direction, c) = sample_cone(n, cos_max, u);
+                assert_eq!(c, cos_theta);
+                assert!(
+                    (direction - expected).length() < 1e-13,
+                    "n = {n}: {direction} vs {expected}"
+                );
+            }
         }
     }
 
@@ -398,6 +477,71 @@ mod tests {
                 assert!((on_sphere - radius).abs() < 1e-9 * distance);
             }
         }
+    }
+
+    #[test]
+    fn the_inlined_sphere_hit_is_the_first_root_of_the_ray_sphere_quadratic() {
+        // `hit` tests spheres inline and every other kind behind a call:
+        // check the inline test against |o + t·d − c|² = r² solved the
+        // textbook way (a = 1, b = 2 oc·d, c = |oc|² − r², t = (−b ∓ √(b² −
+        // 4c))/2): a ray from outside meets the light at the smaller root
+        // if it is positive; a ray from inside sees the inside of the
+        // surface, which emits outwards only (as `sample` gives nothing to
+        // a point inside), so never. Rays that miss, graze, start inside,
+        // point away and stop short at t_max.
+        let centre = DVec3::new(0.5, -1.0, 2.0);
+        let radius = 0.75;
+        let light = Light::Sphere {
+            centre,
+            radius,
+            radiance: Rgb::new(1.0, 2.0, 3.0),
+        };
+        let mut rng = Rng::new(11, 2);
+        let (mut hits, mut misses) = (0, 0);
+        for i in 0..20_000 {
+            let origin = centre
+                + (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5)
+                    * if i % 4 == 0 { 1.0 } else { 6.0 };
+            let aim = centre + (DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5);
+            let direction = if i % 3 == 0 {
+                (origin - aim).normalize() // mostly away from the sphere
+            } else {
+                (aim - origin).normalize()
+            };
+            let t_max = if i % 5 == 0 { 2.0 } else { f64::INFINITY };
+            let oc = origin - centre;
+            let (b, c) = (
+                2.0 * oc.dot(direction),
+                oc.length_squared() - radius * radius,
+            );
+            let disc = b * b - 4.0 * c;
+            let expected = (disc >= 0.0)
+                .then(|| {
+                    let near = (-b - disc.sqrt()) / 2.0;
+                    (c > 0.0 && near > 0.0).then_some(near)
+                })
+                .flatten()
+                .filter(|t| *t < t_max);
+            match (light.hit(origin, direction, t_max), expected) {
+                (Some((t, emitted)), Some(want)) => {
+                    hits += 1;
+                    assert!((t - want).abs() < 1e-9 * want.max(1.0), "{t} vs {want}");
+                    assert_eq!(emitted, Rgb::new(1.0, 2.0, 3.0));
+                }
+                (None, None) => misses += 1,
+                (got, want) => panic!("ray {i}: hit {got:?}, expected {want:?}"),
+            }
+        }
+        assert!(hits > 2000 && misses > 2000, "{hits} hits, {misses} misses");
+        // The other kinds go through the out-of-line path.
+        let point = Light::Point {
+            position: DVec3::ZERO,
+            intensity: Rgb::ONE,
+        };
+        assert_eq!(point.hit(DVec3::Z, -DVec3::Z, f64::INFINITY), None);
+        let sun = Light::sun(DVec3::Z, 1.0, Rgb::ONE);
+        assert!(sun.hit(DVec3::ZERO, DVec3::Z, f64::INFINITY).is_some());
+        assert_eq!(sun.hit(DVec3::ZERO, DVec3::Z, 5.0), None);
     }
 
     #[test]
