@@ -23,8 +23,11 @@ pub struct PinholeCamera {
     /// tan(vertical_fov / 2) and the same times the aspect ratio.
     half_height: f64,
     half_width: f64,
-    width_px: f64,
-    height_px: f64,
+    /// Film-plane units per pixel across, 2·half_width/width: a product
+    /// per ray instead of a division on the way to every camera ray.
+    film_units_per_px_x: f64,
+    /// Film-plane units per pixel down, 2·half_height/height.
+    film_units_per_px_y: f64,
 }
 
 impl PinholeCamera {
@@ -56,8 +59,8 @@ impl PinholeCamera {
             forward,
             half_height,
             half_width: half_height * aspect,
-            width_px: f64::from(width_px),
-            height_px: f64::from(height_px),
+            film_units_per_px_x: 2.0 * half_height * aspect / f64::from(width_px),
+            film_units_per_px_y: 2.0 * half_height / f64::from(height_px),
         }
     }
 
@@ -65,8 +68,8 @@ impl PinholeCamera {
     /// downward from the top-left corner; pixel (i, j) covers
     /// [i, i+1) × [j, j+1).
     pub fn ray(&self, x_px: f64, y_px: f64) -> CameraRay {
-        let sx = (2.0 * x_px / self.width_px - 1.0) * self.half_width;
-        let sy = (1.0 - 2.0 * y_px / self.height_px) * self.half_height;
+        let sx = x_px * self.film_units_per_px_x - self.half_width;
+        let sy = self.half_height - y_px * self.film_units_per_px_y;
         let direction = (self.forward + self.right * sx + self.up * sy).normalize();
         CameraRay {
             origin: self.position,
