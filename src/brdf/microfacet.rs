@@ -99,18 +99,14 @@ impl Microfacet {
     /// separable G1(i)·G1(o). Absolute cosines let the same code serve
     /// transmission through an interface in the random-walk reference.
     pub fn g(&self, wi: DVec3, wo: DVec3, h: DVec3) -> f64 {
+        if self.model == MicrofacetModel::Blinn {
+            return v_cavity_g(wi, wo, h);
+        }
         let (ih, oh) = (wi.dot(h), wo.dot(h));
         if ih * wi.z <= 0.0 || oh * wo.z <= 0.0 || h.z <= 0.0 {
             return 0.0;
         }
-        match self.model {
-            MicrofacetModel::Blinn => {
-                let masking = 2.0 * h.z * wo.z.abs() / oh.abs();
-                let shadowing = 2.0 * h.z * wi.z.abs() / ih.abs();
-                masking.min(shadowing).min(1.0)
-            }
-            _ => self.smith_g1(wi) * self.smith_g1(wo),
-        }
+        self.smith_g1(wi) * self.smith_g1(wo)
     }
 
     /// Smith's monodirectional shadowing 1/(1 + Λ(w)).
@@ -229,6 +225,22 @@ fn value_without_fresnel(d: f64, g: impl FnOnce() -> f64, wi: DVec3, wo: DVec3) 
         return 0.0;
     }
     d * g() / denominator
+}
+
+/// The V-cavity shadowing-masking of the appendix `geom` (the Blinn arm of
+/// [`Microfacet::g`]): min(1, 2(n·h)|n·o|/|o·h|, 2(n·h)|n·i|/|i·h|), 0
+/// where i or o is on the other side of h than of the normal. Inlined into
+/// the renderer's layered BRDF, where an out-of-line call costs the caller
+/// its registers.
+#[inline(always)]
+pub(crate) fn v_cavity_g(wi: DVec3, wo: DVec3, h: DVec3) -> f64 {
+    let (ih, oh) = (wi.dot(h), wo.dot(h));
+    if ih * wi.z <= 0.0 || oh * wo.z <= 0.0 || h.z <= 0.0 {
+        return 0.0;
+    }
+    let masking = 2.0 * h.z * wo.z.abs() / oh.abs();
+    let shadowing = 2.0 * h.z * wi.z.abs() / ih.abs();
+    masking.min(shadowing).min(1.0)
 }
 
 /// (wi + wo).normalize_or_zero(), the same bits: glam tests its

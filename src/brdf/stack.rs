@@ -24,7 +24,7 @@ use crate::brdf::compensation::Compensation;
 use crate::brdf::diffuse::lambert;
 use crate::brdf::fresnel;
 use crate::brdf::layer::{Base, Interface};
-use crate::brdf::microfacet::{refract, MicrofacetModel};
+use crate::brdf::microfacet::{refract, v_cavity_g, MicrofacetModel};
 use crate::brdf::Rgb;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use glam::DVec3;
@@ -564,7 +564,10 @@ impl BrdfAt<'_> {
             // T₁₂ at the macro-normal, the appendix `tir` term, Beer
             // absorption (eq. 3.4) and 1/η²: see `eval_level`.
             let transmission_in = 1.0 - fresnel::dielectric_from_snell(wi.z, snell_i, eta);
-            let g_inside = itf.lobe.g(wi_in, wo_in, h);
+            let g_inside = match itf.lobe.model {
+                MicrofacetModel::Blinn => v_cavity_g(wi_in, wo_in, h),
+                _ => itf.lobe.g(wi_in, wo_in, h),
+            };
             let tir = (1.0 - g_inside) + (1.0 - top.fresnel_out) * g_inside;
             let absorption = itf.round_trip_transmittance(wi_in, wo_in);
             let scale = transmission_in * tir / (eta * eta);
