@@ -9,6 +9,7 @@ use crate::brdf::Rgb;
 /// (micro-)normal on the incident side (its sign is ignored); `eta` is the
 /// ratio n_transmitted / n_incident. Returns 1 under total internal
 /// reflection (sin θt > 1, Snell's law eq. 3.2).
+#[inline]
 pub fn dielectric(cos_incident: f64, eta: f64) -> f64 {
     let cos_i = cos_incident.abs().min(1.0);
     let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
@@ -16,6 +17,43 @@ pub fn dielectric(cos_incident: f64, eta: f64) -> f64 {
         return 1.0;
     }
     let cos_t = (1.0 - sin2_t).sqrt();
+    let r_parallel = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perpendicular = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    0.5 * (r_parallel * r_parallel + r_perpendicular * r_perpendicular)
+}
+
+/// Snell's law (eq. 3.2) at one incident cosine: the part of
+/// [`dielectric`] (and of `microfacet::refract`) that does not depend on
+/// the polarisation, computed once where a caller needs both.
+#[derive(Clone, Copy, Debug)]
+pub struct Snell {
+    /// cosθₜ of the transmitted direction; None under total internal
+    /// reflection (sin²θₜ ≥ 1).
+    pub cos_t: Option<f64>,
+}
+
+impl Snell {
+    /// Snell's law for incident cosine `cos_incident` (sign ignored) and
+    /// `eta` = n_transmitted / n_incident, with [`dielectric`]'s clamp of
+    /// the cosine to 1. For 0 < cos ≤ 1 this is also `refract`'s
+    /// sin²θₜ = max(1 − cos², 0)/η², and for cos > 1 both give 0.
+    #[inline]
+    pub fn at(cos_incident: f64, eta: f64) -> Self {
+        let cos_i = cos_incident.abs().min(1.0);
+        let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+        Snell {
+            cos_t: (sin2_t < 1.0).then(|| (1.0 - sin2_t).sqrt()),
+        }
+    }
+}
+
+/// [`dielectric`] given [`Snell::at`]`(cos_incident, eta)`: the same bits.
+#[inline]
+pub fn dielectric_from_snell(cos_incident: f64, snell: Snell, eta: f64) -> f64 {
+    let Some(cos_t) = snell.cos_t else {
+        return 1.0;
+    };
+    let cos_i = cos_incident.abs().min(1.0);
     let r_parallel = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     let r_perpendicular = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
     0.5 * (r_parallel * r_parallel + r_perpendicular * r_perpendicular)
@@ -118,6 +156,25 @@ mod tests {
         for eta in [1.0f64, 1.31, 1.5, 1.7, 2.0, 1.0 / 1.5] {
             let expected = ((eta - 1.0) / (eta + 1.0)).powi(2);
             assert!((dielectric(1.0, eta) - expected).abs() < 1e-12, "eta {eta}");
+        }
+    }
+
+    #[test]
+    fn dielectric_from_snell_equals_dielectric_bit_for_bit() {
+        // Including cosines a rounding step above 1 (clamped), 0, negative
+        // (sign ignored) and past the critical angle (η < 1: F = 1).
+        let mut rng = crate::sampling::Rng::new(21, 22);
+        for eta in [1.0, 1.31, 1.5, 2.4, 1.0 / 1.5, 0.8] {
+            let mut cosines = vec![0.0, 1.0, 1.0 + f64::EPSILON, -0.3];
+            cosines.extend((0..20_000).map(|_| rng.next_f64()));
+            for cos in cosines {
+                let snell = Snell::at(cos, eta);
+                assert_eq!(
+                    dielectric_from_snell(cos, snell, eta).to_bits(),
+                    dielectric(cos, eta).to_bits(),
+                    "η {eta} cos {cos}"
+                );
+            }
         }
     }
 

@@ -44,6 +44,7 @@ impl Interface {
 
     /// Appendix `absorption`: Beer's law along both refracted directions,
     /// exp(−α d (1/cosθ'ᵢ + 1/cosθ'ₒ)), the cosines clamped at 0.001 as there.
+    #[inline]
     pub fn round_trip_transmittance(&self, wi_inside: DVec3, wo_inside: DVec3) -> Rgb {
         if self.thickness == 0.0 || self.absorption_rgb == Rgb::ZERO {
             return Rgb::ONE;

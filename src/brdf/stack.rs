@@ -24,7 +24,7 @@ use crate::brdf::compensation::Compensation;
 use crate::brdf::diffuse::lambert;
 use crate::brdf::fresnel;
 use crate::brdf::layer::{Base, Interface};
-use crate::brdf::microfacet::{refract, MicrofacetModel};
+use crate::brdf::microfacet::{refract, v_cavity_g, MicrofacetModel};
 use crate::brdf::Rgb;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use glam::DVec3;
@@ -389,11 +389,13 @@ impl LayeredBrdf {
             None => (0.0, Rgb::ZERO),
         };
         let top = self.interfaces.first().map(|itf| {
-            let fresnel_out = fresnel::dielectric(wo.z, itf.eta);
+            // Snell once for F(cosθₒ) and the refracted wo.
+            let snell_o = fresnel::Snell::at(wo.z, itf.eta);
+            let fresnel_out = fresnel::dielectric_from_snell(wo.z, snell_o, itf.eta);
             let weights = self.level_weights_from_fresnel(0, fresnel_out);
             // Used only where the layers below are sampled (p_below > 0).
             let wo_refracted = if weights.1 > 0.0 {
-                refract(wo, DVec3::Z, itf.eta)
+                refract_through_normal(wo, snell_o, itf.eta)
             } else {
                 None
             };
@@ -499,14 +501,7 @@ impl BrdfAt<'_> {
     fn eval_and_pdf_general(&self, prepared: &Prepared, wi: DVec3) -> (Rgb, f64) {
         let (brdf, wo) = (self.brdf, self.wo);
         let (single, stack_pdf) = match (brdf.interfaces.first(), &prepared.top) {
-            (Some(itf), Some(top)) => {
-                let (lobe_value, top_pdf, h) = itf.lobe.reflection_value_and_pdf(wi, wo);
-                let top_pdf = if top.weights.0 > 0.0 { top_pdf } else { 0.0 };
-                (
-                    brdf.eval_level(0, wi, wo, lobe_value, h, || top.fresnel_out),
-                    brdf.pdf_level(0, wi, top.weights, top_pdf, || top.wo_refracted),
-                )
-            }
+            (Some(itf), Some(top)) => self.top_eval_and_pdf(itf, top, wi),
             _ => (brdf.base.eval(wi, wo), brdf.base.pdf(wi, wo)),
         };
         // As `plus_compensation` and `mixture_pdf`, with D(μₒ) and the lobe
@@ -524,6 +519,90 @@ impl BrdfAt<'_> {
             pdf += p_comp * cosine_hemisphere_pdf(wi);
         }
         (value, pdf)
+    }
+
+    /// The single-crossing f and the stack's density at `wi` (wi.z > 0)
+    /// for a stack with at least one interface: `eval_level(0, …)` and
+    /// `pdf_level(0, …)` of [`LayeredBrdf`] written out in one straight
+    /// line, the same operations in the same order (so the same bits), with
+    /// the top interface's lobe D(h) computed once for both, and the layers
+    /// below it entered through [`LayeredBrdf::eval_from`] and
+    /// [`LayeredBrdf::pdf_from`] only for deeper stacks: under one interface
+    /// the base is evaluated here directly.
+    #[inline(always)]
+    fn top_eval_and_pdf(&self, itf: &Interface, top: &TopAt, wi: DVec3) -> (Rgb, f64) {
+        let (brdf, wo, eta) = (self.brdf, self.wo, itf.eta);
+        let single_interface = brdf.interfaces.len() == 1;
+        let (lobe_value, top_pdf, h) = itf.lobe.reflection_value_and_pdf(wi, wo);
+        // Snell at the macro-normal for wi, shared by T₁₂ and the density.
+        let snell_i = fresnel::Snell::at(wi.z, eta);
+
+        // f: as `eval_level`.
+        // f₁, skipping the Fresnel factor where the lobe is 0 (see there).
+        let f_top = if lobe_value == 0.0 {
+            Rgb::ZERO
+        } else {
+            Rgb::splat(lobe_value * fresnel::dielectric(wi.dot(h), eta))
+        };
+        let single = 'single: {
+            // The pair refracted through h, pointing up inside the layer.
+            let (Some(ti), Some(to)) = (refract(wi, h, eta), refract(wo, h, eta)) else {
+                break 'single f_top;
+            };
+            let (wi_in, wo_in) = (-ti, -to);
+            if wi_in.z <= 0.0 || wo_in.z <= 0.0 {
+                break 'single f_top;
+            }
+            let below = if single_interface {
+                base_eval_above(&brdf.base, wi_in, wo_in)
+            } else {
+                brdf.eval_from(1, wi_in, wo_in)
+            };
+            if below == Rgb::ZERO {
+                break 'single f_top;
+            }
+            // T₁₂ at the macro-normal, the appendix `tir` term, Beer
+            // absorption (eq. 3.4) and 1/η²: see `eval_level`.
+            let transmission_in = 1.0 - fresnel::dielectric_from_snell(wi.z, snell_i, eta);
+            let g_inside = match itf.lobe.model {
+                MicrofacetModel::Blinn => v_cavity_g(wi_in, wo_in, h),
+                _ => itf.lobe.g(wi_in, wo_in, h),
+            };
+            let tir = (1.0 - g_inside) + (1.0 - top.fresnel_out) * g_inside;
+            let absorption = itf.round_trip_transmittance(wi_in, wo_in);
+            let scale = transmission_in * tir / (eta * eta);
+            f_top + absorption * below * scale
+        };
+
+        // The density: as `pdf_level` with the lobe's density from above.
+        let (p_top, p_below) = top.weights;
+        let mut pdf = 0.0;
+        if p_top > 0.0 {
+            pdf += p_top * top_pdf;
+        }
+        if p_below > 0.0 {
+            if let Some(to) = top.wo_refracted {
+                match (&brdf.base, single_interface) {
+                    // A diffuse base's density is cosine-weighted: only the
+                    // refracted wi's z is needed (see `refracted_cosine`).
+                    (Base::Diffuse { .. }, true) => {
+                        if let Some(cos_in) = refracted_cosine(wi, snell_i, eta) {
+                            let jacobian = wi.z / (eta * eta * cos_in);
+                            pdf += p_below * cosine_pdf_of_cosine(cos_in) * jacobian;
+                        }
+                    }
+                    _ => {
+                        if let Some(ti) = refract_through_normal(wi, snell_i, eta) {
+                            let (wi_in, wo_in) = (-ti, -to);
+                            // Change of variables through Snell (`pdf_level`).
+                            let jacobian = wi.z / (eta * eta * wi_in.z);
+                            pdf += p_below * brdf.pdf_from(1, wi_in, wo_in) * jacobian;
+                        }
+                    }
+                }
+            }
+        }
+        (single, pdf)
     }
 
     /// Importance-sample the incident direction from three uniform
@@ -560,11 +639,81 @@ impl BrdfAt<'_> {
     /// weights and refracted wo from `prepare`.
     fn sample_stack(&self, prepared: &Prepared, u: [f64; 3]) -> Option<DVec3> {
         let brdf = self.brdf;
-        match &prepared.top {
-            Some(top) => brdf.sample_level(0, self.wo, u, top.weights, || top.wo_refracted),
-            None => brdf.base.sample(self.wo, u[1], u[2]),
+        match (&prepared.top, brdf.interfaces.as_slice(), &brdf.base) {
+            // One interface over a diffuse base: `sample_level` written
+            // out, the base's cosine sampling inline (it uses u₁, u₂ only,
+            // so the rescaled u₀ is not needed).
+            (Some(top), [itf], Base::Diffuse { .. }) => {
+                let (p_top, p_below) = top.weights;
+                if u[0] < p_top {
+                    itf.lobe.sample_reflection(self.wo, u[1], u[2])
+                } else if p_below > 0.0 {
+                    // No light leaves along wo from below under total
+                    // internal reflection (None).
+                    top.wo_refracted?;
+                    let wi_in = cosine_hemisphere(u[1], u[2]);
+                    refract(-wi_in, -DVec3::Z, 1.0 / itf.eta)
+                } else {
+                    None
+                }
+            }
+            (Some(top), _, _) => brdf.sample_level(0, self.wo, u, top.weights, || top.wo_refracted),
+            (None, _, _) => brdf.base.sample(self.wo, u[1], u[2]),
         }
     }
+}
+
+/// [`Base::eval`] for directions already known to be above the base
+/// (wi.z > 0, wo.z > 0): a Lambertian base (σ ≤ 0) is colour/π inline,
+/// every other base goes through [`Base::eval`].
+#[inline(always)]
+fn base_eval_above(base: &Base, wi: DVec3, wo: DVec3) -> Rgb {
+    match base {
+        Base::Diffuse {
+            colour,
+            oren_nayar_sigma_rad,
+        } if *oren_nayar_sigma_rad <= 0.0 => lambert(*colour),
+        _ => base.eval(wi, wo),
+    }
+}
+
+/// The z component of −`refract(wi, z, eta)` (the cosine of wi refracted
+/// into the layer, pointing up), None under total internal reflection;
+/// the same bits as the full refraction's component. With n = z the
+/// refracted vector is v = (−wᵢₓ/η + c·0, −wᵢᵧ/η + c·0, −wᵢ_z/η + c) with
+/// c = cosθᵢ/η − cosθₜ (Snell, eq. 3.2), and wᵢ·z = wᵢ_z exactly for
+/// wᵢ_z > 0: the ±0 terms change neither x nor y (nor their squares), so
+/// |v|² and v_z/|v| are computed exactly as `normalize` computes them.
+/// `snell` is [`fresnel::Snell::at`]`(wi.z, eta)`: for 0 < cos_i the
+/// same sin²θₜ and cosθₜ as `refract`'s (see there).
+#[inline(always)]
+fn refracted_cosine(wi: DVec3, snell: fresnel::Snell, eta: f64) -> Option<f64> {
+    let cos_i = wi.z;
+    let cos_t = snell.cos_t?;
+    let (x, y, z) = (
+        -wi.x / eta,
+        -wi.y / eta,
+        -wi.z / eta + (cos_i / eta - cos_t),
+    );
+    // glam's dot and normalize: ((x·x + y·y) + z·z), then v · (1/|v|).
+    let length_recip = 1.0 / ((x * x + y * y) + z * z).sqrt();
+    Some(-(z * length_recip))
+}
+
+/// `refract(w, z, eta)` for w.z > 0 given `snell` = [`fresnel::Snell::at`]`(w.z, eta)`:
+/// the same bits (w·z is w.z exactly there, and Snell's sin²θₜ and cosθₜ
+/// are `refract`'s, see [`fresnel::Snell::at`]); the vector arithmetic is
+/// `refract`'s, ±0 terms included.
+#[inline(always)]
+fn refract_through_normal(w: DVec3, snell: fresnel::Snell, eta: f64) -> Option<DVec3> {
+    let cos_t = snell.cos_t?;
+    Some((-w / eta + (w.z / eta - cos_t) * DVec3::Z).normalize())
+}
+
+/// [`cosine_hemisphere_pdf`] of a direction with cosine `cos_theta`.
+#[inline(always)]
+fn cosine_pdf_of_cosine(cos_theta: f64) -> f64 {
+    cosine_hemisphere_pdf(DVec3::new(0.0, 0.0, cos_theta))
 }
 
 /// [`BrdfAt::sample`] of a bare Lambert material with f = `value`: the
@@ -673,6 +822,39 @@ mod tests {
     }
 
     #[test]
+    fn snell_shortcuts_through_the_normal_equal_refract_bit_for_bit() {
+        // `refract_through_normal` and `refracted_cosine` against the
+        // general `refract(w, z, η)` (whose dot product with z and Snell's
+        // law they replace), for denser and rarer media (η < 1: total
+        // internal reflection), at random and at exactly normal incidence.
+        use super::{fresnel, refract, refract_through_normal, refracted_cosine};
+        let mut rng = Rng::new(11, 12);
+        let mut tir = 0;
+        for eta in [1.0, 1.31, 1.5, 1.56, 2.0, 1.0 / 1.5, 0.9] {
+            for k in 0..20_000 {
+                let [a, b, c] = rng.next_3();
+                let w = if k == 0 {
+                    DVec3::Z
+                } else {
+                    DVec3::new(a - 0.5, b - 0.5, c + 1e-9).normalize()
+                };
+                let snell = fresnel::Snell::at(w.z, eta);
+                let expected = refract(w, DVec3::Z, eta);
+                let fast = refract_through_normal(w, snell, eta);
+                assert_eq!(
+                    fast.map(|v| v.to_array().map(f64::to_bits)),
+                    expected.map(|v| v.to_array().map(f64::to_bits)),
+                    "η {eta} w {w}"
+                );
+                let cosine = refracted_cosine(w, snell, eta).map(f64::to_bits);
+                assert_eq!(cosine, expected.map(|v| (-v.z).to_bits()), "η {eta} w {w}");
+                tir += expected.is_none() as usize;
+            }
+        }
+        assert!(tir > 1000, "total internal reflection not exercised");
+    }
+
+    #[test]
     fn a_bare_lambert_ground_is_colour_over_pi_with_cosine_density() {
         let colour = Rgb::new(0.5, 0.4, 0.3);
         let brdfs = materials();
@@ -703,15 +885,25 @@ mod tests {
         let mut rng = Rng::new(5, 6);
         for name in builtin_material_names() {
             let brdf = load_material(name).unwrap();
-            for _ in 0..300 {
+            for _ in 0..3000 {
                 let mut direction = || {
                     let [a, b, c] = rng.next_3();
                     DVec3::new(a - 0.5, b - 0.5, c - 0.2).normalize()
                 };
                 let (wi, wo) = (direction(), direction());
                 let (value, pdf) = brdf.eval_and_pdf(wi, wo);
-                assert_eq!(value, brdf.eval(wi, wo), "{name}: value at {wi} {wo}");
-                assert_eq!(pdf, brdf.pdf(wi, wo), "{name}: pdf at {wi} {wo}");
+                // Bit for bit (signed zeros and NaN payloads included).
+                let bits = |v: Rgb| v.to_array().map(f64::to_bits);
+                assert_eq!(
+                    bits(value),
+                    bits(brdf.eval(wi, wo)),
+                    "{name}: value at {wi} {wo}"
+                );
+                assert_eq!(
+                    pdf.to_bits(),
+                    brdf.pdf(wi, wo).to_bits(),
+                    "{name}: pdf at {wi} {wo}"
+                );
             }
             // …and at the lobe's peak, where D dominates (a mirror pair).
             let wo = DVec3::new(0.3, -0.2, 0.9).normalize();
