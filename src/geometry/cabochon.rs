@@ -162,6 +162,12 @@ pub struct Cabochon {
     buffed: bool,
     /// Round/oval with p = 2: closed-form quadratics.
     ellipsoidal: bool,
+    /// Ellipsoidal with a flat base and no girdle band: a half ellipsoid
+    /// (optionally buffed), intersected by [`Self::intersect_half_ellipsoid`].
+    half_ellipsoid: bool,
+    /// `(1/a, 1/b, 1/h)`: object space to the space where the dome
+    /// ellipsoid is the unit sphere.
+    inv_axes: DVec3,
     size: f64,
 }
 
@@ -215,6 +221,7 @@ impl Cabochon {
         };
         let z_bottom = -g - base_depth;
         let ellipsoidal = matches!(params.outline, Outline::Round | Outline::Oval) && p == 2.0;
+        let half_ellipsoid = ellipsoidal && params.base == Base::Flat && g == 0.0;
         let size = params.length.max(params.width).max(z_top - z_bottom);
         if size.is_nan() || size > MAX_SIZE {
             return Err(GeometryError::new(
@@ -235,6 +242,10 @@ impl Cabochon {
             flat_base,
             buffed: params.buff_top.is_some(),
             ellipsoidal,
+            half_ellipsoid,
+            // The same quotients as `body_chord_exact`'s, so both paths scale
+            // a ray identically.
+            inv_axes: DVec3::new(2.0 / params.length, 2.0 / params.width, 1.0 / h),
             size,
         })
     }
@@ -247,6 +258,14 @@ impl Cabochon {
     /// The outline with its size.
     pub fn footprint(&self) -> &Footprint {
         &self.footprint
+    }
+
+    /// Whether the stone is a half ellipsoid (round/oval, profile exponent
+    /// 2, flat base, no girdle band), intersected by
+    /// [`Self::intersect_half_ellipsoid`]: one quadratic, cheaper than a box
+    /// test.
+    pub fn is_half_ellipsoid(&self) -> bool {
+        self.half_ellipsoid
     }
 
     /// The stone's characteristic size (largest extent), the scale of all
@@ -354,9 +373,43 @@ impl Cabochon {
     ///
     /// `dir` need not be normalised. Chords shorter than `1e-8 × size`
     /// (grazing rays) count as misses, so hits always come in entry/exit
-    /// pairs. Round/oval stones with p = 2 are solved exactly; all others
-    /// by [`Self::intersect_iterative`].
+    /// pairs. A half ellipsoid (round/oval, p = 2, flat base, no girdle band)
+    /// takes [`Self::intersect_half_ellipsoid`]; every other stone
+    /// [`Self::intersect_general`].
+    #[inline(always)]
     pub fn intersect(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> Option<Hit> {
+        if self.half_ellipsoid {
+            self.intersect_half_ellipsoid(origin, dir, t_min, t_max)
+        } else {
+            self.intersect_general(origin, dir, t_min, t_max)
+        }
+    }
+
+    /// Whether the ray `origin + t·dir` crosses the surface for some
+    /// `t_min < t < t_max`: `self.intersect(..).is_some()`, without the hit
+    /// point and normal (for shadow rays).
+    #[inline(always)]
+    pub fn crosses(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> bool {
+        if self.half_ellipsoid {
+            self.half_ellipsoid_chord(origin, dir)
+                .is_some_and(|c| c.first_end(t_min, t_max).is_some())
+        } else {
+            self.intersect_general(origin, dir, t_min, t_max).is_some()
+        }
+    }
+
+    /// [`Self::intersect`] by the general pipeline for every stone: the body
+    /// chord (exact quadratics for round/oval p = 2 stones, else Newton),
+    /// clipped by the buff-top and flat-base planes, the normal from the
+    /// body's gradient. Public so that the fast path can be checked
+    /// against it.
+    pub fn intersect_general(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<Hit> {
         let chord = if self.ellipsoidal {
             self.body_chord_exact(origin, dir)
         } else {
@@ -365,6 +418,89 @@ impl Cabochon {
         self.finish(origin, dir, t_min, t_max, chord)
     }
 
+    /// [`Self::intersect`] for a half ellipsoid: one quadratic in the space
+    /// where the dome is the unit sphere, `(x/a, y/b, z/h)`, clipped by the
+    /// base plane z = 0 (and the buff top), the normal the gradient
+    /// `(x/a², y/b², z/h²)` of `(x/a)² + (y/b)² + (z/h)²`, normalised.
+    ///
+    /// The same roots, clipping and minimum chord as
+    /// [`Self::intersect_general`]; it differs only where that path's
+    /// `1e-12 × size` tolerance lets a band-cylinder root at the rim stand in
+    /// for the dome's, and in the last bits of the normal.
+    #[inline(always)]
+    pub fn intersect_half_ellipsoid(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<Hit> {
+        let chord = self.half_ellipsoid_chord(origin, dir)?;
+        let (t, side, entering) = chord.first_end(t_min, t_max)?;
+        let normal = match side {
+            Side::Body => {
+                // The unit-sphere point at t, mapped by the inverse axes once
+                // more: ∇((x/a)² + (y/b)² + (z/h)²) / 2.
+                let unit_point = chord.origin_scaled + t * chord.dir_scaled;
+                (unit_point * self.inv_axes).normalize()
+            }
+            Side::Top => DVec3::Z,
+            Side::Bottom => DVec3::NEG_Z,
+        };
+        Some(Hit {
+            t,
+            point: origin + t * dir,
+            normal,
+            entering,
+        })
+    }
+
+    /// The chord of the line through a half ellipsoid (see
+    /// [`Self::intersect_half_ellipsoid`]), `None` for a miss or a chord
+    /// below the minimum length.
+    #[inline(always)]
+    fn half_ellipsoid_chord(&self, origin: DVec3, dir: DVec3) -> Option<Chord> {
+        let origin_scaled = origin * self.inv_axes;
+        let dir_scaled = dir * self.inv_axes;
+        let dd = dir_scaled.dot(dir_scaled);
+        let od = origin_scaled.dot(dir_scaled);
+        let c = origin_scaled.dot(origin_scaled) - 1.0;
+        let disc = od * od - dd * c;
+        // Most misses leave here (also a NaN discriminant, from a NaN or
+        // infinite origin or direction).
+        if disc < 0.0 || disc.is_nan() {
+            return None;
+        }
+        // Refuses a zero or infinite direction (an infinite origin with a
+        // finite direction left a NaN or −∞ discriminant above).
+        if !(dd > 0.0 && dd < f64::INFINITY) {
+            return None;
+        }
+        // `quadratic_unit_roots`: the cancellation-free quadratic formula.
+        let q = -(od + disc.sqrt().copysign(od));
+        if q == 0.0 {
+            // One root at 0: a chord of length 0.
+            return None;
+        }
+        let (r0, r1) = (q / dd, c / q);
+        let mut chord = Chord {
+            t_in: r0.min(r1),
+            t_out: r0.max(r1),
+            side_in: Side::Body,
+            side_out: Side::Body,
+            origin_scaled,
+            dir_scaled,
+        };
+        // `finish`'s clipping: the buff top, then the base, the same
+        // quotients and comparisons.
+        if self.buffed {
+            chord.clip(origin.z, dir.z, self.z_top, true, Side::Top);
+        }
+        chord.clip(origin.z, dir.z, -self.girdle, false, Side::Bottom);
+        let min_chord = 1e-8 * self.size / dir.length();
+        // Also refuses NaN chords.
+        (chord.t_out - chord.t_in >= min_chord).then_some(chord)
+    }
     /// Like [`Self::intersect`] but always by Newton iteration, also for
     /// ellipsoidal stones; public so that the exact and iterative solvers can
     /// be checked against each other.
@@ -567,6 +703,60 @@ impl Cabochon {
             }
         }
         (lo < hi).then_some((lo, hi))
+    }
+}
+
+/// The part of a line inside a half ellipsoid, with what bounds each end
+/// and the line in unit-sphere space (for the normal).
+#[derive(Debug, Clone, Copy)]
+struct Chord {
+    t_in: f64,
+    t_out: f64,
+    side_in: Side,
+    side_out: Side,
+    origin_scaled: DVec3,
+    dir_scaled: DVec3,
+}
+
+impl Chord {
+    /// Keeps the part of the chord with z ≤ `plane_z` (`below`) or
+    /// z ≥ `plane_z`, as `Cabochon::finish` does.
+    #[inline]
+    fn clip(&mut self, origin_z: f64, dir_z: f64, plane_z: f64, below: bool, side: Side) {
+        if dir_z == 0.0 {
+            let outside = if below {
+                origin_z > plane_z
+            } else {
+                origin_z < plane_z
+            };
+            if outside {
+                self.t_out = f64::NEG_INFINITY;
+            }
+            return;
+        }
+        let t = (plane_z - origin_z) / dir_z;
+        if (dir_z > 0.0) == below {
+            if t < self.t_out {
+                self.t_out = t;
+                self.side_out = side;
+            }
+        } else if t > self.t_in {
+            self.t_in = t;
+            self.side_in = side;
+        }
+    }
+
+    /// The first end in `(t_min, t_max)`: its t, side and whether the line
+    /// enters there.
+    #[inline]
+    fn first_end(&self, t_min: f64, t_max: f64) -> Option<(f64, Side, bool)> {
+        if self.t_in > t_min && self.t_in < t_max {
+            Some((self.t_in, self.side_in, true))
+        } else if self.t_out > t_min && self.t_out < t_max {
+            Some((self.t_out, self.side_out, false))
+        } else {
+            None
+        }
     }
 }
 
