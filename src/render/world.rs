@@ -180,9 +180,10 @@ pub struct World {
     /// `None` for an empty scene or one of ≤ [`MAX_STONES_WITHOUT_BVH`].
     bvh: Option<CwBvh>,
     ground_height: Option<f64>,
-    /// One stone, a half ellipsoid: its quadric test rejects a miss for
-    /// fewer instructions than its box, so it is tested directly.
-    single_half_ellipsoid: bool,
+    /// The scene's only stone when it is a half ellipsoid: its quadric test
+    /// rejects a miss for fewer instructions than its box, so it is tested
+    /// directly, from a copy that needs no indexing.
+    lone_half_ellipsoid: Option<(StoneInstance, Placement)>,
 }
 
 /// Whether the ray `origin + t·direction` (with `inverse_direction` its
@@ -256,9 +257,10 @@ impl World {
                 &mut Default::default(),
             )
         });
-        let single_half_ellipsoid = stones.len() == 1 && stones[0].cabochon.is_half_ellipsoid();
+        let lone_half_ellipsoid = (stones.len() == 1 && stones[0].cabochon.is_half_ellipsoid())
+            .then(|| (stones[0].clone(), placements[0]));
         Self {
-            single_half_ellipsoid,
+            lone_half_ellipsoid,
             stones,
             placements,
             stones_bounds,
@@ -317,20 +319,26 @@ impl World {
                 }
             }
         }
-        let stone = if self.nothing_else_to_test(leaving) {
+        let stone = if let Some((stone, placement)) = &self.lone_half_ellipsoid {
+            // A ray leaving the only stone cannot meet it again.
+            if leaving.is_some() {
+                None
+            } else {
+                let (o, d) = placement.object_ray(stone.position, origin, direction);
+                stone
+                    .cabochon
+                    .intersect_half_ellipsoid(o, d, t_min, limit)
+                    .map(|hit| (0, placement, hit))
+            }
+        } else if self.nothing_else_to_test(leaving) {
             None
-        } else if self.single_half_ellipsoid {
-            // The quadric test itself rejects a miss for fewer instructions
-            // than the box would.
-            self.stones[0]
-                .intersect(&self.placements[0], origin, direction, t_min, limit)
-                .map(|hit| (0, hit))
         } else {
             self.nearest_stone(origin, direction, t_min, limit, leaving)
+                .map(|(index, hit)| (index, &self.placements[index], hit))
         };
         match stone {
-            Some((index, hit)) => {
-                Some(self.placements[index].surface_hit(index, origin, direction, hit))
+            Some((index, placement, hit)) => {
+                Some(placement.surface_hit(index, origin, direction, hit))
             }
             None => ground.map(|h| SurfaceHit {
                 t: limit,
@@ -366,11 +374,12 @@ impl World {
                 return true;
             }
         }
+        if let Some((stone, placement)) = &self.lone_half_ellipsoid {
+            // A ray leaving the only stone cannot meet it again.
+            return leaving.is_none() && stone.crosses(placement, origin, direction, 0.0, distance);
+        }
         if self.nothing_else_to_test(leaving) {
             return false;
-        }
-        if self.single_half_ellipsoid {
-            return self.stones[0].crosses(&self.placements[0], origin, direction, 0.0, distance);
         }
         self.any_stone_blocks(origin, direction, distance, leaving)
     }
