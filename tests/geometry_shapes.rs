@@ -93,6 +93,22 @@ fn stones() -> Vec<(&'static str, Cabochon)> {
             }),
         ),
         (
+            "oval half ellipsoid",
+            mk(CabochonParams {
+                girdle_height: 0.0,
+                dome_height: 2.5,
+                ..stone(Outline::Oval, 10.0, 7.0)
+            }),
+        ),
+        (
+            "round half ellipsoid buff top",
+            mk(CabochonParams {
+                girdle_height: 0.0,
+                buff_top: Some(0.4),
+                ..stone(Outline::Round, 6.0, 6.0)
+            }),
+        ),
+        (
             "round double ellipsoid",
             mk(CabochonParams {
                 base: Base::Domed { height: 2.5 },
@@ -816,4 +832,156 @@ fn extreme_stones_and_axis_aligned_rays_stay_watertight() {
             }
         }
     }
+}
+
+/// Half ellipsoids (round/oval, p = 2, flat base, no girdle band) of several
+/// proportions, with and without a buff top.
+fn half_ellipsoids() -> Vec<Cabochon> {
+    let half = |outline, l, w, h, buff_top| {
+        Cabochon::new(CabochonParams {
+            girdle_height: 0.0,
+            dome_height: h,
+            buff_top,
+            ..stone(outline, l, w)
+        })
+        .unwrap()
+    };
+    vec![
+        // The peer scene's stone (bench/peer-scene.ron).
+        half(Outline::Oval, 2.0, 1.4, 0.45, None),
+        half(Outline::Round, 8.0, 8.0, 3.0, None),
+        half(Outline::Oval, 12.0, 5.0, 9.0, None),
+        half(Outline::Oval, 10.0, 7.0, 4.0, Some(0.5)),
+    ]
+}
+
+#[test]
+fn half_ellipsoid_fast_path_agrees_with_the_general_path() {
+    // The fast path solves one quadratic and clips it by the planes; the
+    // general path also solves the band cylinder and takes the normal from
+    // the body gradient via the outline gauge. Away from the rim they must
+    // agree to rounding: the same t (the same quotients), the same side
+    // (entering), normals within 1e-12. Rays start outside and inside,
+    // aim at the box, the rim and the base plane, and some lie in planes.
+    let mut rng = Rng(77);
+    for stone in half_ellipsoids() {
+        assert!(stone.is_half_ellipsoid());
+        let size = stone.size();
+        let (lo, hi) = stone.bounds();
+        let centre = 0.5 * (lo + hi);
+        let (mut hits, mut misses, mut rim) = (0, 0, 0);
+        for i in 0..20_000 {
+            let origin = match i % 4 {
+                0 => centre + 3.0 * size * rng.direction(),
+                1 => rng.in_box(lo, hi),
+                2 => DVec3::new(rng.range(lo.x, hi.x), rng.range(lo.y, hi.y), 0.0),
+                _ => centre + 0.7 * size * rng.direction(),
+            };
+            let mut dir = if i % 3 == 0 {
+                rng.in_box(lo, hi) - origin
+            } else {
+                rng.direction() * rng.range(0.1, 10.0)
+            };
+            if i % 17 == 0 {
+                dir.z = 0.0;
+            }
+            let t_min = if i % 5 == 0 {
+                rng.range(-1.0, 1.0)
+            } else {
+                0.0
+            };
+            let fast = stone.intersect(origin, dir, t_min, f64::INFINITY);
+            let general = stone.intersect_general(origin, dir, t_min, f64::INFINITY);
+            assert_eq!(
+                fast.is_some(),
+                stone.crosses(origin, dir, t_min, f64::INFINITY),
+                "crosses disagrees with intersect"
+            );
+            match (fast, general) {
+                (Some(f), Some(g)) if f.t == g.t && f.entering == g.entering => {
+                    hits += 1;
+                    assert_eq!(f.point, g.point);
+                    let near_rim = f.point.z.abs() < 1e-9 * size;
+                    assert!(
+                        (f.normal - g.normal).length() < 1e-12 || near_rim,
+                        "normal {} vs {} at {}",
+                        f.normal,
+                        g.normal,
+                        f.point
+                    );
+                    assert!((f.normal.length() - 1.0).abs() < 1e-15);
+                }
+                (None, None) => misses += 1,
+                // Only at the rim z = 0 may the general path's 1e-12 × size
+                // tolerance keep a band-cylinder root the fast path does not
+                // have, or a chord differ in length by rounding.
+                (f, g) => {
+                    let hit = f.or(g).unwrap();
+                    assert!(
+                        hit.point.z.abs() < 1e-9 * size,
+                        "{f:?} vs {g:?} from {origin} along {dir}"
+                    );
+                    rim += 1;
+                }
+            }
+        }
+        assert!(hits > 5000 && misses > 2000, "{hits} hits, {misses} misses");
+        assert!(rim <= 5, "{rim} rays disagree at the rim");
+    }
+}
+
+#[test]
+fn crosses_agrees_with_intersect_on_every_stone() {
+    // `crosses` (shadow rays) must answer exactly whether `intersect` finds
+    // a crossing in (t_min, t_max), for every shape, including short
+    // segments that end inside the stone.
+    let mut rng = Rng(91);
+    let mut all: Vec<Cabochon> = stones().into_iter().map(|(_, s)| s).collect();
+    all.extend(half_ellipsoids());
+    for stone in all {
+        let size = stone.size();
+        let (lo, hi) = stone.bounds();
+        let centre = 0.5 * (lo + hi);
+        let (mut yes, mut no) = (0, 0);
+        for _ in 0..4000 {
+            let origin = centre + 2.0 * size * rng.direction();
+            let dir = (rng.in_box(lo, hi) - origin).normalize();
+            let t_max = rng.range(0.5, 4.0) * size;
+            let crosses = stone.crosses(origin, dir, 0.0, t_max);
+            assert_eq!(crosses, stone.intersect(origin, dir, 0.0, t_max).is_some());
+            if crosses {
+                yes += 1;
+            } else {
+                no += 1;
+            }
+        }
+        assert!(yes > 500 && no > 200, "{yes} crossings, {no} misses");
+    }
+}
+
+#[test]
+fn half_ellipsoid_refuses_non_finite_and_zero_rays() {
+    // Like the general path, which refuses them up front: a NaN or infinite
+    // origin or direction, or a zero direction, is a miss, not a NaN hit.
+    let stone = &half_ellipsoids()[0];
+    let inside = DVec3::new(0.1, 0.1, 0.1);
+    for (origin, dir) in [
+        (DVec3::new(f64::NAN, 0.0, 1.0), DVec3::NEG_Z),
+        (DVec3::new(f64::INFINITY, 0.0, 1.0), DVec3::NEG_Z),
+        (inside, DVec3::new(f64::INFINITY, 0.0, 0.0)),
+        (inside, DVec3::new(f64::NAN, 0.0, 0.0)),
+        (inside, DVec3::new(f64::INFINITY, 1.0, -1.0)),
+        (inside, DVec3::ZERO),
+    ] {
+        assert!(stone.intersect(origin, dir, 0.0, f64::INFINITY).is_none());
+        assert!(!stone.crosses(origin, dir, 0.0, f64::INFINITY));
+        assert!(stone
+            .intersect_general(origin, dir, 0.0, f64::INFINITY)
+            .is_none());
+    }
+    // The same inside point with a finite direction does hit (leaving).
+    let hit = stone
+        .intersect(inside, DVec3::Z, 0.0, f64::INFINITY)
+        .unwrap();
+    assert!(!hit.entering);
 }

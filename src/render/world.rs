@@ -610,4 +610,102 @@ mod tests {
             }
         }
     }
+
+    /// The peer scene's stone (bench/peer-scene.ron): an ellipsoid cap of
+    /// semi-axes 1 × 0.7 × 0.45 on a flat base.
+    fn peer_half_ellipsoid(rotation: DQuat, position: DVec3) -> StoneInstance {
+        StoneInstance {
+            cabochon: Cabochon::new(CabochonParams {
+                outline: Outline::Oval,
+                length: 2.0,
+                width: 1.4,
+                dome_height: 0.45,
+                girdle_height: 0.0,
+                ..CabochonParams::default()
+            })
+            .unwrap(),
+            rotation,
+            position,
+            gem: 0,
+        }
+    }
+
+    #[test]
+    fn a_lone_half_ellipsoid_answers_as_the_box_search_does() {
+        // The lone-stone path skips the boxes, the indexing and the
+        // stone-count checks; a world with a second stone far away takes
+        // the box search instead, and must give the same hits, skips and
+        // shadows, for an unrotated and a rotated stone.
+        let rotations = [
+            DQuat::IDENTITY,
+            DQuat::from_rotation_z(0.7) * DQuat::from_rotation_x(0.3),
+        ];
+        for rotation in rotations {
+            let position = DVec3::new(0.3, -0.2, 0.5);
+            let stone = peer_half_ellipsoid(rotation, position);
+            let far = StoneInstance {
+                position: DVec3::new(1e3, 0.0, 0.5),
+                ..stone.clone()
+            };
+            let lone = World::new(vec![stone.clone()], Some(0.0));
+            let pair = World::new(vec![stone, far], Some(0.0));
+            assert!(lone.lone_half_ellipsoid.is_some() && pair.lone_half_ellipsoid.is_none());
+            let mut rng = Rng::new(9, 1);
+            let (mut stone_hits, mut ground_hits, mut blocked) = (0, 0, 0);
+            for _ in 0..5000 {
+                let [a, b, c] = rng.next_3();
+                let target = position + DVec3::new(2.4 * a - 1.2, 1.8 * b - 0.9, 0.6 * c - 0.3);
+                let [u, v, w] = rng.next_3();
+                let origin = target + 4.0 * DVec3::new(u - 0.5, v - 0.5, w).normalize();
+                let d = (target - origin).normalize();
+                let hit = lone.intersect(origin, d, 0.0, f64::INFINITY);
+                assert_eq!(hit, pair.intersect(origin, d, 0.0, f64::INFINITY));
+                for distance in [0.5, 3.0, f64::INFINITY] {
+                    let occluded = lone.occluded(origin, d, distance);
+                    assert_eq!(occluded, pair.occluded(origin, d, distance));
+                    blocked += usize::from(occluded);
+                }
+                let Some(hit) = hit else { continue };
+                if hit.stone_index().is_none() {
+                    ground_hits += 1;
+                    continue;
+                }
+                stone_hits += 1;
+                if rotation == DQuat::IDENTITY {
+                    // Unrotated: no matrices, the object normal is the world
+                    // normal, the object point the world point less the
+                    // position (to rounding).
+                    let Surface::Stone {
+                        object_point,
+                        object_normal,
+                        ..
+                    } = hit.surface
+                    else {
+                        unreachable!()
+                    };
+                    assert_eq!(hit.normal, object_normal);
+                    assert!((object_point + position - hit.point).length() < 1e-12);
+                }
+                // A path leaving the stone skips it in both worlds alike.
+                let [u, v, w] = rng.next_3();
+                let mut out = DVec3::new(u - 0.5, v - 0.5, w - 0.5).normalize();
+                if out.dot(hit.normal) <= 0.0 {
+                    out -= 2.0 * out.dot(hit.normal) * hit.normal;
+                }
+                let start = hit.point + hit.normal * RAY_OFFSET;
+                assert_eq!(
+                    lone.intersect_leaving(start, out, 0.0, f64::INFINITY, Some(0)),
+                    pair.intersect_leaving(start, out, 0.0, f64::INFINITY, Some(0))
+                );
+                assert_eq!(
+                    lone.occluded_leaving(start, out, 2.0, Some(0)),
+                    pair.occluded_leaving(start, out, 2.0, Some(0))
+                );
+            }
+            assert!(
+                stone_hits > 1000 && ground_hits > 500 && blocked > 1000,
+                "{stone_hits} {ground_hits} {blocked}"
+            );
+        }
+    }
 }
