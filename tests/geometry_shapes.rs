@@ -834,12 +834,13 @@ fn extreme_stones_and_axis_aligned_rays_stay_watertight() {
     }
 }
 
-/// Half ellipsoids (round/oval, p = 2, flat base, no girdle band) of several
-/// proportions, with and without a buff top.
-fn half_ellipsoids() -> Vec<Cabochon> {
-    let half = |outline, l, w, h, buff_top| {
+/// Flat-backed ovals (round/oval, p = 2, flat base) of several proportions:
+/// half ellipsoids (no girdle band) and banded ones, with and without a
+/// buff top.
+fn flat_ovals() -> Vec<Cabochon> {
+    let oval = |outline, l, w, h, girdle_height, buff_top| {
         Cabochon::new(CabochonParams {
-            girdle_height: 0.0,
+            girdle_height,
             dome_height: h,
             buff_top,
             ..stone(outline, l, w)
@@ -848,24 +849,32 @@ fn half_ellipsoids() -> Vec<Cabochon> {
     };
     vec![
         // The peer scene's stone (bench/peer-scene.ron).
-        half(Outline::Oval, 2.0, 1.4, 0.45, None),
-        half(Outline::Round, 8.0, 8.0, 3.0, None),
-        half(Outline::Oval, 12.0, 5.0, 9.0, None),
-        half(Outline::Oval, 10.0, 7.0, 4.0, Some(0.5)),
+        oval(Outline::Oval, 2.0, 1.4, 0.45, 0.0, None),
+        oval(Outline::Round, 8.0, 8.0, 3.0, 0.0, None),
+        oval(Outline::Oval, 12.0, 5.0, 9.0, 0.0, None),
+        oval(Outline::Oval, 10.0, 7.0, 4.0, 0.0, Some(0.5)),
+        // The studio scene's stone (gem-recipes/scenes/studio.ron).
+        oval(Outline::Oval, 10.0, 8.0, 4.0, 0.5, None),
+        oval(Outline::Round, 6.0, 6.0, 1.5, 2.0, Some(0.3)),
     ]
 }
 
 #[test]
-fn half_ellipsoid_fast_path_agrees_with_the_general_path() {
-    // The fast path solves one quadratic and clips it by the planes; the
-    // general path also solves the band cylinder and takes the normal from
-    // the body gradient via the outline gauge. Away from the rim they must
+fn flat_oval_fast_path_agrees_with_the_general_path() {
+    // The fast path clips the dome's quadratic (and the band cylinder's) by
+    // the planes itself; the general path collects the roots of every patch
+    // within a z tolerance, then clips, and takes the normal from the body
+    // gradient via the outline gauge. Away from the rim they must
     // agree to rounding: the same t (the same quotients), the same side
     // (entering), normals within 1e-12. Rays start outside and inside,
     // aim at the box, the rim and the base plane, and some lie in planes.
     let mut rng = Rng(77);
-    for stone in half_ellipsoids() {
-        assert!(stone.is_half_ellipsoid());
+    for stone in flat_ovals() {
+        assert!(stone.is_flat_oval());
+        let girdle = stone.params().girdle_height;
+        let at_rim = |p: DVec3| {
+            p.z.abs() < 1e-9 * stone.size() || (p.z + girdle).abs() < 1e-9 * stone.size()
+        };
         let size = stone.size();
         let (lo, hi) = stone.bounds();
         let centre = 0.5 * (lo + hi);
@@ -901,9 +910,8 @@ fn half_ellipsoid_fast_path_agrees_with_the_general_path() {
                 (Some(f), Some(g)) if f.t == g.t && f.entering == g.entering => {
                     hits += 1;
                     assert_eq!(f.point, g.point);
-                    let near_rim = f.point.z.abs() < 1e-9 * size;
                     assert!(
-                        (f.normal - g.normal).length() < 1e-12 || near_rim,
+                        (f.normal - g.normal).length() < 1e-12 || at_rim(f.point),
                         "normal {} vs {} at {}",
                         f.normal,
                         g.normal,
@@ -912,13 +920,13 @@ fn half_ellipsoid_fast_path_agrees_with_the_general_path() {
                     assert!((f.normal.length() - 1.0).abs() < 1e-15);
                 }
                 (None, None) => misses += 1,
-                // Only at the rim z = 0 may the general path's 1e-12 × size
-                // tolerance keep a band-cylinder root the fast path does not
-                // have, or a chord differ in length by rounding.
+                // Only at a rim (z = 0 or −g) may the general path's
+                // 1e-12 × size tolerance keep a root of the other patch, or a
+                // chord differ in length by rounding.
                 (f, g) => {
                     let hit = f.or(g).unwrap();
                     assert!(
-                        hit.point.z.abs() < 1e-9 * size,
+                        at_rim(hit.point),
                         "{f:?} vs {g:?} from {origin} along {dir}"
                     );
                     rim += 1;
@@ -937,7 +945,7 @@ fn crosses_agrees_with_intersect_on_every_stone() {
     // segments that end inside the stone.
     let mut rng = Rng(91);
     let mut all: Vec<Cabochon> = stones().into_iter().map(|(_, s)| s).collect();
-    all.extend(half_ellipsoids());
+    all.extend(flat_ovals());
     for stone in all {
         let size = stone.size();
         let (lo, hi) = stone.bounds();
@@ -960,28 +968,72 @@ fn crosses_agrees_with_intersect_on_every_stone() {
 }
 
 #[test]
-fn half_ellipsoid_refuses_non_finite_and_zero_rays() {
+fn flat_oval_refuses_non_finite_and_zero_rays() {
     // Like the general path, which refuses them up front: a NaN or infinite
-    // origin or direction, or a zero direction, is a miss, not a NaN hit.
-    let stone = &half_ellipsoids()[0];
-    let inside = DVec3::new(0.1, 0.1, 0.1);
-    for (origin, dir) in [
-        (DVec3::new(f64::NAN, 0.0, 1.0), DVec3::NEG_Z),
-        (DVec3::new(f64::INFINITY, 0.0, 1.0), DVec3::NEG_Z),
-        (inside, DVec3::new(f64::INFINITY, 0.0, 0.0)),
-        (inside, DVec3::new(f64::NAN, 0.0, 0.0)),
-        (inside, DVec3::new(f64::INFINITY, 1.0, -1.0)),
-        (inside, DVec3::ZERO),
-    ] {
-        assert!(stone.intersect(origin, dir, 0.0, f64::INFINITY).is_none());
-        assert!(!stone.crosses(origin, dir, 0.0, f64::INFINITY));
-        assert!(stone
-            .intersect_general(origin, dir, 0.0, f64::INFINITY)
-            .is_none());
+    // origin or direction, or a zero direction, is a miss, not a NaN hit;
+    // with and without a girdle band.
+    for stone in [&flat_ovals()[0], &flat_ovals()[4]] {
+        let inside = DVec3::new(0.1, 0.1, 0.1);
+        for (origin, dir) in [
+            (DVec3::new(f64::NAN, 0.0, 1.0), DVec3::NEG_Z),
+            (DVec3::new(f64::INFINITY, 0.0, 1.0), DVec3::NEG_Z),
+            (inside, DVec3::new(f64::INFINITY, 0.0, 0.0)),
+            (inside, DVec3::new(f64::NAN, 0.0, 0.0)),
+            (inside, DVec3::new(f64::INFINITY, 1.0, -1.0)),
+            (inside, DVec3::ZERO),
+        ] {
+            assert!(stone.intersect(origin, dir, 0.0, f64::INFINITY).is_none());
+            assert!(!stone.crosses(origin, dir, 0.0, f64::INFINITY));
+            assert!(stone
+                .intersect_general(origin, dir, 0.0, f64::INFINITY)
+                .is_none());
+        }
+        // The same inside point with a finite direction does hit (leaving).
+        let hit = stone
+            .intersect(inside, DVec3::Z, 0.0, f64::INFINITY)
+            .unwrap();
+        assert!(!hit.entering);
     }
-    // The same inside point with a finite direction does hit (leaving).
-    let hit = stone
-        .intersect(inside, DVec3::Z, 0.0, f64::INFINITY)
-        .unwrap();
-    assert!(!hit.entering);
+}
+
+#[test]
+fn flat_oval_meets_vertical_rays() {
+    // A ray straight down through a flat-backed oval enters the dome at
+    // z = h·√(1 − (x/a)² − (y/b)²) (or the buff top) and leaves through the
+    // base at z = −g (written out from the definition); straight up it
+    // enters through the base. The general path's exact solver misses such
+    // rays (no band roots when the direction has no x, y part), so this pins
+    // the fast path on its own.
+    for stone in flat_ovals() {
+        let p = *stone.params();
+        let (a, b, h, g) = (
+            p.length / 2.0,
+            p.width / 2.0,
+            p.dome_height,
+            p.girdle_height,
+        );
+        let (x, y) = (0.3 * a, -0.2 * b);
+        let dome_z = h * (1.0 - (x / a).powi(2) - (y / b).powi(2)).sqrt();
+        let top = dome_z.min(stone.bounds().1.z);
+        let down = stone
+            .intersect(DVec3::new(x, y, 2.0 * h), DVec3::NEG_Z, 0.0, f64::INFINITY)
+            .expect("a vertical ray through the dome");
+        assert!((down.point.z - top).abs() < 1e-12 * stone.size());
+        assert!(down.entering && down.normal.z > 0.0);
+        let out = stone
+            .intersect(
+                DVec3::new(x, y, 0.5 * top),
+                DVec3::NEG_Z,
+                0.0,
+                f64::INFINITY,
+            )
+            .expect("from inside out through the base");
+        assert!((out.point.z + g).abs() < 1e-12 * stone.size());
+        assert!(!out.entering && out.normal == DVec3::NEG_Z);
+        let up = stone
+            .intersect(DVec3::new(x, y, -g - 1.0), DVec3::Z, 0.0, f64::INFINITY)
+            .expect("a vertical ray up through the base");
+        assert!(up.entering && (up.point.z + g).abs() < 1e-12 * stone.size());
+        assert_eq!(up.normal, DVec3::NEG_Z);
+    }
 }

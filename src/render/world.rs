@@ -180,9 +180,10 @@ pub struct World {
     /// `None` for an empty scene or one of ≤ [`MAX_STONES_WITHOUT_BVH`].
     bvh: Option<CwBvh>,
     ground_height: Option<f64>,
-    /// The scene's only stone when it is a half ellipsoid: its quadric test
-    /// rejects a miss for fewer instructions than its box, so it is tested
-    /// directly, from a copy that needs no indexing.
+    /// The scene's only stone when it is a half ellipsoid
+    /// ([`Cabochon::is_half_ellipsoid`]): its quadric test rejects a miss
+    /// for fewer instructions than its box, so it is tested directly, from a
+    /// copy that needs no indexing.
     lone_half_ellipsoid: Option<(StoneInstance, Placement)>,
 }
 
@@ -376,7 +377,11 @@ impl World {
         }
         if let Some((stone, placement)) = &self.lone_half_ellipsoid {
             // A ray leaving the only stone cannot meet it again.
-            return leaving.is_none() && stone.crosses(placement, origin, direction, 0.0, distance);
+            if leaving.is_some() {
+                return false;
+            }
+            let (o, d) = placement.object_ray(stone.position, origin, direction);
+            return stone.cabochon.half_ellipsoid_crosses(o, d, 0.0, distance);
         }
         if self.nothing_else_to_test(leaving) {
             return false;
@@ -635,21 +640,34 @@ mod tests {
         // The lone-stone path skips the boxes, the indexing and the
         // stone-count checks; a world with a second stone far away takes
         // the box search instead, and must give the same hits, skips and
-        // shadows, for an unrotated and a rotated stone.
+        // shadows, for an unrotated and a rotated stone. With a girdle band
+        // the stone is no half ellipsoid: both worlds search the boxes and
+        // still agree.
         let rotations = [
             DQuat::IDENTITY,
             DQuat::from_rotation_z(0.7) * DQuat::from_rotation_x(0.3),
         ];
-        for rotation in rotations {
+        for (rotation, girdle_height) in [
+            (rotations[0], 0.0),
+            (rotations[1], 0.0),
+            (rotations[0], 0.3),
+            (rotations[1], 0.3),
+        ] {
             let position = DVec3::new(0.3, -0.2, 0.5);
-            let stone = peer_half_ellipsoid(rotation, position);
+            let mut stone = peer_half_ellipsoid(rotation, position);
+            stone.cabochon = Cabochon::new(CabochonParams {
+                girdle_height,
+                ..*stone.cabochon.params()
+            })
+            .unwrap();
             let far = StoneInstance {
                 position: DVec3::new(1e3, 0.0, 0.5),
                 ..stone.clone()
             };
             let lone = World::new(vec![stone.clone()], Some(0.0));
             let pair = World::new(vec![stone, far], Some(0.0));
-            assert!(lone.lone_half_ellipsoid.is_some() && pair.lone_half_ellipsoid.is_none());
+            assert_eq!(lone.lone_half_ellipsoid.is_some(), girdle_height == 0.0);
+            assert!(pair.lone_half_ellipsoid.is_none());
             let mut rng = Rng::new(9, 1);
             let (mut stone_hits, mut ground_hits, mut blocked) = (0, 0, 0);
             for _ in 0..5000 {
