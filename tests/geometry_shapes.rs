@@ -93,6 +93,22 @@ fn stones() -> Vec<(&'static str, Cabochon)> {
             }),
         ),
         (
+            "oval half ellipsoid",
+            mk(CabochonParams {
+                girdle_height: 0.0,
+                dome_height: 2.5,
+                ..stone(Outline::Oval, 10.0, 7.0)
+            }),
+        ),
+        (
+            "round half ellipsoid buff top",
+            mk(CabochonParams {
+                girdle_height: 0.0,
+                buff_top: Some(0.4),
+                ..stone(Outline::Round, 6.0, 6.0)
+            }),
+        ),
+        (
             "round double ellipsoid",
             mk(CabochonParams {
                 base: Base::Domed { height: 2.5 },
@@ -815,5 +831,209 @@ fn extreme_stones_and_axis_aligned_rays_stay_watertight() {
                 assert_eq!(crossings, 2, "{params:?}: a vertical ray through the apex");
             }
         }
+    }
+}
+
+/// Flat-backed ovals (round/oval, p = 2, flat base) of several proportions:
+/// half ellipsoids (no girdle band) and banded ones, with and without a
+/// buff top.
+fn flat_ovals() -> Vec<Cabochon> {
+    let oval = |outline, l, w, h, girdle_height, buff_top| {
+        Cabochon::new(CabochonParams {
+            girdle_height,
+            dome_height: h,
+            buff_top,
+            ..stone(outline, l, w)
+        })
+        .unwrap()
+    };
+    vec![
+        // The peer scene's stone (bench/peer-scene.ron).
+        oval(Outline::Oval, 2.0, 1.4, 0.45, 0.0, None),
+        oval(Outline::Round, 8.0, 8.0, 3.0, 0.0, None),
+        oval(Outline::Oval, 12.0, 5.0, 9.0, 0.0, None),
+        oval(Outline::Oval, 10.0, 7.0, 4.0, 0.0, Some(0.5)),
+        // The studio scene's stone (gem-recipes/scenes/studio.ron).
+        oval(Outline::Oval, 10.0, 8.0, 4.0, 0.5, None),
+        oval(Outline::Round, 6.0, 6.0, 1.5, 2.0, Some(0.3)),
+    ]
+}
+
+#[test]
+fn flat_oval_fast_path_agrees_with_the_general_path() {
+    // The fast path clips the dome's quadratic (and the band cylinder's) by
+    // the planes itself; the general path collects the roots of every patch
+    // within a z tolerance, then clips, and takes the normal from the body
+    // gradient via the outline gauge. Away from the rim they must
+    // agree to rounding: the same t (the same quotients), the same side
+    // (entering), normals within 1e-12. Rays start outside and inside,
+    // aim at the box, the rim and the base plane, and some lie in planes.
+    let mut rng = Rng(77);
+    for stone in flat_ovals() {
+        assert!(stone.is_flat_oval());
+        let girdle = stone.params().girdle_height;
+        let at_rim = |p: DVec3| {
+            p.z.abs() < 1e-9 * stone.size() || (p.z + girdle).abs() < 1e-9 * stone.size()
+        };
+        let size = stone.size();
+        let (lo, hi) = stone.bounds();
+        let centre = 0.5 * (lo + hi);
+        let (mut hits, mut misses, mut rim) = (0, 0, 0);
+        for i in 0..20_000 {
+            let origin = match i % 4 {
+                0 => centre + 3.0 * size * rng.direction(),
+                1 => rng.in_box(lo, hi),
+                2 => DVec3::new(rng.range(lo.x, hi.x), rng.range(lo.y, hi.y), 0.0),
+                _ => centre + 0.7 * size * rng.direction(),
+            };
+            let mut dir = if i % 3 == 0 {
+                rng.in_box(lo, hi) - origin
+            } else {
+                rng.direction() * rng.range(0.1, 10.0)
+            };
+            if i % 17 == 0 {
+                dir.z = 0.0;
+            }
+            let t_min = if i % 5 == 0 {
+                rng.range(-1.0, 1.0)
+            } else {
+                0.0
+            };
+            let fast = stone.intersect(origin, dir, t_min, f64::INFINITY);
+            let general = stone.intersect_general(origin, dir, t_min, f64::INFINITY);
+            assert_eq!(
+                fast.is_some(),
+                stone.crosses(origin, dir, t_min, f64::INFINITY),
+                "crosses disagrees with intersect"
+            );
+            match (fast, general) {
+                (Some(f), Some(g)) if f.t == g.t && f.entering == g.entering => {
+                    hits += 1;
+                    assert_eq!(f.point, g.point);
+                    assert!(
+                        (f.normal - g.normal).length() < 1e-12 || at_rim(f.point),
+                        "normal {} vs {} at {}",
+                        f.normal,
+                        g.normal,
+                        f.point
+                    );
+                    assert!((f.normal.length() - 1.0).abs() < 1e-15);
+                }
+                (None, None) => misses += 1,
+                // Only at a rim (z = 0 or −g) may the general path's
+                // 1e-12 × size tolerance keep a root of the other patch, or a
+                // chord differ in length by rounding.
+                (f, g) => {
+                    let hit = f.or(g).unwrap();
+                    assert!(
+                        at_rim(hit.point),
+                        "{f:?} vs {g:?} from {origin} along {dir}"
+                    );
+                    rim += 1;
+                }
+            }
+        }
+        assert!(hits > 5000 && misses > 2000, "{hits} hits, {misses} misses");
+        assert!(rim <= 5, "{rim} rays disagree at the rim");
+    }
+}
+
+#[test]
+fn crosses_agrees_with_intersect_on_every_stone() {
+    // `crosses` (shadow rays) must answer exactly whether `intersect` finds
+    // a crossing in (t_min, t_max), for every shape, including short
+    // segments that end inside the stone.
+    let mut rng = Rng(91);
+    let mut all: Vec<Cabochon> = stones().into_iter().map(|(_, s)| s).collect();
+    all.extend(flat_ovals());
+    for stone in all {
+        let size = stone.size();
+        let (lo, hi) = stone.bounds();
+        let centre = 0.5 * (lo + hi);
+        let (mut yes, mut no) = (0, 0);
+        for _ in 0..4000 {
+            let origin = centre + 2.0 * size * rng.direction();
+            let dir = (rng.in_box(lo, hi) - origin).normalize();
+            let t_max = rng.range(0.5, 4.0) * size;
+            let crosses = stone.crosses(origin, dir, 0.0, t_max);
+            assert_eq!(crosses, stone.intersect(origin, dir, 0.0, t_max).is_some());
+            if crosses {
+                yes += 1;
+            } else {
+                no += 1;
+            }
+        }
+        assert!(yes > 500 && no > 200, "{yes} crossings, {no} misses");
+    }
+}
+
+#[test]
+fn flat_oval_refuses_non_finite_and_zero_rays() {
+    // Like the general path, which refuses them up front: a NaN or infinite
+    // origin or direction, or a zero direction, is a miss, not a NaN hit;
+    // with and without a girdle band.
+    for stone in [&flat_ovals()[0], &flat_ovals()[4]] {
+        let inside = DVec3::new(0.1, 0.1, 0.1);
+        for (origin, dir) in [
+            (DVec3::new(f64::NAN, 0.0, 1.0), DVec3::NEG_Z),
+            (DVec3::new(f64::INFINITY, 0.0, 1.0), DVec3::NEG_Z),
+            (inside, DVec3::new(f64::INFINITY, 0.0, 0.0)),
+            (inside, DVec3::new(f64::NAN, 0.0, 0.0)),
+            (inside, DVec3::new(f64::INFINITY, 1.0, -1.0)),
+            (inside, DVec3::ZERO),
+        ] {
+            assert!(stone.intersect(origin, dir, 0.0, f64::INFINITY).is_none());
+            assert!(!stone.crosses(origin, dir, 0.0, f64::INFINITY));
+            assert!(stone
+                .intersect_general(origin, dir, 0.0, f64::INFINITY)
+                .is_none());
+        }
+        // The same inside point with a finite direction does hit (leaving).
+        let hit = stone
+            .intersect(inside, DVec3::Z, 0.0, f64::INFINITY)
+            .unwrap();
+        assert!(!hit.entering);
+    }
+}
+
+#[test]
+fn flat_oval_meets_vertical_rays() {
+    // A ray straight down through a flat-backed oval enters the dome at
+    // z = h·√(1 − (x/a)² − (y/b)²) (or the buff top) and leaves through the
+    // base at z = −g (written out from the definition); straight up it
+    // enters through the base. The general path's exact solver misses such
+    // rays (no band roots when the direction has no x, y part), so this pins
+    // the fast path on its own.
+    for stone in flat_ovals() {
+        let p = *stone.params();
+        let (a, b, h, g) = (
+            p.length / 2.0,
+            p.width / 2.0,
+            p.dome_height,
+            p.girdle_height,
+        );
+        let (x, y) = (0.3 * a, -0.2 * b);
+        let dome_z = h * (1.0 - (x / a).powi(2) - (y / b).powi(2)).sqrt();
+        let top = dome_z.min(stone.bounds().1.z);
+        let down = stone
+            .intersect(DVec3::new(x, y, 2.0 * h), DVec3::NEG_Z, 0.0, f64::INFINITY)
+            .expect("a vertical ray through the dome");
+        assert!((down.point.z - top).abs() < 1e-12 * stone.size());
+        assert!(down.entering && down.normal.z > 0.0);
+        let out = stone
+            .intersect(
+                DVec3::new(x, y, 0.5 * top),
+                DVec3::NEG_Z,
+                0.0,
+                f64::INFINITY,
+            )
+            .expect("from inside out through the base");
+        assert!((out.point.z + g).abs() < 1e-12 * stone.size());
+        assert!(!out.entering && out.normal == DVec3::NEG_Z);
+        let up = stone
+            .intersect(DVec3::new(x, y, -g - 1.0), DVec3::Z, 0.0, f64::INFINITY)
+            .expect("a vertical ray up through the base");
+        assert!(up.entering && (up.point.z + g).abs() < 1e-12 * stone.size());
+        assert_eq!(up.normal, DVec3::NEG_Z);
     }
 }

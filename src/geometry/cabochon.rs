@@ -162,6 +162,12 @@ pub struct Cabochon {
     buffed: bool,
     /// Round/oval with p = 2: closed-form quadratics.
     ellipsoidal: bool,
+    /// Ellipsoidal with a flat base (any girdle band, optionally buffed):
+    /// intersected by [`Self::intersect_flat_oval`].
+    flat_oval: bool,
+    /// `(1/a, 1/b, 1/h)`: object space to the space where the dome
+    /// ellipsoid is the unit sphere.
+    inv_axes: DVec3,
     size: f64,
 }
 
@@ -215,6 +221,7 @@ impl Cabochon {
         };
         let z_bottom = -g - base_depth;
         let ellipsoidal = matches!(params.outline, Outline::Round | Outline::Oval) && p == 2.0;
+        let flat_oval = ellipsoidal && params.base == Base::Flat;
         let size = params.length.max(params.width).max(z_top - z_bottom);
         if size.is_nan() || size > MAX_SIZE {
             return Err(GeometryError::new(
@@ -235,6 +242,10 @@ impl Cabochon {
             flat_base,
             buffed: params.buff_top.is_some(),
             ellipsoidal,
+            flat_oval,
+            // The same quotients as `body_chord_exact`'s, so both paths scale
+            // a ray identically.
+            inv_axes: DVec3::new(2.0 / params.length, 2.0 / params.width, 1.0 / h),
             size,
         })
     }
@@ -247,6 +258,20 @@ impl Cabochon {
     /// The outline with its size.
     pub fn footprint(&self) -> &Footprint {
         &self.footprint
+    }
+
+    /// Whether the stone is a flat-backed oval (round/oval outline, profile
+    /// exponent 2, flat base, any girdle band and buff top), intersected by
+    /// [`Self::intersect_flat_oval`].
+    pub fn is_flat_oval(&self) -> bool {
+        self.flat_oval
+    }
+
+    /// Whether the stone is a flat-backed oval without a girdle band: a half
+    /// ellipsoid (optionally buffed), whose one quadratic rejects a miss for
+    /// fewer instructions than a box test.
+    pub fn is_half_ellipsoid(&self) -> bool {
+        self.flat_oval && self.girdle == 0.0
     }
 
     /// The stone's characteristic size (largest extent), the scale of all
@@ -354,15 +379,260 @@ impl Cabochon {
     ///
     /// `dir` need not be normalised. Chords shorter than `1e-8 × size`
     /// (grazing rays) count as misses, so hits always come in entry/exit
-    /// pairs. Round/oval stones with p = 2 are solved exactly; all others
-    /// by [`Self::intersect_iterative`].
+    /// pairs. A flat-backed oval (round/oval, p = 2, flat base) takes
+    /// [`Self::intersect_flat_oval`]; every other stone
+    /// [`Self::intersect_general`].
+    #[inline(always)]
     pub fn intersect(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> Option<Hit> {
+        if self.flat_oval {
+            self.intersect_flat_oval(origin, dir, t_min, t_max)
+        } else {
+            self.intersect_general(origin, dir, t_min, t_max)
+        }
+    }
+
+    /// Whether the ray `origin + t·dir` crosses the surface for some
+    /// `t_min < t < t_max`: `self.intersect(..).is_some()`, without the hit
+    /// point and normal (for shadow rays).
+    #[inline(always)]
+    pub fn crosses(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> bool {
+        if self.flat_oval {
+            self.flat_oval_chord(origin, dir)
+                .is_some_and(|c| c.first_end(t_min, t_max).is_some())
+        } else {
+            self.intersect_general(origin, dir, t_min, t_max).is_some()
+        }
+    }
+
+    /// [`Self::intersect`] by the general pipeline for every stone: the body
+    /// chord (exact quadratics for round/oval p = 2 stones, else Newton),
+    /// clipped by the buff-top and flat-base planes, the normal from the
+    /// body's gradient. Public so that the fast path can be checked
+    /// against it.
+    pub fn intersect_general(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<Hit> {
         let chord = if self.ellipsoidal {
             self.body_chord_exact(origin, dir)
         } else {
             self.body_chord_newton(origin, dir)
         };
         self.finish(origin, dir, t_min, t_max, chord)
+    }
+
+    /// [`Self::intersect`] for a flat-backed oval, in the space where the
+    /// dome is the unit sphere, `(x/a, y/b, z/h)`. Without a girdle band
+    /// (a half ellipsoid) one quadratic, clipped by the base plane z = 0 and
+    /// the buff top; with one, the union of that dome piece above z = 0 and
+    /// the band's elliptic-cylinder piece for −g ≤ z ≤ 0. The normal is the
+    /// gradient `(x/a², y/b², z/h²)` of `(x/a)² + (y/b)² + (z/h)²` on the
+    /// dome, `(x/a², y/b², 0)` on the band, normalised.
+    ///
+    /// The same roots, clipping and minimum chord as
+    /// [`Self::intersect_general`]; it differs only where that path's
+    /// `1e-12 × size` tolerance in z lets a root of the other patch stand in
+    /// at a rim, for exactly vertical rays (which the general path misses
+    /// through the band or the base), and in the last bits of the normal.
+    #[inline(always)]
+    pub fn intersect_flat_oval(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<Hit> {
+        let chord = self.flat_oval_chord(origin, dir)?;
+        self.flat_oval_hit(chord, origin, dir, t_min, t_max)
+    }
+
+    /// [`Self::intersect_flat_oval`] for a stone without a girdle band (a
+    /// half ellipsoid, [`Self::is_half_ellipsoid`]), with no test of the
+    /// band: the one-stone scene's hot path. Only for such stones.
+    #[inline(always)]
+    pub(crate) fn intersect_half_ellipsoid(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<Hit> {
+        debug_assert!(self.is_half_ellipsoid());
+        let chord = self.half_ellipsoid_chord(origin, dir)?;
+        self.flat_oval_hit(chord, origin, dir, t_min, t_max)
+    }
+
+    /// [`Self::crosses`] for a half ellipsoid (see
+    /// [`Self::intersect_half_ellipsoid`]).
+    #[inline(always)]
+    pub(crate) fn half_ellipsoid_crosses(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t_min: f64,
+        t_max: f64,
+    ) -> bool {
+        debug_assert!(self.is_half_ellipsoid());
+        self.half_ellipsoid_chord(origin, dir)
+            .is_some_and(|c| c.first_end(t_min, t_max).is_some())
+    }
+
+    /// The hit at the first end of a flat oval's chord in (t_min, t_max).
+    #[inline(always)]
+    fn flat_oval_hit(
+        &self,
+        chord: Chord,
+        origin: DVec3,
+        dir: DVec3,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<Hit> {
+        let (t, side, entering) = chord.first_end(t_min, t_max)?;
+        let normal = match side {
+            Side::Body => {
+                // The unit-sphere point at t, mapped by the inverse axes once
+                // more: ∇((x/a)² + (y/b)² + (z/h)²) / 2 on the dome; on the
+                // band (z ≤ 0) the cylinder's (x/a², y/b², 0).
+                let mut unit_point = chord.origin_scaled + t * chord.dir_scaled;
+                unit_point.z = unit_point.z.max(0.0);
+                (unit_point * self.inv_axes).normalize()
+            }
+            Side::Top => DVec3::Z,
+            Side::Bottom => DVec3::NEG_Z,
+        };
+        Some(Hit {
+            t,
+            point: origin + t * dir,
+            normal,
+            entering,
+        })
+    }
+
+    /// The chord of the line through a flat-backed oval (see
+    /// [`Self::intersect_flat_oval`]), `None` for a miss or a chord below
+    /// the minimum length.
+    #[inline(always)]
+    fn flat_oval_chord(&self, origin: DVec3, dir: DVec3) -> Option<Chord> {
+        if self.girdle > 0.0 {
+            self.banded_oval_chord(origin, dir)
+        } else {
+            self.half_ellipsoid_chord(origin, dir)
+        }
+    }
+
+    /// [`Self::flat_oval_chord`] without a girdle band: the dome
+    /// ellipsoid's chord, clipped by the base z = 0 and the buff top.
+    #[inline(always)]
+    fn half_ellipsoid_chord(&self, origin: DVec3, dir: DVec3) -> Option<Chord> {
+        let origin_scaled = origin * self.inv_axes;
+        let dir_scaled = dir * self.inv_axes;
+        let dd = dir_scaled.dot(dir_scaled);
+        let od = origin_scaled.dot(dir_scaled);
+        let c = origin_scaled.dot(origin_scaled) - 1.0;
+        let disc = od * od - dd * c;
+        // Most misses leave here (also a NaN discriminant, from a NaN or
+        // infinite origin or direction).
+        if disc < 0.0 || disc.is_nan() {
+            return None;
+        }
+        // Refuses a zero or infinite direction (an infinite origin with a
+        // finite direction left a NaN or −∞ discriminant above).
+        if !(dd > 0.0 && dd < f64::INFINITY) {
+            return None;
+        }
+        let mut chord = Chord::between_unit_roots(od, dd, c, origin_scaled, dir_scaled)?;
+        // `finish`'s clipping: the buff top, then the base, the same
+        // quotients and comparisons.
+        if self.buffed {
+            chord.clip(origin.z, dir.z, self.z_top, true, Side::Top);
+        }
+        chord.clip(origin.z, dir.z, -self.girdle, false, Side::Bottom);
+        self.long_enough(chord, dir)
+    }
+
+    /// [`Self::flat_oval_chord`] with a girdle band: the union of the dome
+    /// piece (the ellipsoid's chord for z ≥ 0, below the buff top) and the
+    /// band piece (the elliptic cylinder's chord for −g ≤ z ≤ 0). The
+    /// cylinder holds the whole stone, so a line that misses it misses.
+    /// Never inlined, so that the half ellipsoid's path stays small.
+    #[inline(never)]
+    fn banded_oval_chord(&self, origin: DVec3, dir: DVec3) -> Option<Chord> {
+        let origin_scaled = origin * self.inv_axes;
+        let dir_scaled = dir * self.inv_axes;
+        let (o2, d2) = (origin_scaled.truncate(), dir_scaled.truncate());
+        let (dd2, od2, c2) = (d2.dot(d2), o2.dot(d2), o2.dot(o2) - 1.0);
+        let disc2 = od2 * od2 - dd2 * c2;
+        if disc2 < 0.0 || disc2.is_nan() {
+            return None;
+        }
+        let dd = dir_scaled.dot(dir_scaled);
+        // Refuses a zero, infinite or NaN direction or origin.
+        if !(dd > 0.0 && dd < f64::INFINITY && origin_scaled.is_finite()) {
+            return None;
+        }
+        let mut band = if dd2 > 0.0 {
+            Chord::between_unit_roots(od2, dd2, c2, origin_scaled, dir_scaled)?
+        } else if c2 <= 0.0 {
+            // A vertical line inside the cylinder: inside it for every t.
+            Chord {
+                t_in: f64::NEG_INFINITY,
+                t_out: f64::INFINITY,
+                side_in: Side::Body,
+                side_out: Side::Body,
+                origin_scaled,
+                dir_scaled,
+            }
+        } else {
+            return None;
+        };
+        // The z = 0 end of the band piece continues into the dome piece.
+        band.clip(origin.z, dir.z, 0.0, true, Side::Body);
+        band.clip(origin.z, dir.z, -self.girdle, false, Side::Bottom);
+        let od = origin_scaled.dot(dir_scaled);
+        let c = origin_scaled.dot(origin_scaled) - 1.0;
+        let disc = od * od - dd * c;
+        let dome = if disc >= 0.0 {
+            Chord::between_unit_roots(od, dd, c, origin_scaled, dir_scaled).map(|mut dome| {
+                if self.buffed {
+                    dome.clip(origin.z, dir.z, self.z_top, true, Side::Top);
+                }
+                dome.clip(origin.z, dir.z, 0.0, false, Side::Body);
+                dome
+            })
+        } else {
+            None
+        };
+        // Also refuses NaN ends.
+        let band = (band.t_in < band.t_out).then_some(band);
+        let dome = dome.filter(|d| d.t_in < d.t_out);
+        let chord = match (band, dome) {
+            (Some(mut band), Some(dome)) => {
+                if dome.t_in < band.t_in {
+                    band.t_in = dome.t_in;
+                    band.side_in = dome.side_in;
+                }
+                if dome.t_out > band.t_out {
+                    band.t_out = dome.t_out;
+                    band.side_out = dome.side_out;
+                }
+                band
+            }
+            (Some(piece), None) | (None, Some(piece)) => piece,
+            (None, None) => return None,
+        };
+        self.long_enough(chord, dir)
+    }
+
+    /// The chord unless it is shorter than `1e-8 × size` (a grazing ray),
+    /// as in `finish`.
+    #[inline(always)]
+    fn long_enough(&self, chord: Chord, dir: DVec3) -> Option<Chord> {
+        let min_chord = 1e-8 * self.size / dir.length();
+        // Also refuses NaN chords.
+        (chord.t_out - chord.t_in >= min_chord).then_some(chord)
     }
 
     /// Like [`Self::intersect`] but always by Newton iteration, also for
@@ -567,6 +837,88 @@ impl Cabochon {
             }
         }
         (lo < hi).then_some((lo, hi))
+    }
+}
+
+/// The part of a line inside a flat-backed oval, with what bounds each end
+/// and the line in unit-sphere space (for the normal).
+#[derive(Debug, Clone, Copy)]
+struct Chord {
+    t_in: f64,
+    t_out: f64,
+    side_in: Side,
+    side_out: Side,
+    origin_scaled: DVec3,
+    dir_scaled: DVec3,
+}
+
+impl Chord {
+    /// The chord between the roots of `|o + t·d|² = 1`, given `o·d`, `d·d`
+    /// and `o·o − 1` with a non-negative discriminant, by
+    /// `quadratic_unit_roots`' cancellation-free formula; `None` for the
+    /// single root at t = 0 (a chord of length 0).
+    #[inline(always)]
+    fn between_unit_roots(
+        od: f64,
+        dd: f64,
+        c: f64,
+        origin_scaled: DVec3,
+        dir_scaled: DVec3,
+    ) -> Option<Self> {
+        let disc = od * od - dd * c;
+        let q = -(od + disc.sqrt().copysign(od));
+        if q == 0.0 {
+            return None;
+        }
+        let (r0, r1) = (q / dd, c / q);
+        Some(Self {
+            t_in: r0.min(r1),
+            t_out: r0.max(r1),
+            side_in: Side::Body,
+            side_out: Side::Body,
+            origin_scaled,
+            dir_scaled,
+        })
+    }
+
+    /// Keeps the part of the chord with z ≤ `plane_z` (`below`) or
+    /// z ≥ `plane_z`, as `Cabochon::finish` does.
+    #[inline]
+    fn clip(&mut self, origin_z: f64, dir_z: f64, plane_z: f64, below: bool, side: Side) {
+        if dir_z == 0.0 {
+            let outside = if below {
+                origin_z > plane_z
+            } else {
+                origin_z < plane_z
+            };
+            if outside {
+                self.t_out = f64::NEG_INFINITY;
+            }
+            return;
+        }
+        let t = (plane_z - origin_z) / dir_z;
+        if (dir_z > 0.0) == below {
+            if t < self.t_out {
+                self.t_out = t;
+                self.side_out = side;
+            }
+        } else if t > self.t_in {
+            self.t_in = t;
+            self.side_in = side;
+        }
+    }
+
+    /// The first end in `(t_min, t_max)`: its t, side and whether the line
+    /// enters there.
+    #[inline]
+    fn first_end(&self, t_min: f64, t_max: f64) -> Option<(f64, Side, bool)> {
+        if self.t_in > t_min && self.t_in < t_max {
+            Some((self.t_in, self.side_in, true))
+        } else if self.t_out > t_min && self.t_out < t_max {
+            Some((self.t_out, self.side_out, false))
+        } else {
+            None
+        }
     }
 }
 

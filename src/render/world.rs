@@ -9,7 +9,7 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::ray::{Ray, RayHit};
 use obvhs::{Boundable, BvhBuildParams};
 
-use crate::geometry::Cabochon;
+use crate::geometry::{Cabochon, Hit};
 
 /// One stone in the scene: a cabochon in its object space, placed in the
 /// world by `rotation` then `position`, shaded by gem number `gem`.
@@ -45,8 +45,11 @@ impl StoneInstance {
     }
 
     /// The first crossing of the world ray with this stone's surface in
-    /// (t_min, t_max), from outside or inside, given the stone's rotation
-    /// as matrices (precomputed by [`World::new`]).
+    /// (t_min, t_max), from outside or inside, in the stone's object space
+    /// (`frame` precomputed by [`World::new`]). A rotation keeps lengths, so
+    /// t is the same in both spaces. Inlined into the world's loops so that
+    /// the hit stays in registers.
+    #[inline(always)]
     fn intersect(
         &self,
         frame: &Placement,
@@ -54,21 +57,23 @@ impl StoneInstance {
         direction: DVec3,
         t_min: f64,
         t_max: f64,
-    ) -> Option<SurfaceHit> {
-        let o = frame.world_to_object * (origin - self.position);
-        let d = frame.world_to_object * direction;
-        // A rotation keeps lengths, so t is the same in both spaces.
-        let hit = self.cabochon.intersect(o, d, t_min, t_max)?;
-        Some(SurfaceHit {
-            t: hit.t,
-            point: origin + direction * hit.t,
-            normal: (frame.object_to_world * hit.normal).normalize(),
-            surface: Surface::Stone {
-                index: 0,
-                object_point: hit.point,
-                object_normal: hit.normal,
-            },
-        })
+    ) -> Option<Hit> {
+        let (o, d) = frame.object_ray(self.position, origin, direction);
+        self.cabochon.intersect(o, d, t_min, t_max)
+    }
+
+    /// Whether the world ray crosses this stone's surface in (t_min, t_max).
+    #[inline(always)]
+    fn crosses(
+        &self,
+        frame: &Placement,
+        origin: DVec3,
+        direction: DVec3,
+        t_min: f64,
+        t_max: f64,
+    ) -> bool {
+        let (o, d) = frame.object_ray(self.position, origin, direction);
+        self.cabochon.crosses(o, d, t_min, t_max)
     }
 }
 
@@ -118,8 +123,48 @@ impl SurfaceHit {
 struct Placement {
     world_to_object: DMat3,
     object_to_world: DMat3,
+    /// The rotation is the identity: object and world differ by the
+    /// translation only, and both matrix products are skipped.
+    unrotated: bool,
     /// Padded world-space bounds (min, max).
     bounds: (DVec3, DVec3),
+}
+
+impl Placement {
+    /// A world ray in the object space of the stone at `position`.
+    #[inline]
+    fn object_ray(&self, position: DVec3, origin: DVec3, direction: DVec3) -> (DVec3, DVec3) {
+        if self.unrotated {
+            (origin - position, direction)
+        } else {
+            (
+                self.world_to_object * (origin - position),
+                self.world_to_object * direction,
+            )
+        }
+    }
+
+    /// The world-space hit of stone number `index` for an object-space `hit`
+    /// of the world ray.
+    #[inline]
+    fn surface_hit(&self, index: usize, origin: DVec3, direction: DVec3, hit: Hit) -> SurfaceHit {
+        SurfaceHit {
+            t: hit.t,
+            point: origin + direction * hit.t,
+            // The object normal is unit; a rotation keeps it so up to
+            // rounding, which `normalize` removes.
+            normal: if self.unrotated {
+                hit.normal
+            } else {
+                (self.object_to_world * hit.normal).normalize()
+            },
+            surface: Surface::Stone {
+                index,
+                object_point: hit.point,
+                object_normal: hit.normal,
+            },
+        }
+    }
 }
 
 /// Scenes with at most this many stones test each stone's box directly:
@@ -135,6 +180,11 @@ pub struct World {
     /// `None` for an empty scene or one of ≤ [`MAX_STONES_WITHOUT_BVH`].
     bvh: Option<CwBvh>,
     ground_height: Option<f64>,
+    /// The scene's only stone when it is a half ellipsoid
+    /// ([`Cabochon::is_half_ellipsoid`]): its quadric test rejects a miss
+    /// for fewer instructions than its box, so it is tested directly, from a
+    /// copy that needs no indexing.
+    lone_half_ellipsoid: Option<(StoneInstance, Placement)>,
 }
 
 /// Whether the ray `origin + t·direction` (with `inverse_direction` its
@@ -176,9 +226,11 @@ impl World {
                 // Pad by an f32 ulp-scale margin so the f32 box test
                 // never clips the f64 surface.
                 let pad = 1e-4 * (hi - lo).max_element().max(1.0);
+                let object_to_world = DMat3::from_quat(s.rotation);
                 Placement {
                     world_to_object: DMat3::from_quat(s.rotation.inverse()),
-                    object_to_world: DMat3::from_quat(s.rotation),
+                    object_to_world,
+                    unrotated: object_to_world == DMat3::IDENTITY,
                     bounds: (lo - DVec3::splat(pad), hi + DVec3::splat(pad)),
                 }
             })
@@ -206,7 +258,10 @@ impl World {
                 &mut Default::default(),
             )
         });
+        let lone_half_ellipsoid = (stones.len() == 1 && stones[0].cabochon.is_half_ellipsoid())
+            .then(|| (stones[0].clone(), placements[0]));
         Self {
+            lone_half_ellipsoid,
             stones,
             placements,
             stones_bounds,
@@ -252,34 +307,159 @@ impl World {
         t_max: f64,
         leaving: Option<usize>,
     ) -> Option<SurfaceHit> {
-        // The ground first: it bounds the search among the stones.
-        let mut best: Option<SurfaceHit> = None;
+        // The ground first: it bounds the search among the stones. Its
+        // SurfaceHit is only built if no stone is nearer.
         let mut limit = t_max;
+        let mut ground = None;
         if let Some(h) = self.ground_height {
             if direction.z < 0.0 && origin.z > h {
                 let t = (h - origin.z) / direction.z;
                 if t > t_min && t < limit {
                     limit = t;
-                    best = Some(SurfaceHit {
-                        t,
-                        point: DVec3::new(
-                            origin.x + direction.x * t,
-                            origin.y + direction.y * t,
-                            h,
-                        ),
-                        normal: DVec3::Z,
-                        surface: Surface::Ground,
-                    });
+                    ground = Some(h);
                 }
             }
         }
-        if self.nothing_else_to_test(leaving) {
-            return best;
+        let stone = if let Some((stone, placement)) = &self.lone_half_ellipsoid {
+            // A ray leaving the only stone cannot meet it again.
+            if leaving.is_some() {
+                None
+            } else {
+                let (o, d) = placement.object_ray(stone.position, origin, direction);
+                stone
+                    .cabochon
+                    .intersect_half_ellipsoid(o, d, t_min, limit)
+                    .map(|hit| (0, placement, hit))
+            }
+        } else if self.nothing_else_to_test(leaving) {
+            None
+        } else {
+            self.nearest_stone(origin, direction, t_min, limit, leaving)
+                .map(|(index, hit)| (index, &self.placements[index], hit))
+        };
+        match stone {
+            Some((index, placement, hit)) => {
+                Some(placement.surface_hit(index, origin, direction, hit))
+            }
+            None => ground.map(|h| SurfaceHit {
+                t: limit,
+                point: DVec3::new(
+                    origin.x + direction.x * limit,
+                    origin.y + direction.y * limit,
+                    h,
+                ),
+                normal: DVec3::Z,
+                surface: Surface::Ground,
+            }),
         }
+    }
+
+    /// True if anything blocks the segment from `origin` along `direction`
+    /// up to `distance` (a shadow ray).
+    pub fn occluded(&self, origin: DVec3, direction: DVec3, distance: f64) -> bool {
+        self.occluded_leaving(origin, direction, distance, None)
+    }
+
+    /// [`World::occluded`] for a shadow ray leaving the outside of stone
+    /// number `leaving`, which cannot block it (see
+    /// [`World::intersect_leaving`]).
+    pub fn occluded_leaving(
+        &self,
+        origin: DVec3,
+        direction: DVec3,
+        distance: f64,
+        leaving: Option<usize>,
+    ) -> bool {
+        if let Some(h) = self.ground_height {
+            if direction.z < 0.0 && origin.z > h && (h - origin.z) / direction.z < distance {
+                return true;
+            }
+        }
+        if let Some((stone, placement)) = &self.lone_half_ellipsoid {
+            // A ray leaving the only stone cannot meet it again.
+            if leaving.is_some() {
+                return false;
+            }
+            let (o, d) = placement.object_ray(stone.position, origin, direction);
+            return stone.cabochon.half_ellipsoid_crosses(o, d, 0.0, distance);
+        }
+        if self.nothing_else_to_test(leaving) {
+            return false;
+        }
+        self.any_stone_blocks(origin, direction, distance, leaving)
+    }
+
+    /// The stone part of [`World::occluded_leaving`] through the boxes (and
+    /// the BVH): apart, so that the one-stone path stays small.
+    #[inline(never)]
+    fn any_stone_blocks(
+        &self,
+        origin: DVec3,
+        direction: DVec3,
+        distance: f64,
+        leaving: Option<usize>,
+    ) -> bool {
+        let inverse_direction = direction.recip();
+        if !ray_hits_box(origin, inverse_direction, distance, self.stones_bounds) {
+            return false;
+        }
+        // Any crossing before `distance` blocks.
+        let blocks = |index: usize| {
+            Some(index) != leaving
+                && self.stones[index].crosses(
+                    &self.placements[index],
+                    origin,
+                    direction,
+                    0.0,
+                    distance,
+                )
+        };
+        match &self.bvh {
+            None => {
+                let single = self.placements.len() == 1;
+                self.placements
+                    .iter()
+                    .enumerate()
+                    .any(|(index, placement)| {
+                        (single
+                            || ray_hits_box(origin, inverse_direction, distance, placement.bounds))
+                            && blocks(index)
+                    })
+            }
+            Some(bvh) => {
+                let ray = Ray::new(to_f32(origin), to_f32(direction), 0.0, f32_up(distance));
+                // A blocker is reported inside the ray's range so the
+                // traversal stops at once.
+                !bvh.ray_traverse_miss(ray, |_, id| {
+                    if blocks(bvh.primitive_indices[id] as usize) {
+                        0.0
+                    } else {
+                        f32::INFINITY
+                    }
+                })
+            }
+        }
+    }
+}
+
+impl World {
+    /// The nearest stone crossing in (t_min, limit) through the boxes (and
+    /// the BVH), skipping stone number `leaving`: apart from
+    /// [`World::intersect_leaving`], so that the one-stone path stays small.
+    #[inline(never)]
+    fn nearest_stone(
+        &self,
+        origin: DVec3,
+        direction: DVec3,
+        t_min: f64,
+        mut limit: f64,
+        leaving: Option<usize>,
+    ) -> Option<(usize, Hit)> {
         let inverse_direction = direction.recip();
         if !ray_hits_box(origin, inverse_direction, limit, self.stones_bounds) {
-            return best;
+            return None;
         }
+        let mut best = None;
         let mut try_stone = |index: usize, limit: &mut f64| -> bool {
             if Some(index) == leaving {
                 return false;
@@ -291,12 +471,9 @@ impl World {
                 t_min,
                 *limit,
             ) {
-                Some(mut hit) => {
-                    if let Surface::Stone { index: i, .. } = &mut hit.surface {
-                        *i = index;
-                    }
+                Some(hit) => {
                     *limit = hit.t;
-                    best = Some(hit);
+                    best = Some((index, hit));
                     true
                 }
                 None => false,
@@ -328,70 +505,6 @@ impl World {
         best
     }
 
-    /// True if anything blocks the segment from `origin` along `direction`
-    /// up to `distance` (a shadow ray).
-    pub fn occluded(&self, origin: DVec3, direction: DVec3, distance: f64) -> bool {
-        self.occluded_leaving(origin, direction, distance, None)
-    }
-
-    /// [`World::occluded`] for a shadow ray leaving the outside of stone
-    /// number `leaving`, which cannot block it (see
-    /// [`World::intersect_leaving`]).
-    pub fn occluded_leaving(
-        &self,
-        origin: DVec3,
-        direction: DVec3,
-        distance: f64,
-        leaving: Option<usize>,
-    ) -> bool {
-        if let Some(h) = self.ground_height {
-            if direction.z < 0.0 && origin.z > h && (h - origin.z) / direction.z < distance {
-                return true;
-            }
-        }
-        if self.nothing_else_to_test(leaving) {
-            return false;
-        }
-        let inverse_direction = direction.recip();
-        if !ray_hits_box(origin, inverse_direction, distance, self.stones_bounds) {
-            return false;
-        }
-        // Any crossing before `distance` blocks.
-        let blocks = |index: usize| {
-            Some(index) != leaving
-                && self.stones[index]
-                    .intersect(&self.placements[index], origin, direction, 0.0, distance)
-                    .is_some()
-        };
-        match &self.bvh {
-            None => {
-                let single = self.placements.len() == 1;
-                self.placements
-                    .iter()
-                    .enumerate()
-                    .any(|(index, placement)| {
-                        (single
-                            || ray_hits_box(origin, inverse_direction, distance, placement.bounds))
-                            && blocks(index)
-                    })
-            }
-            Some(bvh) => {
-                let ray = Ray::new(to_f32(origin), to_f32(direction), 0.0, f32_up(distance));
-                // A blocker is reported inside the ray's range so the
-                // traversal stops at once.
-                !bvh.ray_traverse_miss(ray, |_, id| {
-                    if blocks(bvh.primitive_indices[id] as usize) {
-                        0.0
-                    } else {
-                        f32::INFINITY
-                    }
-                })
-            }
-        }
-    }
-}
-
-impl World {
     /// True when no stone can be met: there are none, or the only one is
     /// the stone the ray leaves.
     fn nothing_else_to_test(&self, leaving: Option<usize>) -> bool {
@@ -500,6 +613,117 @@ mod tests {
                     "{count}: {met_other} {blocked}"
                 );
             }
+        }
+    }
+
+    /// The peer scene's stone (bench/peer-scene.ron): an ellipsoid cap of
+    /// semi-axes 1 × 0.7 × 0.45 on a flat base.
+    fn peer_half_ellipsoid(rotation: DQuat, position: DVec3) -> StoneInstance {
+        StoneInstance {
+            cabochon: Cabochon::new(CabochonParams {
+                outline: Outline::Oval,
+                length: 2.0,
+                width: 1.4,
+                dome_height: 0.45,
+                girdle_height: 0.0,
+                ..CabochonParams::default()
+            })
+            .unwrap(),
+            rotation,
+            position,
+            gem: 0,
+        }
+    }
+
+    #[test]
+    fn a_lone_half_ellipsoid_answers_as_the_box_search_does() {
+        // The lone-stone path skips the boxes, the indexing and the
+        // stone-count checks; a world with a second stone far away takes
+        // the box search instead, and must give the same hits, skips and
+        // shadows, for an unrotated and a rotated stone. With a girdle band
+        // the stone is no half ellipsoid: both worlds search the boxes and
+        // still agree.
+        let rotations = [
+            DQuat::IDENTITY,
+            DQuat::from_rotation_z(0.7) * DQuat::from_rotation_x(0.3),
+        ];
+        for (rotation, girdle_height) in [
+            (rotations[0], 0.0),
+            (rotations[1], 0.0),
+            (rotations[0], 0.3),
+            (rotations[1], 0.3),
+        ] {
+            let position = DVec3::new(0.3, -0.2, 0.5);
+            let mut stone = peer_half_ellipsoid(rotation, position);
+            stone.cabochon = Cabochon::new(CabochonParams {
+                girdle_height,
+                ..*stone.cabochon.params()
+            })
+            .unwrap();
+            let far = StoneInstance {
+                position: DVec3::new(1e3, 0.0, 0.5),
+                ..stone.clone()
+            };
+            let lone = World::new(vec![stone.clone()], Some(0.0));
+            let pair = World::new(vec![stone, far], Some(0.0));
+            assert_eq!(lone.lone_half_ellipsoid.is_some(), girdle_height == 0.0);
+            assert!(pair.lone_half_ellipsoid.is_none());
+            let mut rng = Rng::new(9, 1);
+            let (mut stone_hits, mut ground_hits, mut blocked) = (0, 0, 0);
+            for _ in 0..5000 {
+                let [a, b, c] = rng.next_3();
+                let target = position + DVec3::new(2.4 * a - 1.2, 1.8 * b - 0.9, 0.6 * c - 0.3);
+                let [u, v, w] = rng.next_3();
+                let origin = target + 4.0 * DVec3::new(u - 0.5, v - 0.5, w).normalize();
+                let d = (target - origin).normalize();
+                let hit = lone.intersect(origin, d, 0.0, f64::INFINITY);
+                assert_eq!(hit, pair.intersect(origin, d, 0.0, f64::INFINITY));
+                for distance in [0.5, 3.0, f64::INFINITY] {
+                    let occluded = lone.occluded(origin, d, distance);
+                    assert_eq!(occluded, pair.occluded(origin, d, distance));
+                    blocked += usize::from(occluded);
+                }
+                let Some(hit) = hit else { continue };
+                if hit.stone_index().is_none() {
+                    ground_hits += 1;
+                    continue;
+                }
+                stone_hits += 1;
+                if rotation == DQuat::IDENTITY {
+                    // Unrotated: no matrices, the object normal is the world
+                    // normal, the object point the world point less the
+                    // position (to rounding).
+                    let Surface::Stone {
+                        object_point,
+                        object_normal,
+                        ..
+                    } = hit.surface
+                    else {
+                        unreachable!()
+                    };
+                    assert_eq!(hit.normal, object_normal);
+                    assert!((object_point + position - hit.point).length() < 1e-12);
+                }
+                // A path leaving the stone skips it in both worlds alike.
+                let [u, v, w] = rng.next_3();
+                let mut out = DVec3::new(u - 0.5, v - 0.5, w - 0.5).normalize();
+                if out.dot(hit.normal) <= 0.0 {
+                    out -= 2.0 * out.dot(hit.normal) * hit.normal;
+                }
+                let start = hit.point + hit.normal * RAY_OFFSET;
+                assert_eq!(
+                    lone.intersect_leaving(start, out, 0.0, f64::INFINITY, Some(0)),
+                    pair.intersect_leaving(start, out, 0.0, f64::INFINITY, Some(0))
+                );
+                assert_eq!(
+                    lone.occluded_leaving(start, out, 2.0, Some(0)),
+                    pair.occluded_leaving(start, out, 2.0, Some(0))
+                );
+            }
+            assert!(
+                stone_hits > 1000 && ground_hits > 500 && blocked > 1000,
+                "{stone_hits} {ground_hits} {blocked}"
+            );
         }
     }
 }
