@@ -1001,9 +1001,33 @@ fn flat_oval_meets_vertical_rays() {
     // A ray straight down through a flat-backed oval enters the dome at
     // z = h·√(1 − (x/a)² − (y/b)²) (or the buff top) and leaves through the
     // base at z = −g (written out from the definition); straight up it
-    // enters through the base. The general path's exact solver misses such
-    // rays (no band roots when the direction has no x, y part), so this pins
-    // the fast path on its own.
+    // enters through the base. Both the fast path (`intersect`) and the
+    // general one (`intersect_general`, whose band quadratic has no roots
+    // when the direction has no x, y part) must find these.
+    for stone in flat_ovals() {
+        for (origin, direction) in [
+            (DVec3::new(0.3, -0.2, 5.0), DVec3::NEG_Z),
+            (DVec3::new(-0.1, 0.25, -5.0), DVec3::Z),
+            (DVec3::new(0.0, 0.0, 0.01), DVec3::NEG_Z),
+        ] {
+            let o =
+                origin * DVec3::new(stone.params().length / 2.0, stone.params().width / 2.0, 1.0);
+            let fast = stone.intersect(o, direction, 0.0, f64::INFINITY);
+            let general = stone.intersect_general(o, direction, 0.0, f64::INFINITY);
+            let (fast, general) = (
+                fast.expect("fast path hits"),
+                general.expect("general path hits"),
+            );
+            assert_eq!(fast.t, general.t);
+            assert_eq!(fast.entering, general.entering);
+            assert!(
+                (fast.normal - general.normal).length() < 1e-12,
+                "{origin} {direction}: {} vs {}",
+                fast.normal,
+                general.normal
+            );
+        }
+    }
     for stone in flat_ovals() {
         let p = *stone.params();
         let (a, b, h, g) = (

@@ -827,6 +827,15 @@ impl Cabochon {
                 let z = z_at(t);
                 keep(t, z <= eps && (flat || z >= -g - eps));
             }
+            // A vertical line never crosses the band's wall: inside the
+            // outline it runs down the flat-backed band, unbounded below
+            // until `finish` clips it at the base plane z = −g; a point one
+            // stone size below that plane stands for the band's end (a
+            // point on the plane itself would make `finish` keep the band,
+            // not the base, as the surface hit).
+            if flat && d2 == DVec2::ZERO && o2.dot(o2) <= 1.0 {
+                keep((-g - self.size - origin.z) / dir.z, true);
+            }
         }
         // Domed base: (x/a)² + (y/b)² + ((z + g)/h_b)² = 1 for z ≤ −g.
         if !self.flat_base {
