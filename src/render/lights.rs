@@ -143,15 +143,26 @@ impl LightSpec {
     #[inline(always)]
     pub fn hit(&self, origin: DVec3, direction: DVec3, t_max: f64) -> Option<(f64, Rgb)> {
         match *self {
-            Light::Sphere {
-                centre,
-                radius,
-                radiance,
-            } => sphere_entry(origin, direction, centre, radius)
-                .filter(|t| *t < t_max)
-                .map(|t| (t, radiance)),
+            Light::Sphere { .. } => self.sphere_hit(origin, direction, t_max),
             _ => self.hit_other(origin, direction, t_max),
         }
+    }
+
+    /// [`Light::hit`] of a sphere: its emission where the ray enters it
+    /// before `t_max` (None for the other kinds).
+    #[inline(always)]
+    fn sphere_hit(&self, origin: DVec3, direction: DVec3, t_max: f64) -> Option<(f64, Rgb)> {
+        let Light::Sphere {
+            centre,
+            radius,
+            radiance,
+        } = *self
+        else {
+            return None;
+        };
+        sphere_entry(origin, direction, centre, radius)
+            .filter(|t| *t < t_max)
+            .map(|t| (t, radiance))
     }
 
     /// [`Light::hit`] for every kind but the sphere.
@@ -159,13 +170,7 @@ impl LightSpec {
     fn hit_other(&self, origin: DVec3, direction: DVec3, t_max: f64) -> Option<(f64, Rgb)> {
         match *self {
             Light::Point { .. } => None,
-            Light::Sphere {
-                centre,
-                radius,
-                radiance,
-            } => sphere_entry(origin, direction, centre, radius)
-                .filter(|t| *t < t_max)
-                .map(|t| (t, radiance)),
+            Light::Sphere { .. } => self.sphere_hit(origin, direction, t_max),
             Light::Rect {
                 centre,
                 normal,
