@@ -296,7 +296,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             } else {
                 &film.rgb
             };
-            let image = transform.encode(pixels, width, height);
+            let image = pool.install(|| transform.encode(pixels, width, height));
             lapidary::output::write_png(&args.output, &image).map_err(|e| e.to_string())?;
         }
         Format::Exr => {
