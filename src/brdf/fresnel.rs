@@ -11,15 +11,7 @@ use crate::brdf::Rgb;
 /// reflection (sin θt > 1, Snell's law eq. 3.2).
 #[inline]
 pub fn dielectric(cos_incident: f64, eta: f64) -> f64 {
-    let cos_i = cos_incident.abs().min(1.0);
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    let r_parallel = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    let r_perpendicular = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    0.5 * (r_parallel * r_parallel + r_perpendicular * r_perpendicular)
+    dielectric_from_snell(cos_incident, Snell::at(cos_incident, eta), eta)
 }
 
 /// Snell's law (eq. 3.2) at one incident cosine: the part of
@@ -47,7 +39,9 @@ impl Snell {
     }
 }
 
-/// [`dielectric`] given [`Snell::at`]`(cos_incident, eta)`: the same bits.
+/// [`dielectric`] given [`Snell::at`]`(cos_incident, eta)`, for callers
+/// that need cosθₜ too: the Fresnel equations for the two polarisations,
+/// averaged (1 under total internal reflection).
 #[inline]
 pub fn dielectric_from_snell(cos_incident: f64, snell: Snell, eta: f64) -> f64 {
     let Some(cos_t) = snell.cos_t else {
@@ -161,8 +155,20 @@ mod tests {
 
     #[test]
     fn dielectric_from_snell_equals_dielectric_bit_for_bit() {
-        // Including cosines a rounding step above 1 (clamped), 0, negative
-        // (sign ignored) and past the critical angle (η < 1: F = 1).
+        // Against the unpolarised Fresnel equations written out in one
+        // piece, including cosines a rounding step above 1 (clamped), 0,
+        // negative (sign ignored) and past the critical angle (η < 1: F = 1).
+        let dielectric = |cos_incident: f64, eta: f64| {
+            let cos_i = cos_incident.abs().min(1.0);
+            let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+            if sin2_t >= 1.0 {
+                return 1.0;
+            }
+            let cos_t = (1.0 - sin2_t).sqrt();
+            let r_parallel = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+            let r_perpendicular = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+            0.5 * (r_parallel * r_parallel + r_perpendicular * r_perpendicular)
+        };
         let mut rng = crate::sampling::Rng::new(21, 22);
         for eta in [1.0, 1.31, 1.5, 2.4, 1.0 / 1.5, 0.8] {
             let mut cosines = vec![0.0, 1.0, 1.0 + f64::EPSILON, -0.3];
@@ -171,6 +177,11 @@ mod tests {
                 let snell = Snell::at(cos, eta);
                 assert_eq!(
                     dielectric_from_snell(cos, snell, eta).to_bits(),
+                    dielectric(cos, eta).to_bits(),
+                    "η {eta} cos {cos}"
+                );
+                assert_eq!(
+                    super::dielectric(cos, eta).to_bits(),
                     dielectric(cos, eta).to_bits(),
                     "η {eta} cos {cos}"
                 );

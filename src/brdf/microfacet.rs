@@ -293,6 +293,7 @@ pub fn refract(w: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
 
     #[test]
     fn blinn_sampling_cosine_is_u_to_the_power_one_over_beta_plus_two() {
@@ -311,7 +312,6 @@ mod tests {
             }
         }
     }
-    use super::*;
 
     #[test]
     fn blinn_exponent_halves_the_distribution_at_the_average_slope() {

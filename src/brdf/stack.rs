@@ -105,29 +105,11 @@ impl LayeredBrdf {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return Rgb::ZERO;
         }
-        self.plus_compensation(self.eval_single_crossing(wi, wo), wi, wo)
-    }
-
-    /// The single-crossing value `single` plus the compensation lobe, if
-    /// the material has one.
-    fn plus_compensation(&self, single: Rgb, wi: DVec3, wo: DVec3) -> Rgb {
+        let single = self.eval_single_crossing(wi, wo);
         match &self.compensation {
-            // The negative part of the lobe can undershoot where the single
-            // crossing is small: a BRDF is never negative.
-            Some(c) => (single + c.eval(wi, wo)).max(Rgb::ZERO),
+            Some(c) => plus_compensation_lobe(single, c.eval(wi, wo)),
             None => single,
         }
-    }
-
-    /// The density of [`LayeredBrdf::sample`] given the stack's own density
-    /// `stack_pdf`: the mixture with the compensation lobe's cosine sampling.
-    fn mixture_pdf(&self, stack_pdf: f64, wi: DVec3, wo: DVec3) -> f64 {
-        let p_comp = self.compensation_weight(wo);
-        let mut pdf = (1.0 - p_comp) * stack_pdf;
-        if p_comp > 0.0 {
-            pdf += p_comp * cosine_hemisphere_pdf(wi);
-        }
-        pdf
     }
 
     /// The seed-faithful model: light crosses each layer once.
@@ -417,7 +399,7 @@ impl LayeredBrdf {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return 0.0;
         }
-        self.mixture_pdf(self.pdf_from(0, wi, wo), wi, wo)
+        mixture_pdf(self.compensation_weight(wo), self.pdf_from(0, wi, wo), wi)
     }
 
     /// Sample of the single-crossing model alone (used to tabulate its albedo).
@@ -504,21 +486,16 @@ impl BrdfAt<'_> {
             (Some(itf), Some(top)) => self.top_eval_and_pdf(itf, top, wi),
             _ => (brdf.base.eval(wi, wo), brdf.base.pdf(wi, wo)),
         };
-        // As `plus_compensation` and `mixture_pdf`, with D(μₒ) and the lobe
+        // As `LayeredBrdf::eval` and `pdf`, with D(μₒ) and the lobe
         // probability from `prepare`.
         let value = match &brdf.compensation {
-            Some(c) => {
-                let lobe = c.eval_from_albedos(c.albedo(wi.z), prepared.compensation_albedo_o);
-                (single + lobe).max(Rgb::ZERO)
-            }
+            Some(c) => plus_compensation_lobe(
+                single,
+                c.eval_from_albedos(c.albedo(wi.z), prepared.compensation_albedo_o),
+            ),
             None => single,
         };
-        let p_comp = prepared.p_comp;
-        let mut pdf = (1.0 - p_comp) * stack_pdf;
-        if p_comp > 0.0 {
-            pdf += p_comp * cosine_hemisphere_pdf(wi);
-        }
-        (value, pdf)
+        (value, mixture_pdf(prepared.p_comp, stack_pdf, wi))
     }
 
     /// The single-crossing f and the stack's density at `wi` (wi.z > 0)
@@ -661,6 +638,26 @@ impl BrdfAt<'_> {
             (None, _, _) => brdf.base.sample(self.wo, u[1], u[2]),
         }
     }
+}
+
+/// The single-crossing value `single` plus the compensation lobe's value
+/// `lobe`. The negative part of the lobe can undershoot where the single
+/// crossing is small: a BRDF is never negative.
+#[inline(always)]
+fn plus_compensation_lobe(single: Rgb, lobe: Rgb) -> Rgb {
+    (single + lobe).max(Rgb::ZERO)
+}
+
+/// The density of sampling wi given the stack's own density `stack_pdf`:
+/// the mixture with the compensation lobe's cosine sampling, chosen with
+/// probability `p_comp`.
+#[inline(always)]
+fn mixture_pdf(p_comp: f64, stack_pdf: f64, wi: DVec3) -> f64 {
+    let mut pdf = (1.0 - p_comp) * stack_pdf;
+    if p_comp > 0.0 {
+        pdf += p_comp * cosine_hemisphere_pdf(wi);
+    }
+    pdf
 }
 
 /// [`Base::eval`] for directions already known to be above the base

@@ -398,7 +398,7 @@ impl Cabochon {
     pub fn crosses(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> bool {
         if self.flat_oval {
             self.flat_oval_chord(origin, dir)
-                .is_some_and(|c| c.first_end(t_min, t_max).is_some())
+                .is_some_and(|c| c.span.first_end(t_min, t_max).is_some())
         } else {
             self.intersect_general(origin, dir, t_min, t_max).is_some()
         }
@@ -432,11 +432,10 @@ impl Cabochon {
     /// gradient `(x/a², y/b², z/h²)` of `(x/a)² + (y/b)² + (z/h)²` on the
     /// dome, `(x/a², y/b², 0)` on the band, normalised.
     ///
-    /// The same roots, clipping and minimum chord as
+    /// The same roots, clipping (`Span::clip`) and minimum chord as
     /// [`Self::intersect_general`]; it differs only where that path's
     /// `1e-12 × size` tolerance in z lets a root of the other patch stand in
-    /// at a rim, for exactly vertical rays (which the general path misses
-    /// through the band or the base), and in the last bits of the normal.
+    /// at a rim, and in the last bits of the normal.
     #[inline(always)]
     pub fn intersect_flat_oval(
         &self,
@@ -477,7 +476,7 @@ impl Cabochon {
     ) -> bool {
         debug_assert!(self.is_half_ellipsoid());
         self.half_ellipsoid_chord(origin, dir)
-            .is_some_and(|c| c.first_end(t_min, t_max).is_some())
+            .is_some_and(|c| c.span.first_end(t_min, t_max).is_some())
     }
 
     /// The hit at the first end of a flat oval's chord in (t_min, t_max).
@@ -490,7 +489,7 @@ impl Cabochon {
         t_min: f64,
         t_max: f64,
     ) -> Option<Hit> {
-        let (t, side, entering) = chord.first_end(t_min, t_max)?;
+        let (t, side, entering) = chord.span.first_end(t_min, t_max)?;
         let normal = match side {
             Side::Body => {
                 // The unit-sphere point at t, mapped by the inverse axes once
@@ -544,13 +543,16 @@ impl Cabochon {
             return None;
         }
         let mut chord = Chord::between_unit_roots(od, dd, c, origin_scaled, dir_scaled)?;
-        // `finish`'s clipping: the buff top, then the base, the same
-        // quotients and comparisons.
+        // As `finish`: the buff top, then the base.
         if self.buffed {
-            chord.clip(origin.z, dir.z, self.z_top, true, Side::Top);
+            chord
+                .span
+                .clip(origin.z, dir.z, self.z_top, true, Side::Top);
         }
-        chord.clip(origin.z, dir.z, -self.girdle, false, Side::Bottom);
-        self.long_enough(chord, dir)
+        chord
+            .span
+            .clip(origin.z, dir.z, -self.girdle, false, Side::Bottom);
+        self.long_enough(&chord.span, dir).then_some(chord)
     }
 
     /// [`Self::flat_oval_chord`] with a girdle band: the union of the dome
@@ -578,10 +580,7 @@ impl Cabochon {
         } else if c2 <= 0.0 {
             // A vertical line inside the cylinder: inside it for every t.
             Chord {
-                t_in: f64::NEG_INFINITY,
-                t_out: f64::INFINITY,
-                side_in: Side::Body,
-                side_out: Side::Body,
+                span: Span::body(f64::NEG_INFINITY, f64::INFINITY),
                 origin_scaled,
                 dir_scaled,
             }
@@ -589,50 +588,51 @@ impl Cabochon {
             return None;
         };
         // The z = 0 end of the band piece continues into the dome piece.
-        band.clip(origin.z, dir.z, 0.0, true, Side::Body);
-        band.clip(origin.z, dir.z, -self.girdle, false, Side::Bottom);
+        band.span.clip(origin.z, dir.z, 0.0, true, Side::Body);
+        band.span
+            .clip(origin.z, dir.z, -self.girdle, false, Side::Bottom);
         let od = origin_scaled.dot(dir_scaled);
         let c = origin_scaled.dot(origin_scaled) - 1.0;
         let disc = od * od - dd * c;
         let dome = if disc >= 0.0 {
             Chord::between_unit_roots(od, dd, c, origin_scaled, dir_scaled).map(|mut dome| {
                 if self.buffed {
-                    dome.clip(origin.z, dir.z, self.z_top, true, Side::Top);
+                    dome.span.clip(origin.z, dir.z, self.z_top, true, Side::Top);
                 }
-                dome.clip(origin.z, dir.z, 0.0, false, Side::Body);
+                dome.span.clip(origin.z, dir.z, 0.0, false, Side::Body);
                 dome
             })
         } else {
             None
         };
         // Also refuses NaN ends.
-        let band = (band.t_in < band.t_out).then_some(band);
-        let dome = dome.filter(|d| d.t_in < d.t_out);
+        let band = (band.span.t_in < band.span.t_out).then_some(band);
+        let dome = dome.filter(|d| d.span.t_in < d.span.t_out);
         let chord = match (band, dome) {
             (Some(mut band), Some(dome)) => {
-                if dome.t_in < band.t_in {
-                    band.t_in = dome.t_in;
-                    band.side_in = dome.side_in;
+                if dome.span.t_in < band.span.t_in {
+                    band.span.t_in = dome.span.t_in;
+                    band.span.side_in = dome.span.side_in;
                 }
-                if dome.t_out > band.t_out {
-                    band.t_out = dome.t_out;
-                    band.side_out = dome.side_out;
+                if dome.span.t_out > band.span.t_out {
+                    band.span.t_out = dome.span.t_out;
+                    band.span.side_out = dome.span.side_out;
                 }
                 band
             }
             (Some(piece), None) | (None, Some(piece)) => piece,
             (None, None) => return None,
         };
-        self.long_enough(chord, dir)
+        self.long_enough(&chord.span, dir).then_some(chord)
     }
 
-    /// The chord unless it is shorter than `1e-8 × size` (a grazing ray),
-    /// as in `finish`.
+    /// Whether the span is at least `1e-8 × size` long: shorter ones
+    /// (grazing rays) count as misses, so hits come in entry/exit pairs.
     #[inline(always)]
-    fn long_enough(&self, chord: Chord, dir: DVec3) -> Option<Chord> {
+    fn long_enough(&self, span: &Span, dir: DVec3) -> bool {
         let min_chord = 1e-8 * self.size / dir.length();
-        // Also refuses NaN chords.
-        (chord.t_out - chord.t_in >= min_chord).then_some(chord)
+        // Also refuses NaN spans.
+        span.t_out - span.t_in >= min_chord
     }
 
     /// Like [`Self::intersect`] but always by Newton iteration, also for
@@ -658,51 +658,18 @@ impl Cabochon {
         t_max: f64,
         chord: Option<(f64, f64)>,
     ) -> Option<Hit> {
-        let (mut t_in, mut t_out) = chord?;
-        let (mut side_in, mut side_out) = (Side::Body, Side::Body);
-        let mut clip = |plane_z: f64, below: bool, side: Side| {
-            // Keep z ≤ plane_z (below) or z ≥ plane_z.
-            if dir.z == 0.0 {
-                let outside = if below {
-                    origin.z > plane_z
-                } else {
-                    origin.z < plane_z
-                };
-                if outside {
-                    t_out = f64::NEG_INFINITY;
-                }
-                return;
-            }
-            let t = (plane_z - origin.z) / dir.z;
-            if (dir.z > 0.0) == below {
-                if t < t_out {
-                    t_out = t;
-                    side_out = side;
-                }
-            } else if t > t_in {
-                t_in = t;
-                side_in = side;
-            }
-        };
+        let (t_in, t_out) = chord?;
+        let mut span = Span::body(t_in, t_out);
         if self.buffed {
-            clip(self.z_top, true, Side::Top);
+            span.clip(origin.z, dir.z, self.z_top, true, Side::Top);
         }
         if self.flat_base {
-            clip(-self.girdle, false, Side::Bottom);
+            span.clip(origin.z, dir.z, -self.girdle, false, Side::Bottom);
         }
-        let min_chord = 1e-8 * self.size / dir.length();
-        // Also refuses NaN chords.
-        let long_enough = t_out - t_in >= min_chord;
-        if !long_enough {
+        if !self.long_enough(&span, dir) {
             return None;
         }
-        let (t, side, entering) = if t_in > t_min && t_in < t_max {
-            (t_in, side_in, true)
-        } else if t_out > t_min && t_out < t_max {
-            (t_out, side_out, false)
-        } else {
-            return None;
-        };
+        let (t, side, entering) = span.first_end(t_min, t_max)?;
         let point = origin + t * dir;
         let grad = if side == Side::Body {
             self.body_and_gradient(point).1
@@ -849,49 +816,30 @@ impl Cabochon {
     }
 }
 
-/// The part of a line inside a flat-backed oval, with what bounds each end
-/// and the line in unit-sphere space (for the normal).
+/// The parameter range of a line inside a stone, with the surface that
+/// bounds each end: the body chord cut by the stone's planes.
 #[derive(Debug, Clone, Copy)]
-struct Chord {
+struct Span {
     t_in: f64,
     t_out: f64,
     side_in: Side,
     side_out: Side,
-    origin_scaled: DVec3,
-    dir_scaled: DVec3,
 }
 
-impl Chord {
-    /// The chord between the roots of `|o + t·d|² = 1`, given `o·d`, `d·d`
-    /// and `o·o − 1` with a non-negative discriminant, by
-    /// `quadratic_unit_roots`' cancellation-free formula; `None` for the
-    /// single root at t = 0 (a chord of length 0).
+impl Span {
+    /// The body's chord (t_in, t_out), bounded by the body at both ends.
     #[inline(always)]
-    fn between_unit_roots(
-        od: f64,
-        dd: f64,
-        c: f64,
-        origin_scaled: DVec3,
-        dir_scaled: DVec3,
-    ) -> Option<Self> {
-        let disc = od * od - dd * c;
-        let q = -(od + disc.sqrt().copysign(od));
-        if q == 0.0 {
-            return None;
-        }
-        let (r0, r1) = (q / dd, c / q);
-        Some(Self {
-            t_in: r0.min(r1),
-            t_out: r0.max(r1),
+    fn body(t_in: f64, t_out: f64) -> Self {
+        Self {
+            t_in,
+            t_out,
             side_in: Side::Body,
             side_out: Side::Body,
-            origin_scaled,
-            dir_scaled,
-        })
+        }
     }
 
-    /// Keeps the part of the chord with z ≤ `plane_z` (`below`) or
-    /// z ≥ `plane_z`, as `Cabochon::finish` does.
+    /// Keeps the part of the span with z ≤ `plane_z` (`below`) or
+    /// z ≥ `plane_z`; an end the plane cuts off is bounded by `side` now.
     #[inline]
     fn clip(&mut self, origin_z: f64, dir_z: f64, plane_z: f64, below: bool, side: Side) {
         if dir_z == 0.0 {
@@ -928,6 +876,42 @@ impl Chord {
         } else {
             None
         }
+    }
+}
+
+/// The span of a line inside a flat-backed oval and the line in
+/// unit-sphere space (for the normal).
+#[derive(Debug, Clone, Copy)]
+struct Chord {
+    span: Span,
+    origin_scaled: DVec3,
+    dir_scaled: DVec3,
+}
+
+impl Chord {
+    /// The chord between the roots of `|o + t·d|² = 1`, given `o·d`, `d·d`
+    /// and `o·o − 1` with a non-negative discriminant, by
+    /// `quadratic_unit_roots`' cancellation-free formula; `None` for the
+    /// single root at t = 0 (a chord of length 0).
+    #[inline(always)]
+    fn between_unit_roots(
+        od: f64,
+        dd: f64,
+        c: f64,
+        origin_scaled: DVec3,
+        dir_scaled: DVec3,
+    ) -> Option<Self> {
+        let disc = od * od - dd * c;
+        let q = -(od + disc.sqrt().copysign(od));
+        if q == 0.0 {
+            return None;
+        }
+        let (r0, r1) = (q / dd, c / q);
+        Some(Self {
+            span: Span::body(r0.min(r1), r0.max(r1)),
+            origin_scaled,
+            dir_scaled,
+        })
     }
 }
 

@@ -74,6 +74,7 @@ impl DisplayTransform {
     /// depend on the thread count): the encoding runs after the render and
     /// would otherwise be serial time in every `render -o x.png`.
     pub fn encode(&self, linear: &[[f32; 3]], width: u32, height: u32) -> image::RgbImage {
+        let scale = self.exposure_ev.exp2();
         let row_bytes = width as usize * 3;
         let mut bytes = vec![0u8; row_bytes * height as usize];
         bytes
@@ -83,27 +84,27 @@ impl DisplayTransform {
                 for (x, out) in row.chunks_exact_mut(3).enumerate() {
                     let index = y * width as usize + x;
                     let rgb = linear.get(index).copied().unwrap_or([0.0; 3]);
-                    out.copy_from_slice(&self.encode_pixel(rgb, x as u32, y as u32));
+                    out.copy_from_slice(&self.encode_pixel(scale, rgb, x as u32, y as u32));
                 }
             });
         image::RgbImage::from_raw(width, height, bytes)
             .expect("the buffer holds width × height RGB pixels")
     }
 
-    /// The 8-bit sRGB code of one linear pixel at film position (x, y).
-    fn encode_pixel(&self, rgb: [f32; 3], x: u32, y: u32) -> [u8; 3] {
-        let scale = self.exposure_ev.exp2();
-        let mut out = [0u8; 3];
-        for (channel, (&value, out)) in rgb.iter().zip(out.iter_mut()).enumerate() {
+    /// The 8-bit sRGB code of one linear pixel at film position (x, y),
+    /// given `scale` = 2^exposure_ev (computed once per image).
+    fn encode_pixel(&self, scale: f64, rgb: [f32; 3], x: u32, y: u32) -> [u8; 3] {
+        let mut codes = [0u8; 3];
+        for (channel, (&value, code)) in rgb.iter().zip(codes.iter_mut()).enumerate() {
             let exposed = sanitize(value as f64) * scale;
             let display = match self.curve {
                 ToneCurve::Filmic => filmic(sanitize(exposed)),
                 ToneCurve::Linear => sanitize(exposed).min(1.0),
             };
             let offset = dither_offset_lsb(x, y, channel as u32, self.dither_seed);
-            *out = quantize_u8(srgb_encode(display), offset);
+            *code = quantize_u8(srgb_encode(display), offset);
         }
-        out
+        codes
     }
 }
 
@@ -259,7 +260,12 @@ mod tests {
             for x in 0..width {
                 let index = (y * width + x) as usize;
                 let rgb = linear.get(index).copied().unwrap_or([0.0; 3]);
-                expected.extend_from_slice(&transform.encode_pixel(rgb, x, y));
+                expected.extend_from_slice(&transform.encode_pixel(
+                    transform.exposure_ev.exp2(),
+                    rgb,
+                    x,
+                    y,
+                ));
             }
         }
         assert_eq!(&expected[30 * 3..], &[0u8; 15][..]);

@@ -545,11 +545,7 @@ impl EnvironmentMap {
         let Some(dist) = &self.distribution else {
             return 0.0;
         };
-        let sin_theta = (PI * uv.y).sin();
-        if sin_theta <= 0.0 {
-            return 0.0;
-        }
-        dist.pdf(uv) / (2.0 * PI * PI * sin_theta)
+        per_solid_angle(dist.pdf(uv), (PI * uv.y).sin())
     }
 
     /// [`Self::radiance`] and [`Self::pdf`] of one direction, from one
@@ -571,11 +567,7 @@ impl EnvironmentMap {
         // direction back (an acos, an atan2, a sine) gives the same texel
         // and, to rounding, the same density, except for directions on a
         // texel edge, a set of measure zero that changes no estimate.
-        // p(ω) = p(u, v) / (2π² sinθ), since dω = 2π² sinθ du dv.
-        if sin_theta <= 0.0 {
-            return None;
-        }
-        let pdf = pdf_uv / (2.0 * PI * PI * sin_theta);
+        let pdf = per_solid_angle(pdf_uv, sin_theta);
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
@@ -585,6 +577,16 @@ impl EnvironmentMap {
             pdf,
         })
     }
+}
+
+/// A density over map coordinates as a density over solid angle at a
+/// point with polar sine `sin_theta`: p(ω) = p(u, v) / (2π² sinθ), since
+/// dω = 2π² sinθ du dv; 0 at the poles (sinθ ≤ 0), which are never sampled.
+fn per_solid_angle(pdf_uv: f64, sin_theta: f64) -> f64 {
+    if sin_theta <= 0.0 {
+        return 0.0;
+    }
+    pdf_uv / (2.0 * PI * PI * sin_theta)
 }
 
 /// Side in texels of the square blocks the environment is importance-

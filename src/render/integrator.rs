@@ -440,3 +440,19 @@ impl RenderScene {
         f * incoming * scale
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_ground_frame_is_the_frame_built_around_plus_z() {
+        // `shade` uses the constant for the ground's +z normal in place of
+        // `Frame::new`: the same axes, bit for bit, so the same samples.
+        let (up, built) = (Frame::UP, Frame::new(DVec3::Z));
+        assert_eq!((up.t, up.b, up.n), (built.t, built.b, built.n));
+        let v = DVec3::new(0.3, -0.5, 0.8);
+        assert_eq!(up.to_local(v), built.to_local(v));
+        assert_eq!(up.to_world(v), built.to_world(v));
+    }
+}

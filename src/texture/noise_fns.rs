@@ -209,17 +209,46 @@ fn octave_sum(
     gain: f64,
     shape: impl Fn(f64) -> f64,
 ) -> f64 {
+    let never_stop = |_: u32, _: f64, _: f64| None::<std::convert::Infallible>;
+    match octave_sum_until(
+        source, p, frequency, octaves, lacunarity, gain, shape, never_stop,
+    ) {
+        Ok(never) => match never {},
+        Err(sum) => sum,
+    }
+}
+
+/// [`octave_sum`], calling `after_octave(k, sum so far, gainᵏ)` after
+/// octave k is added; `Ok(r)` as soon as it returns `Some(r)`, otherwise
+/// `Err(sum)` with the whole sum (the same operations in the same order, so
+/// the same bits, as without the calls).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn octave_sum_until<R>(
+    source: &PerlinSource,
+    p: DVec3,
+    frequency: f64,
+    octaves: u32,
+    lacunarity: f64,
+    gain: f64,
+    shape: impl Fn(f64) -> f64,
+    mut after_octave: impl FnMut(u32, f64, f64) -> Option<R>,
+) -> Result<R, f64> {
     let mut sum = 0.0;
     let mut octave_frequency = frequency;
     let mut amplitude = 1.0;
     let mut shift = DVec3::ZERO;
-    for _ in 0..octaves {
-        sum += amplitude * shape(source.value(p * octave_frequency + shift));
+    for k in 0..octaves {
+        let octave_amplitude = amplitude;
+        sum += octave_amplitude * shape(source.value(p * octave_frequency + shift));
         octave_frequency *= lacunarity;
         amplitude *= gain;
         shift += OCTAVE_SHIFT;
+        if let Some(r) = after_octave(k, sum, octave_amplitude) {
+            return Ok(r);
+        }
     }
-    sum
+    Err(sum)
 }
 
 /// `Σ_{k < octaves} |gain|ᵏ`: the largest magnitude an octave sum can reach.
@@ -376,28 +405,27 @@ impl Marble {
         // Σ_{k ≥ K} |gain|ᵏ for the octaves not yet summed, updated by
         // subtraction (its rounding is far below the caller's margin).
         let mut rest_bound = amplitude_bound(t.octaves, t.gain);
-        // Same loop as `octave_sum` (shape = abs): same sum, bit for bit.
-        let mut sum = 0.0;
-        let mut octave_frequency = t.frequency;
-        let mut amplitude = 1.0;
-        let mut shift = DVec3::ZERO;
-        for k in 0..t.octaves {
-            sum += amplitude * t.source.value(p * octave_frequency + shift).abs();
-            octave_frequency *= t.lacunarity;
-            rest_bound -= amplitude.abs();
-            amplitude *= t.gain;
-            shift += OCTAVE_SHIFT;
-            if k + 1 < t.octaves {
+        // The turbulence's own octave sum (shape = abs): the same bits.
+        let turbulence = octave_sum_until(
+            &t.source,
+            p,
+            t.frequency,
+            t.octaves,
+            t.lacunarity,
+            t.gain,
+            f64::abs,
+            |k, sum, octave_amplitude| {
+                rest_bound -= octave_amplitude.abs();
+                if k + 1 == t.octaves {
+                    return None;
+                }
                 // Turbulence ∈ [sum − rest·[gain < 0], sum + rest].
                 let low = if t.gain < 0.0 { sum - rest_bound } else { sum };
                 let high = sum + rest_bound;
                 let (a, b) = (self.amplitude * low, self.amplitude * high);
-                if let Some(r) = settle(linear + a.min(b), linear + a.max(b)) {
-                    return Ok(r);
-                }
-            }
-        }
-        let phase = linear + self.amplitude * sum;
-        Err(0.5 + 0.5 * phase.sin())
+                settle(linear + a.min(b), linear + a.max(b))
+            },
+        );
+        turbulence.map_err(|sum| 0.5 + 0.5 * (linear + self.amplitude * sum).sin())
     }
 }
