@@ -14,4 +14,5 @@ pub mod integrator;
 pub mod lights;
 pub mod prepare;
 pub mod sampler;
+pub mod stone_grid;
 pub mod world;

@@ -1,6 +1,6 @@
 //! The geometry the rays meet: stones (analytic cabochons, placed by a
-//! rotation and a translation, all in one obvhs BVH) and an optional ground
-//! plane.
+//! rotation and a translation, found through a grid when they lie side by
+//! side on a tray, else through one obvhs BVH) and an optional ground plane.
 
 use glam::{DMat3, DQuat, DVec3, Vec3A};
 use obvhs::aabb::Aabb;
@@ -10,6 +10,7 @@ use obvhs::ray::{Ray, RayHit};
 use obvhs::{Boundable, BvhBuildParams};
 
 use crate::geometry::{Cabochon, Hit};
+use crate::render::stone_grid::StoneGrid;
 
 /// One stone in the scene: a cabochon in its object space, placed in the
 /// world by `rotation` then `position`, shaded by gem number `gem`.
@@ -177,14 +178,24 @@ pub struct World {
     placements: Vec<Placement>,
     /// The padded box around all stones (rays that miss it skip the BVH).
     stones_bounds: (DVec3, DVec3),
-    /// `None` for an empty scene or one of ≤ [`MAX_STONES_WITHOUT_BVH`].
-    bvh: Option<CwBvh>,
+    /// How the stones are found.
+    search: StoneSearch,
     ground_height: Option<f64>,
     /// The scene's only stone when it is a half ellipsoid
     /// ([`Cabochon::is_half_ellipsoid`]): its quadric test rejects a miss
     /// for fewer instructions than its box, so it is tested directly, from a
     /// copy that needs no indexing.
     lone_half_ellipsoid: Option<(StoneInstance, Placement)>,
+}
+
+/// How a world with more than one stone finds the stones a ray may meet.
+enum StoneSearch {
+    /// Each stone's box in turn (at most [`MAX_STONES_WITHOUT_BVH`]).
+    Boxes,
+    /// The cells of a grid over a tray (stones side by side in a thin slab).
+    Grid(StoneGrid),
+    /// A BVH over the stones' boxes: any other layout.
+    Bvh(CwBvh),
 }
 
 /// Whether the ray `origin + t·direction` (with `inverse_direction` its
@@ -194,13 +205,25 @@ fn ray_hits_box(
     origin: DVec3,
     inverse_direction: DVec3,
     t_max: f64,
-    (min, max): (DVec3, DVec3),
+    bounds: (DVec3, DVec3),
 ) -> bool {
+    ray_box_span(origin, inverse_direction, t_max, bounds).is_some()
+}
+
+/// The range [near, far] of t in [0, t_max] where the ray is inside the
+/// box, if any (see [`ray_hits_box`]).
+#[inline(always)]
+fn ray_box_span(
+    origin: DVec3,
+    inverse_direction: DVec3,
+    t_max: f64,
+    (min, max): (DVec3, DVec3),
+) -> Option<(f64, f64)> {
     let t0 = (min - origin) * inverse_direction;
     let t1 = (max - origin) * inverse_direction;
     let near = t0.min(t1).max_element().max(0.0);
     let far = t0.max(t1).min_element().min(t_max);
-    near <= far
+    (near <= far).then_some((near, far))
 }
 
 struct StoneBox(Aabb);
@@ -217,8 +240,15 @@ impl Boundable for StoneBox {
 pub const RAY_OFFSET: f64 = 1e-5;
 
 impl World {
-    /// Builds the BVH over the stones (one box each).
+    /// Indexes the stones (one box each): a grid over a tray of stones,
+    /// else a BVH, or nothing for a handful of stones.
     pub fn new(stones: Vec<StoneInstance>, ground_height: Option<f64>) -> Self {
+        Self::build(stones, ground_height, true)
+    }
+
+    /// [`World::new`]; without `allow_grid` a tray gets a BVH too (for
+    /// tests comparing the two).
+    fn build(stones: Vec<StoneInstance>, ground_height: Option<f64>, allow_grid: bool) -> Self {
         let placements: Vec<Placement> = stones
             .iter()
             .map(|s| {
@@ -239,7 +269,15 @@ impl World {
             (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
             |(lo, hi), p| (lo.min(p.bounds.0), hi.max(p.bounds.1)),
         );
-        let bvh = (stones.len() > MAX_STONES_WITHOUT_BVH).then(|| {
+        let bounds: Vec<(DVec3, DVec3)> = placements.iter().map(|p| p.bounds).collect();
+        let grid = (allow_grid && stones.len() > MAX_STONES_WITHOUT_BVH)
+            .then(|| StoneGrid::for_tray(&bounds, stones_bounds))
+            .flatten();
+        let search = if stones.len() <= MAX_STONES_WITHOUT_BVH {
+            StoneSearch::Boxes
+        } else if let Some(grid) = grid {
+            StoneSearch::Grid(grid)
+        } else {
             let boxes: Vec<StoneBox> = placements
                 .iter()
                 .map(|p| {
@@ -252,12 +290,12 @@ impl World {
             // At most 1024 boxes, so obvhs' slow, high-quality build costs
             // nothing next to a render, and its tighter tree took 15–30 % off
             // the render time of a 1000-stone tray (bench/scaling's tray).
-            build_cwbvh(
+            StoneSearch::Bvh(build_cwbvh(
                 &boxes,
                 BvhBuildParams::slow_build(),
                 &mut Default::default(),
-            )
-        });
+            ))
+        };
         let lone_half_ellipsoid = (stones.len() == 1 && stones[0].cabochon.is_half_ellipsoid())
             .then(|| (stones[0].clone(), placements[0]));
         Self {
@@ -265,7 +303,7 @@ impl World {
             stones,
             placements,
             stones_bounds,
-            bvh,
+            search,
             ground_height,
         }
     }
@@ -400,9 +438,11 @@ impl World {
         leaving: Option<usize>,
     ) -> bool {
         let inverse_direction = direction.recip();
-        if !ray_hits_box(origin, inverse_direction, distance, self.stones_bounds) {
+        let Some((near, far)) =
+            ray_box_span(origin, inverse_direction, distance, self.stones_bounds)
+        else {
             return false;
-        }
+        };
         // Any crossing before `distance` blocks.
         let blocks = |index: usize| {
             Some(index) != leaving
@@ -414,8 +454,8 @@ impl World {
                     distance,
                 )
         };
-        match &self.bvh {
-            None => {
+        match &self.search {
+            StoneSearch::Boxes => {
                 let single = self.placements.len() == 1;
                 self.placements
                     .iter()
@@ -426,7 +466,23 @@ impl World {
                             && blocks(index)
                     })
             }
-            Some(bvh) => {
+            StoneSearch::Grid(grid) => {
+                let mut blocked = false;
+                grid.walk(origin, direction, near, far, |stones, _| {
+                    blocked = stones.iter().any(|&index| {
+                        let index = index as usize;
+                        ray_hits_box(
+                            origin,
+                            inverse_direction,
+                            distance,
+                            self.placements[index].bounds,
+                        ) && blocks(index)
+                    });
+                    blocked
+                });
+                blocked
+            }
+            StoneSearch::Bvh(bvh) => {
                 let ray = Ray::new(to_f32(origin), to_f32(direction), 0.0, f32_up(distance));
                 // A blocker is reported inside the ray's range so the
                 // traversal stops at once.
@@ -456,9 +512,7 @@ impl World {
         leaving: Option<usize>,
     ) -> Option<(usize, Hit)> {
         let inverse_direction = direction.recip();
-        if !ray_hits_box(origin, inverse_direction, limit, self.stones_bounds) {
-            return None;
-        }
+        let (near, far) = ray_box_span(origin, inverse_direction, limit, self.stones_bounds)?;
         let mut best = None;
         let mut try_stone = |index: usize, limit: &mut f64| -> bool {
             if Some(index) == leaving {
@@ -479,8 +533,8 @@ impl World {
                 None => false,
             }
         };
-        match &self.bvh {
-            None => {
+        match &self.search {
+            StoneSearch::Boxes => {
                 // With one stone its box is the one just tested.
                 let single = self.placements.len() == 1;
                 for (index, placement) in self.placements.iter().enumerate() {
@@ -489,7 +543,25 @@ impl World {
                     }
                 }
             }
-            Some(bvh) => {
+            StoneSearch::Grid(grid) => {
+                // A hit before the ray leaves the cell is nearer than any
+                // stone of a later cell can be.
+                grid.walk(origin, direction, near, far, |stones, t_exit| {
+                    for &index in stones {
+                        let index = index as usize;
+                        if ray_hits_box(
+                            origin,
+                            inverse_direction,
+                            limit,
+                            self.placements[index].bounds,
+                        ) {
+                            try_stone(index, &mut limit);
+                        }
+                    }
+                    limit <= t_exit
+                });
+            }
+            StoneSearch::Bvh(bvh) => {
                 let ray = Ray::new(to_f32(origin), to_f32(direction), 0.0, f32_up(limit));
                 let mut ray_hit = RayHit::none();
                 bvh.ray_traverse(ray, &mut ray_hit, |_, id| {
@@ -614,6 +686,83 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn a_tray_searched_through_its_grid_answers_as_through_a_bvh() {
+        // bench/scaling's tray: peer stones scaled down side by side, each
+        // turned about z, plus a few tilted ones. The grid is only another
+        // way to find candidates, so every hit, skip and shadow must equal
+        // the BVH's, for camera-like rays from above, rays leaving a stone
+        // in any direction (grazing ones walk many cells) and shadow rays.
+        let side = 12;
+        let pitch = 2.4 / side as f64;
+        let mut rng = Rng::new(21, 0);
+        let stones: Vec<StoneInstance> = (0..side * side)
+            .map(|i| {
+                let [a, b, _] = rng.next_3();
+                let tilt = if i % 17 == 0 { 0.4 } else { 0.0 };
+                let mut stone = peer_half_ellipsoid(
+                    DQuat::from_rotation_z(0.4 * (a - 0.5)) * DQuat::from_rotation_x(tilt),
+                    DVec3::new(
+                        -1.2 + (i % side) as f64 * pitch + 0.5 * pitch,
+                        -1.2 + (i / side) as f64 * pitch + 0.5 * pitch,
+                        0.002 * b,
+                    ),
+                );
+                stone.cabochon = Cabochon::new(CabochonParams {
+                    length: 2.0 / side as f64,
+                    width: 1.4 / side as f64,
+                    dome_height: 0.45 / side as f64,
+                    ..*stone.cabochon.params()
+                })
+                .unwrap();
+                stone
+            })
+            .collect();
+        let grid = World::new(stones.clone(), Some(0.0));
+        let bvh = World::build(stones, Some(0.0), false);
+        assert!(matches!(grid.search, StoneSearch::Grid(_)));
+        assert!(matches!(bvh.search, StoneSearch::Bvh(_)));
+        let (mut stone_hits, mut met_other, mut blocked) = (0, 0, 0);
+        for _ in 0..20_000 {
+            let [a, b, c] = rng.next_3();
+            let target = DVec3::new(2.6 * a - 1.3, 2.6 * b - 1.3, 0.05 * c);
+            let [u, v, w] = rng.next_3();
+            let origin = target + 5.0 * DVec3::new(u - 0.5, v - 0.5, 0.2 + w).normalize();
+            let d = (target - origin).normalize();
+            let hit = grid.intersect(origin, d, 0.0, f64::INFINITY);
+            assert_eq!(hit, bvh.intersect(origin, d, 0.0, f64::INFINITY));
+            let Some(hit) = hit else { continue };
+            let Some(index) = hit.stone_index() else {
+                continue;
+            };
+            stone_hits += 1;
+            let [u, v, w] = rng.next_3();
+            let mut out = DVec3::new(u - 0.5, v - 0.5, 0.3 * (w - 0.5)).normalize();
+            if out.dot(hit.normal) <= 0.0 {
+                out -= 2.0 * out.dot(hit.normal) * hit.normal;
+            }
+            let start = hit.point + hit.normal * RAY_OFFSET;
+            let next = grid.intersect_leaving(start, out, 0.0, f64::INFINITY, Some(index));
+            assert_eq!(
+                next,
+                bvh.intersect_leaving(start, out, 0.0, f64::INFINITY, Some(index))
+            );
+            met_other += usize::from(next.is_some_and(|h| h.stone_index().is_some()));
+            for distance in [0.05, 0.5, f64::INFINITY] {
+                let occluded = grid.occluded_leaving(start, out, distance, Some(index));
+                assert_eq!(
+                    occluded,
+                    bvh.occluded_leaving(start, out, distance, Some(index))
+                );
+                blocked += usize::from(occluded);
+            }
+        }
+        assert!(
+            stone_hits > 5000 && met_other > 500 && blocked > 1000,
+            "{stone_hits} {met_other} {blocked}"
+        );
     }
 
     /// The peer scene's stone (bench/peer-scene.ron): an ellipsoid cap of
