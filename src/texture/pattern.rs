@@ -1061,7 +1061,17 @@ struct NodeMemo<T> {
     selected_for: Option<(u64, IVec3)>,
     /// What the node selected for that site.
     selection: T,
+    /// Whether the current certificate has answered a lookup. A certified
+    /// search costs about twice a plain one, so after a certificate that
+    /// answered nothing (cells small against the steps between lookups)
+    /// misses use plain searches, probing with a new certificate now and then.
+    certificate_paid: bool,
+    /// Plain searches since the last certified one.
+    plain_searches: u32,
 }
+
+/// Plain searches after an unpaid certificate before the next certified one.
+const PLAIN_SEARCHES_BEFORE_PROBE: u32 = 4;
 
 impl<T: Copy> NodeMemo<T> {
     /// An entry that covers no point and has selected nothing.
@@ -1070,6 +1080,8 @@ impl<T: Copy> NodeMemo<T> {
             certified: CertifiedNearest::EMPTY,
             selected_for: None,
             selection: nothing,
+            certificate_paid: true,
+            plain_searches: 0,
         }
     }
 
@@ -1077,10 +1089,19 @@ impl<T: Copy> NodeMemo<T> {
     /// covers `p`, else from a fresh certified search (kept for next time).
     #[inline]
     fn site(&mut self, voronoi: &Voronoi, p: DVec3) -> VoronoiSite {
-        if !voronoi.nearest_within(&self.certified, p) {
-            self.certified = voronoi.certify_nearest(p);
+        if voronoi.nearest_within(&self.certified, p) {
+            self.certificate_paid = true;
+            return self.certified.site;
         }
-        self.certified.site
+        if self.certificate_paid || self.plain_searches >= PLAIN_SEARCHES_BEFORE_PROBE {
+            self.certified = voronoi.certify_nearest(p);
+            self.certificate_paid = false;
+            self.plain_searches = 0;
+            self.certified.site
+        } else {
+            self.plain_searches += 1;
+            voronoi.nearest(p).site()
+        }
     }
 
     /// `select(site)`, reusing the last selection when it was made for the
