@@ -39,6 +39,17 @@
 //!   `|N(0, σ)|`, clamped below the horizon).
 //!
 //! Everything is pure in `(seeds, point)` and every type is `Send + Sync`.
+//!
+//! # The resolve cache
+//!
+//! A render resolves runs of nearby points (a pixel's samples, then the next
+//! pixel's). [`Pattern::resolve`] keeps, per thread, the last nearest site of
+//! each Voronoi of the tree with a region where it provably stays the
+//! nearest ([`CertifiedNearest`]), the entry each map chose for its site,
+//! and a table of per-cell switch reads (the marble at inclusion sites).
+//! Entries are tagged with [`Pattern::id`]. Nothing in the cache can change
+//! an answer: it equals [`Pattern::resolve_uncached`] bit for bit
+//! (`tests/texture_cache.rs`), so images do not depend on the thread count.
 
 use glam::{DVec3, IVec3};
 use std::cell::RefCell;
@@ -913,8 +924,12 @@ impl Pattern {
     /// cell's feature point, a map's entry, a glitter cell's fill). Results
     /// never depend on what the cache holds, so images do not depend on the
     /// thread count or schedule (only the work done does).
-    #[inline]
+    #[inline(never)] // one call per hit; keeps callers' inlining stable
     pub fn resolve(&self, p: DVec3) -> Resolved {
+        // A plain stone (one material, no glitter) has nothing to cache.
+        if self.nodes.is_empty() && self.glitter.is_none() {
+            return self.resolve_uncached(p);
+        }
         RESOLVE_CACHE.with_borrow_mut(|cache| {
             if cache.pattern.pattern_id != self.id {
                 cache.pattern = PatternMemos::EMPTY;
@@ -1021,7 +1036,6 @@ impl Pattern {
     /// searched and every switch read afresh.
     #[inline]
     pub fn resolve_uncached(&self, p: DVec3) -> Resolved {
-
         let (surface_material, surface_cell, map_index) = self.resolve_surface(p);
         if let Some(g) = &self.glitter {
             let near = g.voronoi.nearest(p);
@@ -1062,16 +1076,25 @@ struct NodeMemo<T> {
     /// What the node selected for that site.
     selection: T,
     /// Whether the current certificate has answered a lookup. A certified
-    /// search costs about twice a plain one, so after a certificate that
+    /// search costs about 2.5 plain ones, so after a certificate that
     /// answered nothing (cells small against the steps between lookups)
-    /// misses use plain searches, probing with a new certificate now and then.
+    /// misses use plain searches, probing with a new certificate now and
+    /// then: after 4 plain searches, twice as many after each further
+    /// unpaid certificate (up to 64), so incoherent lookups cost little more
+    /// than uncached ones.
     certificate_paid: bool,
+    /// Unpaid certificates in a row (capped at [`MAX_UNPAID_STREAK`]).
+    unpaid_streak: u32,
     /// Plain searches since the last certified one.
     plain_searches: u32,
 }
 
-/// Plain searches after an unpaid certificate before the next certified one.
+/// Plain searches after one unpaid certificate before the next certified one.
 const PLAIN_SEARCHES_BEFORE_PROBE: u32 = 4;
+
+/// Cap of [`NodeMemo::unpaid_streak`]: at most `4 · 2⁴ = 64` plain searches
+/// between probes.
+const MAX_UNPAID_STREAK: u32 = 4;
 
 impl<T: Copy> NodeMemo<T> {
     /// An entry that covers no point and has selected nothing.
@@ -1081,27 +1104,32 @@ impl<T: Copy> NodeMemo<T> {
             selected_for: None,
             selection: nothing,
             certificate_paid: true,
+            unpaid_streak: 0,
             plain_searches: 0,
         }
     }
 
     /// The nearest site of `voronoi` at `p`: from the certificate when it
-    /// covers `p`, else from a fresh certified search (kept for next time).
+    /// covers `p`, else from a fresh certified search (kept for next time)
+    /// or, while certificates do not pay, a plain one.
     #[inline]
     fn site(&mut self, voronoi: &Voronoi, p: DVec3) -> VoronoiSite {
         if voronoi.nearest_within(&self.certified, p) {
             self.certificate_paid = true;
             return self.certified.site;
         }
-        if self.certificate_paid || self.plain_searches >= PLAIN_SEARCHES_BEFORE_PROBE {
-            self.certified = voronoi.certify_nearest(p);
-            self.certificate_paid = false;
-            self.plain_searches = 0;
-            self.certified.site
-        } else {
+        if self.certificate_paid {
+            self.unpaid_streak = 0;
+        } else if self.plain_searches < PLAIN_SEARCHES_BEFORE_PROBE << self.unpaid_streak {
             self.plain_searches += 1;
-            voronoi.nearest(p).site()
+            return voronoi.nearest(p).site();
+        } else {
+            self.unpaid_streak = (self.unpaid_streak + 1).min(MAX_UNPAID_STREAK);
         }
+        self.certified = voronoi.certify_nearest(p);
+        self.certificate_paid = false;
+        self.plain_searches = 0;
+        self.certified.site
     }
 
     /// `select(site)`, reusing the last selection when it was made for the

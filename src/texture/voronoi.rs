@@ -526,7 +526,11 @@ impl Keeper for Best {
     fn offer(&mut self, distance_sq: f64, hash: u64, index: usize) {
         // Selects, not a branch: which site wins is random.
         let closer = distance_sq < self.distance_sq;
-        self.distance_sq = if closer { distance_sq } else { self.distance_sq };
+        self.distance_sq = if closer {
+            distance_sq
+        } else {
+            self.distance_sq
+        };
         self.hash = if closer { hash } else { self.hash };
         self.index = if closer { index } else { self.index };
     }
@@ -670,8 +674,7 @@ impl<K: Keeper> NearestSearch<K> {
             self.bases[1][j] + self.jitter_step * ny as f64,
             self.bases[2][k] + self.jitter_step * nz as f64,
         );
-        self.kept
-            .offer(rel.length_squared(), h, 9 * i + 3 * j + k);
+        self.kept.offer(rel.length_squared(), h, 9 * i + 3 * j + k);
     }
 }
 
@@ -750,10 +753,13 @@ impl Voronoi {
     /// second-nearest site instead of the nearest).
     pub fn certify_nearest(&self, p: DVec3) -> CertifiedNearest {
         let lat = self.lattice_point(p);
-        let search = NearestSearch::new(&lat, BestTwo {
-            best: Best::NONE,
-            second_distance_sq: f64::INFINITY,
-        })
+        let search = NearestSearch::new(
+            &lat,
+            BestTwo {
+                best: Best::NONE,
+                second_distance_sq: f64::INFINITY,
+            },
+        )
         .run(lat.key);
         let mut two = TwoNearest {
             first: Candidate {
