@@ -2,7 +2,9 @@
 //! (section 4.3.1, figure 4.7: marble switch per inclusion cell, big tiles
 //! holding dark/bright tile maps, sparse glitter with facets). Each iteration
 //! resolves the next of 1024 fixed points in a unit-sized stone, so branch
-//! history and caches resemble a render rather than one repeated point.
+//! history and caches resemble a render rather than one repeated point
+//! (and, for `resolve`, the per-thread cache rarely helps; the "pixel runs"
+//! case shows it in a render's order).
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use glam::DVec3;
@@ -21,6 +23,20 @@ fn bench_points() -> Vec<DVec3> {
         .collect()
 }
 
+/// 64 pixels of 16 samples each along a row across the stone: samples
+/// within a 0.0028-unit footprint (a 96-pixel view of the peer scene).
+fn pixel_run_points() -> Vec<DVec3> {
+    let jitter = bench_points();
+    const FOOTPRINT: f64 = 0.0028;
+    (0..1024)
+        .map(|k| {
+            let pixel = (k / 16) as f64;
+            let centre = DVec3::new(-0.09 + pixel * FOOTPRINT, 0.01, 0.03);
+            centre + jitter[k] * (0.5 * FOOTPRINT)
+        })
+        .collect()
+}
+
 fn pattern(c: &mut Criterion) {
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -33,6 +49,22 @@ fn pattern(c: &mut Criterion) {
         b.iter(|| {
             i = (i + 1) & 1023;
             gem.pattern.resolve(black_box(points[i]))
+        })
+    });
+    c.bench_function("lepidolite resolve_uncached", |b| {
+        b.iter(|| {
+            i = (i + 1) & 1023;
+            gem.pattern.resolve_uncached(black_box(points[i]))
+        })
+    });
+    // A render's order: 16 samples spread over one pixel footprint (about
+    // 1/3 of an inclusion cell), then the next pixel along a row; the
+    // per-thread cache answers most of these without a Voronoi search.
+    let pixel_runs = pixel_run_points();
+    c.bench_function("lepidolite resolve, pixel runs", |b| {
+        b.iter(|| {
+            i = (i + 1) & 1023;
+            gem.pattern.resolve(black_box(pixel_runs[i]))
         })
     });
     c.bench_function("lepidolite resolve_surface", |b| {

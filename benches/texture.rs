@@ -69,6 +69,15 @@ fn texture(c: &mut Criterion) {
         let s = voronoi.nearest(p);
         (s.f1, s.cell_id)
     });
+    // The miss path of the resolve cache: nearest site plus the region
+    // where it stays nearest; and the hit path, one containment test.
+    per_point(c, "voronoi_certify_nearest", |p| {
+        voronoi.certify_nearest(p).site
+    });
+    let certified = voronoi.certify_nearest(DVec3::splat(0.1));
+    per_point(c, "voronoi_nearest_within", |p| {
+        voronoi.nearest_within(&certified, DVec3::splat(0.1) + p * 1e-3)
+    });
     per_point(c, "voronoi_query_full", |p| voronoi.query(p));
     per_point(c, "voronoi_query_full_stretched", |p| stretched.query(p));
     per_point(c, "voronoi_brute_force_reference", |p| {

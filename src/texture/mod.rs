@@ -3,7 +3,9 @@
 //!
 //! Every function here is pure in `(seed, object-space point)`: no global RNG,
 //! no interior state, every type `Send + Sync`, so a stone looks cut from a
-//! block and renders identically on any number of rayon threads.
+//! block and renders identically on any number of rayon threads. The one
+//! memory, [`pattern::Pattern::resolve`]'s per-thread cache, only saves work:
+//! what it returns is exactly [`pattern::Pattern::resolve_uncached`]'s.
 //!
 //! * [`hash`]: integer hashing of lattice cells (SplitMix64), the source of all
 //!   per-cell randomness.

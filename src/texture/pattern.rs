@@ -39,14 +39,27 @@
 //!   `|N(0, σ)|`, clamped below the horizon).
 //!
 //! Everything is pure in `(seeds, point)` and every type is `Send + Sync`.
+//!
+//! # The resolve cache
+//!
+//! A render resolves runs of nearby points (a pixel's samples, then the next
+//! pixel's). [`Pattern::resolve`] keeps, per thread, the last nearest site of
+//! each Voronoi of the tree with a region where it provably stays the
+//! nearest ([`CertifiedNearest`]), the entry each map chose for its site,
+//! and a table of per-cell switch reads (the marble at inclusion sites).
+//! Entries are tagged with [`Pattern::id`]. Nothing in the cache can change
+//! an answer: it equals [`Pattern::resolve_uncached`] bit for bit
+//! (`tests/texture_cache.rs`), so images do not depend on the thread count.
 
-use glam::DVec3;
+use glam::{DVec3, IVec3};
+use std::cell::RefCell;
 use std::f64::consts::TAU;
 use std::fmt;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::hash::{derive_stream, unit_f64};
 use super::noise_fns::{Fbm, Marble, PerlinNoise, Turbulence};
-use super::voronoi::{floor_fast, Voronoi, VoronoiNearest};
+use super::voronoi::{floor_fast, CertifiedNearest, Voronoi, VoronoiNearest, VoronoiSite};
 
 /// Stream of a surface-map cell's entry choice.
 pub const STREAM_ENTRY: u64 = 1;
@@ -732,14 +745,31 @@ pub struct Resolved {
 }
 
 /// The compiled pattern: flat nodes, the surface root and the optional
-/// glitter layer. Plain data, `Send + Sync`.
-#[derive(Clone, Debug, PartialEq)]
+/// glitter layer. Plain data, `Send + Sync`, immutable once built.
+///
+/// Equality compares the tree, not [`Pattern::id`]: two patterns built
+/// alike are equal even though each has its own id.
+#[derive(Clone, Debug)]
 pub struct Pattern {
     nodes: Vec<Node>,
     root: Entry,
     glitter: Option<GlitterMap>,
     material_count: u32,
+    id: u64,
 }
+
+impl PartialEq for Pattern {
+    fn eq(&self, other: &Self) -> bool {
+        self.nodes == other.nodes
+            && self.root == other.root
+            && self.glitter == other.glitter
+            && self.material_count == other.material_count
+    }
+}
+
+/// Source of [`Pattern::id`]s: each built pattern takes the next number
+/// (ids start at 1; 0 marks an unused cache).
+static NEXT_PATTERN_ID: AtomicU64 = AtomicU64::new(1);
 
 impl Pattern {
     /// Builds a pattern over `material_count` materials; checks every index
@@ -808,7 +838,15 @@ impl Pattern {
             root,
             glitter,
             material_count,
+            id: NEXT_PATTERN_ID.fetch_add(1, Ordering::Relaxed),
         })
+    }
+
+    /// This pattern's identity for the per-thread resolve cache: unique
+    /// among patterns built by [`Pattern::new`] in this process, shared by
+    /// clones (which are equal and, like every pattern, immutable).
+    pub fn id(&self) -> u64 {
+        self.id
     }
 
     /// The nodes.
@@ -877,8 +915,127 @@ impl Pattern {
 
     /// Figure 4.6 ⑤: glitter (with its facet normal) where the glitter cell
     /// is filled, the surface map's material elsewhere.
-    #[inline]
+    ///
+    /// Always exactly [`Pattern::resolve_uncached`]`(p)`, but cheaper for
+    /// runs of nearby points (a pixel's samples): a per-thread cache keeps,
+    /// per Voronoi of the tree, the last nearest site with a region where
+    /// it provably stays the nearest ([`CertifiedNearest`]), and per node
+    /// what it selected for that site (the marble read at an inclusion
+    /// cell's feature point, a map's entry, a glitter cell's fill). Results
+    /// never depend on what the cache holds, so images do not depend on the
+    /// thread count or schedule (only the work done does).
+    #[inline(never)] // one call per hit; keeps callers' inlining stable
     pub fn resolve(&self, p: DVec3) -> Resolved {
+        // A plain stone (one material, no glitter) has nothing to cache.
+        if self.nodes.is_empty() && self.glitter.is_none() {
+            return self.resolve_uncached(p);
+        }
+        RESOLVE_CACHE.with_borrow_mut(|cache| {
+            if cache.pattern.pattern_id != self.id {
+                cache.pattern = PatternMemos::EMPTY;
+                cache.pattern.pattern_id = self.id;
+            }
+            self.resolve_cached(p, cache)
+        })
+    }
+
+    /// [`Pattern::resolve`] through `cache`, which holds this pattern's
+    /// entries (or none).
+    #[inline]
+    fn resolve_cached(&self, p: DVec3, cache: &mut ResolveCache) -> Resolved {
+        let (surface_material, surface_cell, map_index) =
+            self.resolve_surface_cached(p, &mut cache.pattern.nodes, &mut cache.switch_reads);
+        if let Some(g) = &self.glitter {
+            let glitter = &mut cache.pattern.glitter;
+            let site = glitter.site(&g.voronoi, p);
+            let filled_material = glitter.selection(site, |s| {
+                g.is_filled(s.cell_id, s.feature_point)
+                    .then(|| g.material_of_cell(s.cell_id))
+            });
+            if let Some(material) = filled_material {
+                let facet_id = cache.pattern.facets.site(&g.facets.voronoi, p).cell_id;
+                return Resolved {
+                    material,
+                    flake_normal: Some(g.facets.normal_of_cell(facet_id)),
+                    surface_cell,
+                    glitter_cell: Some(site.cell_id),
+                    map_index,
+                };
+            }
+        }
+        Resolved {
+            material: surface_material,
+            flake_normal: None,
+            surface_cell,
+            glitter_cell: None,
+            map_index,
+        }
+    }
+
+    /// [`Pattern::resolve_surface`] through the per-node memos of a
+    /// [`ResolveCache`]; nodes past the cache's size are looked up plainly.
+    #[inline]
+    fn resolve_surface_cached(
+        &self,
+        p: DVec3,
+        memos: &mut [NodeMemo<Entry>; CACHED_NODES],
+        switch_reads: &mut SwitchReads,
+    ) -> (u32, u64, u32) {
+        let mut entry = self.root;
+        let mut cell = 0;
+        let mut map_index = u32::MAX;
+        // A per-cell switch and the map below it often share their cells.
+        let mut last: Option<(&Voronoi, VoronoiSite)> = None;
+        // Acyclic (checked in `new`), so at most nodes.len() steps.
+        for _ in 0..=self.nodes.len() {
+            let n = match entry {
+                Entry::Material(m) => return (m, cell, map_index),
+                Entry::Node(n) => n,
+            };
+            let node = &self.nodes[n as usize];
+            let voronoi = match node {
+                Node::Map(map) => &map.voronoi,
+                Node::Switch(s) => match &s.per_cell {
+                    Some(v) => v,
+                    None => {
+                        entry = s.select_at_sample(p);
+                        continue;
+                    }
+                },
+            };
+            let mut memo = memos.get_mut(n as usize);
+            let site = match last {
+                Some((v, site)) if v == voronoi => site,
+                _ => match memo.as_deref_mut() {
+                    Some(memo) => memo.site(voronoi, p),
+                    None => voronoi.nearest(p).site(),
+                },
+            };
+            last = Some((voronoi, site));
+            entry = match node {
+                Node::Map(map) => {
+                    cell = site.cell_id;
+                    map_index = n;
+                    match memo {
+                        Some(memo) => memo.selection(site, |s| map.entry_of_cell(s.cell_id)),
+                        None => map.entry_of_cell(site.cell_id),
+                    }
+                }
+                // The marble read is the expensive part: memoised per site
+                // in a table, as a row of pixels revisits the sites of the
+                // row before.
+                Node::Switch(s) => switch_reads.entry(self.id, n, &site, |site| {
+                    s.select_at_sample(site.feature_point)
+                }),
+            };
+        }
+        unreachable!("pattern tree is acyclic by construction")
+    }
+
+    /// The reference [`Pattern::resolve`] is tested against: every Voronoi
+    /// searched and every switch read afresh.
+    #[inline]
+    pub fn resolve_uncached(&self, p: DVec3) -> Resolved {
         let (surface_material, surface_cell, map_index) = self.resolve_surface(p);
         if let Some(g) = &self.glitter {
             let near = g.voronoi.nearest(p);
@@ -901,4 +1058,196 @@ impl Pattern {
             map_index,
         }
     }
+}
+
+/// How many nodes of a tree get a memo in the per-thread cache (the built-in
+/// gems have at most 5); the glitter and facet maps have their own.
+const CACHED_NODES: usize = 8;
+
+/// A cache entry for one Voronoi of a tree: the certified nearest site of
+/// the last search, and what its node selected for the site it last saw.
+#[derive(Clone, Copy)]
+struct NodeMemo<T> {
+    /// The last search's site and the region where it stays the nearest.
+    certified: CertifiedNearest,
+    /// The site the selection was made for (cell id and cell pin it down:
+    /// the feature point is a function of them).
+    selected_for: Option<(u64, IVec3)>,
+    /// What the node selected for that site.
+    selection: T,
+    /// Whether the current certificate has answered a lookup. A certified
+    /// search costs about 2.5 plain ones, so after a certificate that
+    /// answered nothing (cells small against the steps between lookups)
+    /// misses use plain searches, probing with a new certificate now and
+    /// then: after 4 plain searches, twice as many after each further
+    /// unpaid certificate (up to 64), so incoherent lookups cost little more
+    /// than uncached ones.
+    certificate_paid: bool,
+    /// Unpaid certificates in a row (capped at [`MAX_UNPAID_STREAK`]).
+    unpaid_streak: u32,
+    /// Plain searches since the last certified one.
+    plain_searches: u32,
+}
+
+/// Plain searches after one unpaid certificate before the next certified one.
+const PLAIN_SEARCHES_BEFORE_PROBE: u32 = 4;
+
+/// Cap of [`NodeMemo::unpaid_streak`]: at most `4 · 2⁴ = 64` plain searches
+/// between probes.
+const MAX_UNPAID_STREAK: u32 = 4;
+
+impl<T: Copy> NodeMemo<T> {
+    /// An entry that covers no point and has selected nothing.
+    const fn empty(nothing: T) -> Self {
+        NodeMemo {
+            certified: CertifiedNearest::EMPTY,
+            selected_for: None,
+            selection: nothing,
+            certificate_paid: true,
+            unpaid_streak: 0,
+            plain_searches: 0,
+        }
+    }
+
+    /// The nearest site of `voronoi` at `p`: from the certificate when it
+    /// covers `p`, else from a fresh certified search (kept for next time)
+    /// or, while certificates do not pay, a plain one.
+    #[inline]
+    fn site(&mut self, voronoi: &Voronoi, p: DVec3) -> VoronoiSite {
+        if voronoi.nearest_within(&self.certified, p) {
+            self.certificate_paid = true;
+            return self.certified.site;
+        }
+        if self.certificate_paid {
+            self.unpaid_streak = 0;
+        } else if self.plain_searches < PLAIN_SEARCHES_BEFORE_PROBE << self.unpaid_streak {
+            self.plain_searches += 1;
+            return voronoi.nearest(p).site();
+        } else {
+            self.unpaid_streak = (self.unpaid_streak + 1).min(MAX_UNPAID_STREAK);
+        }
+        self.certified = voronoi.certify_nearest(p);
+        self.certificate_paid = false;
+        self.plain_searches = 0;
+        self.certified.site
+    }
+
+    /// `select(site)`, reusing the last selection when it was made for the
+    /// same site (a pure function of the site, so the same value).
+    #[inline]
+    fn selection(&mut self, site: VoronoiSite, select: impl FnOnce(&VoronoiSite) -> T) -> T {
+        let key = (site.cell_id, site.cell);
+        if self.selected_for != Some(key) {
+            self.selection = select(&site);
+            self.selected_for = Some(key);
+        }
+        self.selection
+    }
+}
+
+/// The per-thread memory of [`Pattern::resolve`] for the last pattern
+/// resolved.
+struct PatternMemos {
+    /// [`Pattern::id`] of the pattern the entries belong to (0: none).
+    pattern_id: u64,
+    /// Per node (by index): its Voronoi's site and, for a map, the entry
+    /// it selected.
+    nodes: [NodeMemo<Entry>; CACHED_NODES],
+    /// The glitter cells: the site and its filled material, if filled.
+    glitter: NodeMemo<Option<u32>>,
+    /// The facet cells of filled glitter cells (the selection is unused).
+    facets: NodeMemo<()>,
+}
+
+impl PatternMemos {
+    const EMPTY: PatternMemos = PatternMemos {
+        pattern_id: 0,
+        nodes: [NodeMemo::empty(Entry::Material(0)); CACHED_NODES],
+        glitter: NodeMemo::empty(None),
+        facets: NodeMemo::empty(()),
+    };
+}
+
+/// Number of [`SwitchReads`] slots (a power of two): a 96-pixel row of the
+/// lepidolite touches ~100 inclusion sites, so the row below finds most of
+/// its sites still there (measured: 96 % of reads on a 96² render).
+const SWITCH_READ_SLOTS: usize = 256;
+
+/// One memoised per-cell switch read: which pattern, node and site it is
+/// for, and the entry the switch selected there.
+#[derive(Clone, Copy)]
+struct SwitchRead {
+    pattern_id: u64,
+    node: u32,
+    cell: IVec3,
+    cell_id: u64,
+    entry: Entry,
+}
+
+/// Direct-mapped memo of per-cell switch reads, indexed by the site's
+/// cell id (already a well-mixed hash). The key holds the pattern id, so
+/// the table survives a change of pattern and needs no clearing.
+struct SwitchReads {
+    slots: [SwitchRead; SWITCH_READ_SLOTS],
+}
+
+impl SwitchReads {
+    const EMPTY: SwitchReads = SwitchReads {
+        slots: [SwitchRead {
+            pattern_id: 0, // no pattern has id 0: never matches
+            node: 0,
+            cell: IVec3::ZERO,
+            cell_id: 0,
+            entry: Entry::Material(0),
+        }; SWITCH_READ_SLOTS],
+    };
+
+    /// `read(site)` for node `node` of pattern `pattern_id`, from the table
+    /// when it holds exactly this read (a pure function of the site).
+    #[inline]
+    fn entry(
+        &mut self,
+        pattern_id: u64,
+        node: u32,
+        site: &VoronoiSite,
+        read: impl FnOnce(&VoronoiSite) -> Entry,
+    ) -> Entry {
+        let index = (site.cell_id.wrapping_add(u64::from(node)) as usize) % SWITCH_READ_SLOTS;
+        let slot = &mut self.slots[index];
+        if slot.pattern_id != pattern_id
+            || slot.node != node
+            || slot.cell_id != site.cell_id
+            || slot.cell != site.cell
+        {
+            *slot = SwitchRead {
+                pattern_id,
+                node,
+                cell: site.cell,
+                cell_id: site.cell_id,
+                entry: read(site),
+            };
+        }
+        slot.entry
+    }
+}
+
+/// Everything a thread remembers between [`Pattern::resolve`] calls.
+struct ResolveCache {
+    /// Sites and selections of the last pattern resolved.
+    pattern: PatternMemos,
+    /// Per-cell switch reads of any pattern.
+    switch_reads: SwitchReads,
+}
+
+impl ResolveCache {
+    const EMPTY: ResolveCache = ResolveCache {
+        pattern: PatternMemos::EMPTY,
+        switch_reads: SwitchReads::EMPTY,
+    };
+}
+
+thread_local! {
+    /// Each rendering thread's [`ResolveCache`] (constant-initialised and
+    /// without a destructor, so access is a plain thread-local load).
+    static RESOLVE_CACHE: RefCell<ResolveCache> = const { RefCell::new(ResolveCache::EMPTY) };
 }
