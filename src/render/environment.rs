@@ -684,17 +684,19 @@ const STUDIO_BOXES: [SoftBox; 3] = [
 /// behind; positions, sizes and radiances are documented there) replacing
 /// the dome where they are.
 pub fn studio_radiance(d: DVec3) -> Rgb {
-    let frames = STUDIO_BOXES.map(|b| b.frame());
-    studio_radiance_among(&[&frames[0], &frames[1], &frames[2]], d)
+    studio_radiance_masked(&STUDIO_BOXES.map(|b| b.frame()), ALL_BOXES, d)
 }
 
-/// [`studio_radiance`] with the soft boxes' frames already worked out, in
-/// the order of `STUDIO_BOXES`, leaving out only boxes that cannot contain
-/// `d` (the bake passes those that reach its row, see
-/// [`SoftBoxFrame::may_reach_polar`]).
-fn studio_radiance_among(frames: &[&SoftBoxFrame], d: DVec3) -> Rgb {
-    for frame in frames {
-        if frame.contains(d) {
+/// Bit `b` of a box mask: box `b` of `STUDIO_BOXES` is tested.
+const ALL_BOXES: u8 = 0b111;
+
+/// [`studio_radiance`] with the soft boxes' frames already worked out (in
+/// the order of `STUDIO_BOXES`), testing only the boxes whose bit is set in
+/// `mask`: the bake leaves out those that cannot contain `d` (see
+/// [`SoftBoxFrame::mark_reachable_columns`]).
+fn studio_radiance_masked(frames: &[SoftBoxFrame; 3], mask: u8, d: DVec3) -> Rgb {
+    for (b, frame) in frames.iter().enumerate() {
+        if mask & (1 << b) != 0 && frame.contains(d) {
             return frame.radiance;
         }
     }
@@ -720,6 +722,10 @@ struct SoftBoxFrame {
     half_width_tan: f64,
     /// tan(height/2): the largest |up coordinate| inside the box.
     half_height_tan: f64,
+    /// The centre's azimuth φ_c = atan2(c_y, c_x).
+    centre_azimuth: f64,
+    /// The centre's horizontal length √(c_x² + c_y²).
+    centre_horizontal: f64,
     /// A little below the cosine of the angle from the centre to a corner,
     /// 1/√(1 + tan²(w/2) + tan²(h/2)): no direction inside the box has
     /// d·centre below it (see [`SoftBoxFrame::contains`]).
@@ -747,6 +753,8 @@ impl SoftBox {
             up: centre.cross(across),
             half_width_tan,
             half_height_tan,
+            centre_azimuth: centre.y.atan2(centre.x),
+            centre_horizontal: centre.truncate().length(),
             // 10⁻⁹ covers every rounding of d (unit to 10⁻¹⁵) and of t.
             least_inside_cosine: corner_cosine - 1e-9,
             radiance: self.radiance,
@@ -772,15 +780,47 @@ impl SoftBoxFrame {
         x.abs() <= self.half_width_tan && y.abs() <= self.half_height_tan
     }
 
-    /// Whether some direction of polar sine and cosine (`sin_theta`,
-    /// `cos_theta`) may be in the box: false only when even the azimuth
-    /// facing the box gives d·centre = sinθ·√(c_x² + c_y²) + cosθ·c_z (the
-    /// largest over φ) below [`Self::least_inside_cosine`], by more than
-    /// any rounding (10⁻⁹).
-    fn may_reach_polar(&self, sin_theta: f64, cos_theta: f64) -> bool {
-        let horizontal = self.centre.truncate().length();
-        let largest_t = sin_theta.abs() * horizontal + cos_theta * self.centre.z;
-        largest_t >= self.least_inside_cosine - 1e-9
+    /// Sets `bit` in `masks[col]` for every column `col` of a `width`
+    /// column map (column c spans azimuths 2πc/w to 2π(c + 1)/w) where a
+    /// direction of polar sine and cosine (`sin_theta`, `cos_theta`) may be
+    /// in the box.
+    ///
+    /// At azimuth φ, d·centre = A·cos(φ − φ_c) + B with A = sinθ·√(c_x² +
+    /// c_y²), B = cosθ·c_z and φ_c the centre's azimuth; inside the box it
+    /// is at least [`Self::least_inside_cosine`] (L), so cos(φ − φ_c) ≥
+    /// (L − B)/A: the columns within acos((L − B)/A) of φ_c, widened by one
+    /// column each side, and the bound loosened by 10⁻⁶ (far more than any
+    /// rounding of d, A or B). None when even φ = φ_c falls short; all near
+    /// the poles (A < 10⁻⁶). Only which boxes are tested changes, never the
+    /// answer of [`SoftBoxFrame::contains`].
+    fn mark_reachable_columns(&self, sin_theta: f64, cos_theta: f64, bit: u8, masks: &mut [u8]) {
+        let width = masks.len() as i64;
+        let along = sin_theta.abs() * self.centre_horizontal;
+        let across = cos_theta * self.centre.z;
+        let least = self.least_inside_cosine - 1e-9;
+        if along + across < least {
+            return;
+        }
+        let cos_limit = if along > 1e-6 {
+            (least - across) / along - 1e-6
+        } else {
+            -1.0
+        };
+        if cos_limit <= -1.0 {
+            masks.iter_mut().for_each(|m| *m |= bit);
+            return;
+        }
+        let spread = cos_limit.min(1.0).acos();
+        let columns_per_radian = width as f64 / TAU;
+        let first = ((self.centre_azimuth - spread) * columns_per_radian).floor() as i64 - 1;
+        let last = ((self.centre_azimuth + spread) * columns_per_radian).floor() as i64 + 1;
+        if last - first + 1 >= width {
+            masks.iter_mut().for_each(|m| *m |= bit);
+            return;
+        }
+        for col in first..=last {
+            masks[col.rem_euclid(width) as usize] |= bit;
+        }
     }
 }
 
@@ -795,7 +835,9 @@ const STUDIO_SUBSAMPLES: usize = 4;
 /// Every direction is a sine and cosine of its row's θ and of its column's
 /// φ, so those are computed once per sub-sample row and column (2·h·4 and
 /// 2·w·4 calls instead of 4 per sub-sample: three quarters of the bake
-/// was `sin_cos`), and rows are filled in parallel. Each texel is the same
+/// was `sin_cos`), each sub-sample tests only the soft boxes its row and
+/// column can reach, the texels that reach none are one value per row (the
+/// dome depends on θ alone), and rows are filled in parallel. Each texel is the same
 /// f64 operations in the same order as the per-sub-sample formula, so the
 /// map is bit for bit the one it gave (see the environment tests).
 pub fn bake_studio_texels(width: usize, height: usize, intensity: f64) -> Vec<Rgb> {
@@ -820,22 +862,35 @@ pub fn bake_studio_texels(width: usize, height: usize, intensity: f64) -> Vec<Rg
                 let v = (row as f64 + (sy as f64 + 0.5) / SUB as f64) / height as f64;
                 (PI * v).sin_cos()
             });
-            // The boxes each sub-sample row can see (most rows see none).
-            let reaching: [Vec<&SoftBoxFrame>; SUB] = polar.map(|(st, ct)| {
-                frames
-                    .iter()
-                    .filter(|f| f.may_reach_polar(st, ct))
-                    .collect()
-            });
-            for (col, texel) in out.iter_mut().enumerate() {
+            // Per sub-sample row and column, the boxes it may see (most
+            // rows see none, the others see each box over a few columns).
+            let mut masks: [Vec<u8>; SUB] = std::array::from_fn(|_| vec![0u8; width]);
+            for (&(st, ct), row_masks) in polar.iter().zip(&mut masks) {
+                for (b, frame) in frames.iter().enumerate() {
+                    frame.mark_reachable_columns(st, ct, 1 << b, row_masks);
+                }
+            }
+            let texel_at = |col: usize, texel_masks: [u8; SUB]| {
                 let mut sum = Rgb::ZERO;
-                for (&(st, ct), boxes) in polar.iter().zip(&reaching) {
+                for (&(st, ct), mask) in polar.iter().zip(texel_masks) {
                     for &(sp, cp) in &azimuths[col * SUB..(col + 1) * SUB] {
                         let d = DVec3::new(st * cp, st * sp, ct);
-                        sum += studio_radiance_among(boxes, d);
+                        sum += studio_radiance_masked(&frames, mask, d);
                     }
                 }
-                *texel = sum * (intensity / (SUB * SUB) as f64);
+                sum * (intensity / (SUB * SUB) as f64)
+            };
+            // A texel that sees no box sees only the dome, whose level
+            // depends on d.z = cosθ alone: every such texel of the row is
+            // the same sum of the same terms.
+            let dome_only = texel_at(0, [0; SUB]);
+            for (col, texel) in out.iter_mut().enumerate() {
+                let texel_masks = masks.each_ref().map(|row_masks| row_masks[col]);
+                *texel = if texel_masks == [0; SUB] {
+                    dome_only
+                } else {
+                    texel_at(col, texel_masks)
+                };
             }
         });
     texels
