@@ -231,9 +231,10 @@ impl SrgbCodeTable {
     /// interval that straddles a code boundary for this offset, about one
     /// in ten) the exact formula decides. The +1 of the table keeps the
     /// bracket positive, so truncation is floor.
+    #[inline]
     pub fn code(&self, display: f64, offset_lsb: f64) -> u8 {
         if !(0.0..=1.0).contains(&display) {
-            return quantize_u8(srgb_encode(display), offset_lsb);
+            return exact_code(display, offset_lsb);
         }
         let position = display * SRGB_TABLE_INTERVALS as f64;
         // i32 casts: one instruction each (values are in [0, 4096] and
@@ -245,9 +246,17 @@ impl SrgbCodeTable {
         if low_code == high_code {
             (low_code.clamp(1, 256) - 1) as u8
         } else {
-            quantize_u8(srgb_encode(display), offset_lsb)
+            exact_code(display, offset_lsb)
         }
     }
+}
+
+/// `quantize_u8(srgb_encode(display), offset_lsb)`, the definition: out of
+/// line, so that the table's common path stays small where it is inlined.
+#[cold]
+#[inline(never)]
+fn exact_code(display: f64, offset_lsb: f64) -> u8 {
+    quantize_u8(srgb_encode(display), offset_lsb)
 }
 
 // Hable's "Uncharted 2" filmic curve constants (J. Hable, "Filmic Tonemapping
