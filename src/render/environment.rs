@@ -397,8 +397,14 @@ impl EnvironmentMap {
         for row in 0..height {
             let band = row_solid_angle(row, height) / (TAU / width as f64);
             let per_uv = band * height as f64;
-            for (col, t) in texels[row * width..(row + 1) * width].iter().enumerate() {
-                weights[(row / block) * grid_width + col / block] += luminance(*t) * per_uv;
+            // Each grid cell sums its block's texels row by row, left to
+            // right (`block` divides `width`, see `sampling_block`).
+            let grid_row = &mut weights[(row / block) * grid_width..][..grid_width];
+            let texel_row = &texels[row * width..(row + 1) * width];
+            for (cell, block_texels) in grid_row.iter_mut().zip(texel_row.chunks_exact(block)) {
+                for t in block_texels {
+                    *cell += luminance(*t) * per_uv;
+                }
             }
         }
         let distribution = match Distribution2D::new(&weights, grid_width, grid_height) {
