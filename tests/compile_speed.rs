@@ -371,3 +371,189 @@ fn mixed_single_crossing_table_matches_a_fine_direct_estimate() {
         }
     }
 }
+
+/// The tables of `brdf` computed the way they were before batching: one
+/// material at a time, E_single mixed from its coat's black- and white-base
+/// tables when the base is Lambertian, E_stack in closed form or by walks.
+fn table_one_material_at_a_time(brdf: &LayeredBrdf, seed: u64) -> Option<Compensation> {
+    use lapidary::brdf::compensation::{adaptive_walk_albedo, single_crossing_albedo};
+    use lapidary::brdf::reference::WalkTables;
+    let closed_form = SmoothCoatOverLambert::of(brdf);
+    let walk_tables = closed_form.is_none().then(|| WalkTables::new(brdf));
+    let lambert_colour = match brdf.base {
+        Base::Diffuse {
+            colour,
+            oren_nayar_sigma_rad,
+        } if oren_nayar_sigma_rad <= 0.0 => Some(colour),
+        _ => None,
+    };
+    let twin = |colour: Rgb| {
+        let base = lambert(colour);
+        LayeredBrdf::new("twin", brdf.model, brdf.interfaces.clone(), base)
+    };
+    let (black, white) = (twin(Rgb::ZERO), twin(Rgb::ONE));
+    let mut single = Vec::new();
+    let mut stack = Vec::new();
+    for k in 0..TABLE_NODES {
+        let mu = node_cosine(k);
+        single.push(match lambert_colour {
+            Some(colour) => {
+                let e0 = single_crossing_albedo(&black, mu, seed ^ 0xa1b2);
+                let e1 = single_crossing_albedo(&white, mu, seed ^ 0xa1b2);
+                e0 * (Rgb::ONE - colour) + e1 * colour
+            }
+            None => single_crossing_albedo(brdf, mu, seed ^ 0xa1b2),
+        });
+        let e = match (&closed_form, &walk_tables) {
+            (Some(c), _) => c.albedo(mu),
+            (None, Some(tables)) => adaptive_walk_albedo(brdf, tables, mu, seed ^ k as u64),
+            (None, None) => unreachable!(),
+        };
+        stack.push(e.min(Rgb::ONE));
+    }
+    Compensation::from_albedos(single, stack)
+}
+
+#[test]
+fn batched_tables_are_bit_identical_to_one_material_at_a_time() {
+    // Library materials of every kind (walked rough coats, metals, a
+    // multi-layer paint), two colours under one coat (one shared pair), an
+    // Oren-Nayar base, a black base and a bare Lambert surface.
+    let mut materials: Vec<LayeredBrdf> = ["sugar", "brass", "light-blue-house-paint", "ice"]
+        .iter()
+        .map(|name| {
+            lapidary::recipe::compile::load_material_without_table(name)
+                .unwrap()
+                .0
+        })
+        .collect();
+    let absorption = Rgb::new(0.02, 0.01, 0.03);
+    materials.push(coated(
+        1.55,
+        12.0,
+        absorption,
+        lambert(Rgb::new(0.7, 0.2, 0.4)),
+    ));
+    materials.push(coated(
+        1.55,
+        12.0,
+        absorption,
+        lambert(Rgb::new(0.1, 0.8, 0.3)),
+    ));
+    materials.push(coated(
+        1.45,
+        0.0,
+        Rgb::ZERO,
+        Base::Diffuse {
+            colour: Rgb::new(0.6, 0.5, 0.4),
+            oren_nayar_sigma_rad: 0.4,
+        },
+    ));
+    materials.push(coated(1.6, 0.0, absorption, Base::Black));
+    materials.push(LayeredBrdf::new(
+        "bare",
+        MicrofacetModel::Blinn,
+        vec![],
+        lambert(Rgb::new(0.3, 0.9, 0.5)),
+    ));
+    let seed = 0x5eed;
+    let expected: Vec<String> = materials
+        .par_iter()
+        .map(|brdf| format!("{:?}", table_one_material_at_a_time(brdf, seed)))
+        .collect();
+    assert!(expected.iter().filter(|t| t.starts_with("Some")).count() >= 6);
+    let requests: Vec<(&LayeredBrdf, u64)> = materials.iter().map(|b| (b, seed)).collect();
+    for threads in [1, 3] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let batched = pool.install(|| Compensation::compute_many(&requests));
+        let batched: Vec<String> = batched.iter().map(|t| format!("{t:?}")).collect();
+        for (i, (b, e)) in batched.iter().zip(&expected).enumerate() {
+            assert_eq!(
+                b, e,
+                "material {i} ({}), {threads} threads",
+                materials[i].name
+            );
+        }
+    }
+}
+
+#[test]
+fn bare_lambert_surfaces_need_no_table() {
+    use lapidary::brdf::compensation::needs_no_table;
+    let bare = |colour: Rgb, sigma: f64| {
+        LayeredBrdf::new(
+            "bare",
+            MicrofacetModel::Blinn,
+            vec![],
+            Base::Diffuse {
+                colour,
+                oren_nayar_sigma_rad: sigma,
+            },
+        )
+    };
+    // Computed the long way, a bare Lambert surface's deficit is below the
+    // tables' threshold for every colour of a grid over [0, 1]³.
+    let levels = [0.0, 0.05, 0.5, 0.93, 1.0];
+    let colours: Vec<Rgb> = levels
+        .iter()
+        .flat_map(|&r| levels.iter().map(move |&g| (r, g)))
+        .flat_map(|(r, g)| {
+            [
+                Rgb::new(r, g, 0.0),
+                Rgb::new(r, g, 1.0),
+                Rgb::new(g, 0.37, r),
+            ]
+        })
+        .collect();
+    colours.par_iter().for_each(|&colour| {
+        let brdf = bare(colour, 0.0);
+        assert!(needs_no_table(&brdf), "{colour}");
+        assert_eq!(table_one_material_at_a_time(&brdf, 11), None, "{colour}");
+        assert_eq!(Compensation::compute(&brdf, 11), None);
+    });
+    // Everything else is computed: a layer, Oren-Nayar, a colour out of
+    // range, other bases.
+    assert!(!needs_no_table(&bare(Rgb::splat(0.5), 0.3)));
+    assert!(!needs_no_table(&bare(Rgb::new(0.5, 1.5, 0.5), 0.0)));
+    assert!(!needs_no_table(&coated(
+        1.5,
+        0.0,
+        Rgb::ZERO,
+        lambert(Rgb::ONE)
+    )));
+    let mut black = bare(Rgb::ZERO, 0.0);
+    black.base = Base::Black;
+    assert!(!needs_no_table(&black));
+}
+
+#[test]
+fn a_gem_compiled_in_one_batch_has_each_material_s_own_table() {
+    // The batch's values are checked above; here, that each table lands on
+    // its own material (the one-by-one compile reads the same process
+    // cache, keyed by the material's parameters).
+    use lapidary::recipe::compile::{compile_material, MaterialSource};
+    use lapidary::recipe::gem::{load_gem_source, parse_gem_with_seed};
+    use lapidary::render::prepare::compile_gem;
+    for name in ["lavender-lepidolite", "sunstone"] {
+        let (shading, _) = compile_gem(name, Some(3), 1).unwrap();
+        let (path, text) = load_gem_source(name).unwrap();
+        let gem = parse_gem_with_seed(&path, &text, Some(3)).unwrap();
+        assert_eq!(shading.brdfs.len(), gem.materials.len());
+        for ((material_name, material), batched) in gem.materials.iter().zip(&shading.brdfs) {
+            let source = MaterialSource {
+                path: path.clone(),
+                name: material_name.clone(),
+                text: text.clone(),
+            };
+            let alone = compile_material(&source, material).unwrap();
+            assert_eq!(
+                format!("{alone:?}"),
+                format!("{batched:?}"),
+                "{name}: {material_name}"
+            );
+        }
+    }
+}

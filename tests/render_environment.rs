@@ -680,3 +680,92 @@ fn large_maps_are_sampled_by_blocks_small_and_odd_ones_by_texels() {
     assert_eq!(sampling_block(1023, 512), 1);
     assert_eq!(sampling_block(1000, 500), 2);
 }
+
+/// The studio bake as it was first written: per sub-sample, the direction
+/// from its own `sin_cos` of θ and φ, and per soft box its frame worked out
+/// again (the gnomonic test of `studio_radiance`, spelled out here).
+fn studio_texels_per_subsample(width: usize, height: usize, intensity: f64) -> Vec<Rgb> {
+    const SUB: usize = 4;
+    // (azimuth, elevation, width, height) in degrees and radiance, in the
+    // library's order: key, strip, fill.
+    let boxes: [(f64, f64, f64, f64, Rgb); 3] = [
+        (-135.0, 50.0, 44.0, 30.0, Rgb::new(12.0, 11.6, 11.0)),
+        (-15.0, 25.0, 8.0, 40.0, Rgb::new(8.0, 8.0, 8.0)),
+        (90.0, 30.0, 60.0, 20.0, Rgb::new(2.4, 2.5, 2.7)),
+    ];
+    let spherical = |theta: f64, phi: f64| {
+        let (st, ct) = theta.sin_cos();
+        let (sp, cp) = phi.sin_cos();
+        DVec3::new(st * cp, st * sp, ct)
+    };
+    let radiance = |d: DVec3| {
+        for &(azimuth, elevation, w, h, radiance) in &boxes {
+            let centre = spherical((90.0 - elevation).to_radians(), azimuth.to_radians());
+            let t = d.dot(centre);
+            if t <= 0.0 {
+                continue;
+            }
+            let across = DVec3::Z.cross(centre).normalize();
+            let up = centre.cross(across);
+            let (x, y) = (d.dot(across) / t, d.dot(up) / t);
+            if x.abs() <= (0.5 * w).to_radians().tan() && y.abs() <= (0.5 * h).to_radians().tan() {
+                return radiance;
+            }
+        }
+        Rgb::splat(if d.z >= 0.0 {
+            0.10 + (0.25 - 0.10) * d.z
+        } else {
+            0.03
+        })
+    };
+    let mut texels = Vec::with_capacity(width * height);
+    for row in 0..height {
+        for col in 0..width {
+            let mut sum = Rgb::ZERO;
+            for sy in 0..SUB {
+                let v = (row as f64 + (sy as f64 + 0.5) / SUB as f64) / height as f64;
+                for sx in 0..SUB {
+                    let u = (col as f64 + (sx as f64 + 0.5) / SUB as f64) / width as f64;
+                    sum += radiance(spherical(PI * v, TAU * u));
+                }
+            }
+            texels.push(sum * (intensity / (SUB * SUB) as f64));
+        }
+    }
+    texels
+}
+
+#[test]
+fn studio_bake_with_hoisted_angles_is_bit_identical_to_the_per_subsample_formula() {
+    let bits = |t: &Rgb| t.to_array().map(f64::to_bits);
+    // The studio itself, through the public constructor, with 1 and 3 threads.
+    let expected = studio_texels_per_subsample(STUDIO_WIDTH, STUDIO_HEIGHT, 1.7);
+    for threads in [1, 3] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("a pool");
+        let Environment::Map(map) = pool.install(|| Environment::studio(1.7, 25.0)) else {
+            panic!("the studio is a map")
+        };
+        for row in 0..STUDIO_HEIGHT {
+            for col in 0..STUDIO_WIDTH {
+                assert_eq!(
+                    bits(&map.texel(col, row)),
+                    bits(&expected[row * STUDIO_WIDTH + col]),
+                    "texel ({col}, {row}), {threads} threads"
+                );
+            }
+        }
+    }
+    // Other sizes (odd, tiny, one row) and intensities.
+    for (width, height, intensity) in [(37, 19, 1.0), (1, 1, 0.5), (64, 1, 3.0), (3, 200, 0.0)] {
+        let hoisted = lapidary::render::environment::bake_studio_texels(width, height, intensity);
+        let reference = studio_texels_per_subsample(width, height, intensity);
+        assert_eq!(
+            hoisted.iter().map(bits).collect::<Vec<_>>(),
+            reference.iter().map(bits).collect::<Vec<_>>(),
+            "{width} × {height}"
+        );
+    }
+}

@@ -22,13 +22,13 @@
 //! file; a file that cannot be read or parsed is ignored and rewritten.
 
 use crate::brdf::compensation::Compensation;
-use crate::brdf::compensation::TABLE_NODES;
+use crate::brdf::compensation::{needs_no_table, TABLE_NODES};
 use crate::brdf::stack::LayeredBrdf;
 use crate::brdf::Rgb;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Mutex, OnceLock};
 
 /// Version of the on-disk format (and of the way tables are computed, as
 /// far as the program's identity does not already cover it).
@@ -41,37 +41,36 @@ fn tables() -> &'static Mutex<HashMap<String, Option<Compensation>>> {
 }
 
 /// E_single with a black and with a white diffuse base under each coat
-/// computed so far (see `Compensation::compute`), by [`material_key`] of
-/// the white material.
+/// computed so far (see `Compensation::compute_many`), by [`material_key`]
+/// of the white material.
 type AlbedoPair = (Vec<Rgb>, Vec<Rgb>);
 
-/// One cell per coat: the first material to need it computes it, the
-/// others (compiled at the same time on other threads) wait for it.
-type PairCell = Arc<OnceLock<AlbedoPair>>;
-
-fn single_albedo_pairs() -> &'static Mutex<HashMap<String, PairCell>> {
-    static PAIRS: OnceLock<Mutex<HashMap<String, PairCell>>> = OnceLock::new();
+fn single_albedo_pairs() -> &'static Mutex<HashMap<String, AlbedoPair>> {
+    static PAIRS: OnceLock<Mutex<HashMap<String, AlbedoPair>>> = OnceLock::new();
     PAIRS.get_or_init(Default::default)
 }
 
 /// The black- and white-base E_single tables of the coat of `white` (a
-/// material with a white diffuse base), from `compute` once per process;
-/// other threads asking meanwhile wait (so a gem's materials, compiled in
-/// parallel, share one computation). `compute` must not use rayon: a
-/// worker waiting here must never be the one that would run its jobs.
-pub(crate) fn single_albedo_pair(
-    white: &LayeredBrdf,
-    seed: u64,
-    compute: impl FnOnce() -> AlbedoPair,
-) -> AlbedoPair {
-    let key = material_key(white, seed);
-    let cell = single_albedo_pairs()
+/// material with a white diffuse base), if this process has computed them.
+/// Nothing waits for a pair being computed elsewhere: two batches that need
+/// the same new pair at once both compute it (identically), since a rayon
+/// worker blocked on another's parallel work could be the one that work
+/// needs.
+pub(crate) fn known_single_albedo_pair(white: &LayeredBrdf, seed: u64) -> Option<AlbedoPair> {
+    let pairs = single_albedo_pairs()
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    pairs.get(&material_key(white, seed)).cloned()
+}
+
+/// Keeps the computed `pair` of the coat of `white` for the rest of the
+/// process (see [`known_single_albedo_pair`]).
+pub(crate) fn remember_single_albedo_pair(white: &LayeredBrdf, seed: u64, pair: &AlbedoPair) {
+    single_albedo_pairs()
         .lock()
         .unwrap_or_else(|e| e.into_inner())
-        .entry(key)
-        .or_default()
-        .clone();
-    cell.get_or_init(compute).clone()
+        .entry(material_key(white, seed))
+        .or_insert_with(|| pair.clone());
 }
 
 /// The exact parameters of `brdf` and `seed` as a key: equal keys give
@@ -97,28 +96,63 @@ pub fn cached(brdf: &LayeredBrdf, seed: u64) -> Option<Option<Compensation>> {
 /// distinct set of parameters and seed, and read from the disk cache of
 /// [`cache_dir`] when an earlier run of the same program computed it.
 pub fn compensation(brdf: &LayeredBrdf, seed: u64) -> Option<Compensation> {
-    let key = material_key(brdf, seed);
-    if let Some(found) = tables().lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
-        return found.clone();
+    compensations(&[(brdf, seed)]).pop().flatten()
+}
+
+/// [`compensation`] of every (material, seed) of `requests`, in order: the
+/// tables neither this process nor the disk cache holds are computed
+/// together, node by node in one parallel loop
+/// ([`Compensation::compute_many`]), each distinct one once. Bare Lambert
+/// surfaces ([`needs_no_table`]) need no table and touch neither cache.
+pub fn compensations(requests: &[(&LayeredBrdf, u64)]) -> Vec<Option<Compensation>> {
+    let keys: Vec<Option<String>> = requests
+        .iter()
+        .map(|(brdf, seed)| (!needs_no_table(brdf)).then(|| material_key(brdf, *seed)))
+        .collect();
+    let mut found: HashMap<&str, Option<Compensation>> = HashMap::new();
+    {
+        // A poisoned lock only means another thread panicked while
+        // inserting; the map itself is still whole.
+        let map = tables().lock().unwrap_or_else(|e| e.into_inner());
+        for key in keys.iter().flatten() {
+            if let Some(table) = map.get(key) {
+                found.insert(key, table.clone());
+            }
+        }
+    }
+    let dir = cache_dir();
+    let mut missing: Vec<(&str, (&LayeredBrdf, u64))> = Vec::new();
+    for (key, request) in keys.iter().zip(requests) {
+        let Some(key) = key.as_deref() else { continue };
+        if found.contains_key(key) || missing.iter().any(|(k, _)| *k == key) {
+            continue;
+        }
+        match dir.as_deref().and_then(|d| load(d, key)) {
+            Some(table) => {
+                found.insert(key, table);
+            }
+            None => missing.push((key, *request)),
+        }
     }
     // Computed outside the lock: other materials compile meanwhile.
-    let dir = cache_dir();
-    let computed = match dir.as_deref().and_then(|d| load(d, &key)) {
-        Some(table) => table,
-        None => {
-            let table = Compensation::compute(brdf, seed);
-            if let Some(d) = dir.as_deref() {
-                // A cache that cannot be written only costs the next run time.
-                let _ = store(d, &key, table.as_ref());
-            }
-            table
+    let wanted: Vec<(&LayeredBrdf, u64)> = missing.iter().map(|(_, request)| *request).collect();
+    let computed = Compensation::compute_many(&wanted);
+    for ((key, _), table) in missing.iter().zip(computed) {
+        if let Some(d) = dir.as_deref() {
+            // A cache that cannot be written only costs the next run time.
+            let _ = store(d, key, table.as_ref());
         }
-    };
-    tables()
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .insert(key, computed.clone());
-    computed
+        found.insert(key, table);
+    }
+    {
+        let mut map = tables().lock().unwrap_or_else(|e| e.into_inner());
+        for (key, table) in &found {
+            map.entry(key.to_string()).or_insert_with(|| table.clone());
+        }
+    }
+    keys.iter()
+        .map(|key| key.as_deref().and_then(|k| found[k].clone()))
+        .collect()
 }
 
 /// Where tables are kept between runs: `$LAPIDARY_CACHE_DIR`, else

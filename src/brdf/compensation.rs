@@ -292,18 +292,18 @@ fn colour_mix(black: Rgb, white: Rgb, colour: Rgb) -> Rgb {
     black * (Rgb::ONE - colour) + white * colour
 }
 
-/// For a Lambertian base, E_single at every node with the base black and
-/// with it white, computed once per process for each coat (the interfaces
-/// and the seed), None for other bases (Oren-Nayar included).
+/// The black- and the white-base twins of a Lambertian material (σ = 0),
+/// None for other bases (Oren-Nayar included).
 ///
 /// The single-crossing BRDF is linear in the base colour ρ: the base enters
 /// f = f₁ + T₁₂·a·t·f₂/η² once, through f₂ = ρ/π (Lambert), so
 /// E_single(ρ) = (1 − ρ)·E_single(0) +
 /// ρ·E_single(1) exactly, per channel. Materials that differ only in their
 /// base colour (the lavender lepidolite's 14 tiles under one coat) then
-/// share one pair of tables. Each of the pair has the noise of the direct
-/// estimate, and so has their convex combination.
-fn single_albedo_black_and_white(brdf: &LayeredBrdf, seed: u64) -> Option<(Vec<Rgb>, Vec<Rgb>)> {
+/// share one pair of tables, computed once per process (see
+/// [`crate::brdf::cache::known_single_albedo_pair`]). Each of the pair has
+/// the noise of the direct estimate, and so has their convex combination.
+fn black_and_white_twins(brdf: &LayeredBrdf) -> Option<(LayeredBrdf, LayeredBrdf)> {
     let Base::Diffuse {
         oren_nayar_sigma_rad,
         ..
@@ -326,17 +326,29 @@ fn single_albedo_black_and_white(brdf: &LayeredBrdf, seed: u64) -> Option<(Vec<R
             },
         )
     };
-    let (black, white) = (with_colour(Rgb::ZERO), with_colour(Rgb::ONE));
-    let pair = crate::brdf::cache::single_albedo_pair(&white, seed, || {
-        // Sequential (see `single_albedo_pair`).
-        let albedos = |b: &LayeredBrdf| -> Vec<Rgb> {
-            (0..TABLE_NODES)
-                .map(|k| single_crossing_albedo(b, node_cosine(k), seed ^ 0xa1b2))
-                .collect()
-        };
-        (albedos(&black), albedos(&white))
-    });
-    Some(pair)
+    Some((with_colour(Rgb::ZERO), with_colour(Rgb::ONE)))
+}
+
+/// Whether `brdf` certainly needs no table, so that none is computed: a
+/// bare Lambert surface (no layers, σ ≤ 0, every channel of its colour in
+/// [0, 1], which recipes enforce). Its single-crossing model is already the
+/// whole stack: both albedos are ρ at every angle, every sample and every
+/// walk weighing exactly ρ to rounding (f·cosθ/pdf with the cosine density
+/// pdf = cosθ/π), so the deficit is ~10⁻¹⁶, far below the 3·10⁻³ below
+/// which [`Compensation::from_albedos`] drops a table (tested on a grid of
+/// colours against the computed tables).
+pub fn needs_no_table(brdf: &LayeredBrdf) -> bool {
+    match brdf.base {
+        Base::Diffuse {
+            colour,
+            oren_nayar_sigma_rad,
+        } => {
+            brdf.interfaces.is_empty()
+                && oren_nayar_sigma_rad <= 0.0
+                && colour.to_array().iter().all(|c| (0.0..=1.0).contains(c))
+        }
+        _ => false,
+    }
 }
 
 /// How [`Compensation::compute`] finds E_stack.
@@ -347,35 +359,234 @@ enum StackMethod {
     Walk(WalkTables),
 }
 
+impl StackMethod {
+    /// The closed form where there is one, else the walk's tables.
+    fn of(brdf: &LayeredBrdf) -> Self {
+        match SmoothCoatOverLambert::of(brdf) {
+            Some(c) => StackMethod::ClosedForm(c),
+            None => StackMethod::Walk(WalkTables::new(brdf)),
+        }
+    }
+
+    /// E_stack at node `k` of `brdf` (clamped to 1).
+    fn stack_albedo(&self, brdf: &LayeredBrdf, k: usize, seed: u64) -> Rgb {
+        let mu = node_cosine(k);
+        let stack = match self {
+            StackMethod::ClosedForm(c) => c.albedo(mu),
+            StackMethod::Walk(tables) => adaptive_walk_albedo(brdf, tables, mu, seed ^ k as u64),
+        };
+        stack.min(Rgb::ONE)
+    }
+}
+
+/// Where a table's E_single comes from.
+enum SingleSource {
+    /// Mixed from the black/white pair of index `pair` (its twins or its
+    /// tables in [`TablePlan::pairs`]).
+    Pair(usize),
+    /// Estimated for the material itself.
+    Direct,
+}
+
+/// One material of a [`Compensation::compute_many`] batch.
+struct MaterialPlan<'a> {
+    brdf: &'a LayeredBrdf,
+    seed: u64,
+    single: SingleSource,
+    method: StackMethod,
+}
+
+/// A black/white pair of E_single tables a batch needs: already computed
+/// in this process, or to be computed from the twins.
+enum PairPlan {
+    Known(AlbedoPair),
+    /// The black and the white twin, and the seed.
+    ToCompute(Box<(LayeredBrdf, LayeredBrdf)>, u64),
+}
+
+/// E_single of a black and of a white base at every node.
+type AlbedoPair = (Vec<Rgb>, Vec<Rgb>);
+
+/// One table node to compute: the unit of the batch's parallel loop.
+#[derive(Clone, Copy)]
+enum NodeJob {
+    /// E_stack of material `material` at node `k`.
+    Stack { material: usize, k: usize },
+    /// E_single of material `material` itself at node `k`.
+    Single { material: usize, k: usize },
+    /// E_single of the black (`white` false) or white twin of pair `pair`.
+    PairSingle { pair: usize, white: bool, k: usize },
+}
+
+/// Everything a batch computes, planned before its one parallel loop.
+struct TablePlan<'a> {
+    /// Per request, its material's plan (None: no table needed).
+    materials: Vec<Option<MaterialPlan<'a>>>,
+    pairs: Vec<PairPlan>,
+}
+
+impl<'a> TablePlan<'a> {
+    /// Plans the tables of `requests`: a stack method per material (walk
+    /// tables built in parallel), and the black/white pairs, each once,
+    /// that their Lambertian bases share.
+    fn new(requests: &[(&'a LayeredBrdf, u64)]) -> Self {
+        let methods: Vec<Option<StackMethod>> = requests
+            .par_iter()
+            .map(|(brdf, _)| (!needs_no_table(brdf)).then(|| StackMethod::of(brdf)))
+            .collect();
+        let mut pairs = Vec::new();
+        let mut pair_keys: Vec<String> = Vec::new();
+        let materials = requests
+            .iter()
+            .zip(methods)
+            .map(|(&(brdf, seed), method)| {
+                let method = method?;
+                let single = match black_and_white_twins(brdf) {
+                    None => SingleSource::Direct,
+                    Some((black, white)) => {
+                        let key = crate::brdf::cache::material_key(&white, seed);
+                        let index = pair_keys.iter().position(|k| *k == key).unwrap_or_else(|| {
+                            pairs.push(
+                                match crate::brdf::cache::known_single_albedo_pair(&white, seed) {
+                                    Some(known) => PairPlan::Known(known),
+                                    None => PairPlan::ToCompute(Box::new((black, white)), seed),
+                                },
+                            );
+                            pair_keys.push(key);
+                            pairs.len() - 1
+                        });
+                        SingleSource::Pair(index)
+                    }
+                };
+                Some(MaterialPlan {
+                    brdf,
+                    seed,
+                    single,
+                    method,
+                })
+            })
+            .collect();
+        TablePlan { materials, pairs }
+    }
+
+    /// Every node to compute: the walks first (the longest jobs), then
+    /// direct and paired E_single.
+    fn jobs(&self) -> Vec<NodeJob> {
+        let mut jobs = Vec::new();
+        for (material, plan) in self.materials.iter().enumerate() {
+            if plan.is_some() {
+                jobs.extend((0..TABLE_NODES).map(|k| NodeJob::Stack { material, k }));
+            }
+        }
+        for (material, plan) in self.materials.iter().enumerate() {
+            if let Some(MaterialPlan {
+                single: SingleSource::Direct,
+                ..
+            }) = plan
+            {
+                jobs.extend((0..TABLE_NODES).map(|k| NodeJob::Single { material, k }));
+            }
+        }
+        for (pair, plan) in self.pairs.iter().enumerate() {
+            if let PairPlan::ToCompute(..) = plan {
+                for white in [false, true] {
+                    jobs.extend((0..TABLE_NODES).map(|k| NodeJob::PairSingle { pair, white, k }));
+                }
+            }
+        }
+        jobs
+    }
+
+    /// The value of one node (the same call, with the same seed, as when
+    /// tables were computed one after another).
+    fn run(&self, job: NodeJob) -> Rgb {
+        let material = |m: usize| self.materials[m].as_ref().expect("planned jobs only");
+        match job {
+            NodeJob::Stack { material: m, k } => {
+                let plan = material(m);
+                plan.method.stack_albedo(plan.brdf, k, plan.seed)
+            }
+            NodeJob::Single { material: m, k } => {
+                let plan = material(m);
+                single_crossing_albedo(plan.brdf, node_cosine(k), plan.seed ^ 0xa1b2)
+            }
+            NodeJob::PairSingle { pair, white, k } => match &self.pairs[pair] {
+                PairPlan::ToCompute(twins, seed) => {
+                    let twin = if white { &twins.1 } else { &twins.0 };
+                    single_crossing_albedo(twin, node_cosine(k), seed ^ 0xa1b2)
+                }
+                PairPlan::Known(_) => unreachable!("known pairs have no jobs"),
+            },
+        }
+    }
+}
+
 impl Compensation {
     /// Tabulate the deficit of `brdf`; None when it is below 3·10⁻³ at every
     /// node (the noise level of the tables).
     pub fn compute(brdf: &LayeredBrdf, seed: u64) -> Option<Self> {
-        let method = match SmoothCoatOverLambert::of(brdf) {
-            Some(c) => StackMethod::ClosedForm(c),
-            None => StackMethod::Walk(WalkTables::new(brdf)),
-        };
-        let single_by_colour = single_albedo_black_and_white(brdf, seed);
-        let rows: Vec<(Rgb, Rgb)> = (0..TABLE_NODES)
-            .into_par_iter()
-            .map(|k| {
-                let mu = node_cosine(k);
-                let single = match &single_by_colour {
-                    Some((black, white)) => colour_mix(black[k], white[k], base_colour(brdf)),
-                    None => single_crossing_albedo(brdf, mu, seed ^ 0xa1b2),
-                };
-                let stack = match &method {
-                    StackMethod::ClosedForm(c) => c.albedo(mu),
-                    StackMethod::Walk(tables) => {
-                        adaptive_walk_albedo(brdf, tables, mu, seed ^ k as u64)
+        Self::compute_many(&[(brdf, seed)]).pop().flatten()
+    }
+
+    /// [`Compensation::compute`] of every (material, seed) of `requests`,
+    /// in order, with all their nodes (E_stack, E_single, and the black and
+    /// white E_single of each coat over a Lambertian base, once per coat)
+    /// computed in one parallel loop: a gem's or a scene's materials keep
+    /// every thread busy to the end instead of each table waiting on its
+    /// slowest node, and a shared black/white pair no longer holds the
+    /// others up. Each node is the same deterministic call as before, so the
+    /// tables are bit for bit those of one-by-one computation, whatever the
+    /// number of threads. Bare Lambert surfaces ([`needs_no_table`]) get
+    /// None without any work.
+    pub fn compute_many(requests: &[(&LayeredBrdf, u64)]) -> Vec<Option<Self>> {
+        let plan = TablePlan::new(requests);
+        let jobs = plan.jobs();
+        let values: Vec<Rgb> = jobs.par_iter().map(|job| plan.run(*job)).collect();
+        let mut stack = vec![vec![Rgb::ZERO; TABLE_NODES]; plan.materials.len()];
+        let mut single = stack.clone();
+        let mut computed_pairs: Vec<AlbedoPair> =
+            vec![(vec![Rgb::ZERO; TABLE_NODES], vec![Rgb::ZERO; TABLE_NODES]); plan.pairs.len()];
+        for (job, value) in jobs.iter().zip(values) {
+            match *job {
+                NodeJob::Stack { material, k } => stack[material][k] = value,
+                NodeJob::Single { material, k } => single[material][k] = value,
+                NodeJob::PairSingle { pair, white, k } => {
+                    let (black_column, white_column) = &mut computed_pairs[pair];
+                    if white {
+                        white_column[k] = value;
+                    } else {
+                        black_column[k] = value;
                     }
-                };
-                (single, stack.min(Rgb::ONE))
+                }
+            }
+        }
+        let pairs: Vec<AlbedoPair> = plan
+            .pairs
+            .iter()
+            .zip(computed_pairs)
+            .map(|(pair, computed)| match pair {
+                PairPlan::Known(known) => known.clone(),
+                PairPlan::ToCompute(twins, seed) => {
+                    crate::brdf::cache::remember_single_albedo_pair(&twins.1, *seed, &computed);
+                    computed
+                }
             })
             .collect();
-        let single_albedo: Vec<Rgb> = rows.iter().map(|r| r.0).collect();
-        let stack_albedo: Vec<Rgb> = rows.iter().map(|r| r.1).collect();
-        Self::from_albedos(single_albedo, stack_albedo)
+        plan.materials
+            .iter()
+            .zip(stack.into_iter().zip(single))
+            .map(|(material, (stack, mut single))| {
+                let material = material.as_ref()?;
+                if let SingleSource::Pair(p) = material.single {
+                    let (black, white) = &pairs[p];
+                    let colour = base_colour(material.brdf);
+                    single = (0..TABLE_NODES)
+                        .map(|k| colour_mix(black[k], white[k], colour))
+                        .collect();
+                }
+                Self::from_albedos(single, stack)
+            })
+            .collect()
     }
 
     /// The tables from E_single and E_stack at the [`TABLE_NODES`] nodes

@@ -75,6 +75,7 @@ impl DisplayTransform {
     /// would otherwise be serial time in every `render -o x.png`.
     pub fn encode(&self, linear: &[[f32; 3]], width: u32, height: u32) -> image::RgbImage {
         let scale = self.exposure_ev.exp2();
+        let table = srgb_code_table();
         let row_bytes = width as usize * 3;
         let mut bytes = vec![0u8; row_bytes * height as usize];
         bytes
@@ -84,7 +85,8 @@ impl DisplayTransform {
                 for (x, out) in row.chunks_exact_mut(3).enumerate() {
                     let index = y * width as usize + x;
                     let rgb = linear.get(index).copied().unwrap_or([0.0; 3]);
-                    out.copy_from_slice(&self.encode_pixel(scale, rgb, x as u32, y as u32));
+                    let codes = self.encode_pixel_with(table, scale, rgb, x as u32, y as u32);
+                    out.copy_from_slice(&codes);
                 }
             });
         image::RgbImage::from_raw(width, height, bytes)
@@ -92,19 +94,44 @@ impl DisplayTransform {
     }
 
     /// The 8-bit sRGB code of one linear pixel at film position (x, y),
-    /// given `scale` = 2^exposure_ev (computed once per image).
+    /// given `scale` = 2^exposure_ev (computed once per image): the
+    /// definition, through [`srgb_encode`] and [`dither_offset_lsb`].
+    #[cfg(test)]
     fn encode_pixel(&self, scale: f64, rgb: [f32; 3], x: u32, y: u32) -> [u8; 3] {
         let mut codes = [0u8; 3];
         for (channel, (&value, code)) in rgb.iter().zip(codes.iter_mut()).enumerate() {
-            let exposed = sanitize(value as f64) * scale;
-            let display = match self.curve {
-                ToneCurve::Filmic => filmic(sanitize(exposed)),
-                ToneCurve::Linear => sanitize(exposed).min(1.0),
-            };
+            let display = self.display_value(scale, value);
             let offset = dither_offset_lsb(x, y, channel as u32, self.dither_seed);
             *code = quantize_u8(srgb_encode(display), offset);
         }
         codes
+    }
+
+    /// [`Self::encode_pixel`] as the encoder runs it: the pixel's dither
+    /// hash once for its three channels and the sRGB code from `table`
+    /// (same bytes, see the tests).
+    fn encode_pixel_with(
+        &self,
+        table: &SrgbCodeTable,
+        scale: f64,
+        rgb: [f32; 3],
+        x: u32,
+        y: u32,
+    ) -> [u8; 3] {
+        let offsets = dither_offsets_lsb(x, y, self.dither_seed);
+        std::array::from_fn(|channel| {
+            table.code(self.display_value(scale, rgb[channel]), offsets[channel])
+        })
+    }
+
+    /// Exposure and tone curve: the display-linear value in [0, 1] of one
+    /// scene-linear channel `value`, given `scale` = 2^exposure_ev.
+    fn display_value(&self, scale: f64, value: f32) -> f64 {
+        let exposed = sanitize(value as f64) * scale;
+        match self.curve {
+            ToneCurve::Filmic => filmic(sanitize(exposed)),
+            ToneCurve::Linear => sanitize(exposed).min(1.0),
+        }
     }
 }
 
@@ -137,12 +164,99 @@ fn quantize_u8(encoded: f64, offset_lsb: f64) -> u8 {
 /// independent offsets (white noise, no visible pattern) and the result does
 /// not depend on thread count or tile order.
 pub fn dither_offset_lsb(x: u32, y: u32, channel: u32, seed: u64) -> f64 {
+    channel_dither_offset_lsb(dither_pixel_hash(x, y, seed), channel)
+}
+
+/// [`dither_offset_lsb`] of the three channels of pixel (x, y), sharing
+/// the pixel's hash (the same three numbers).
+fn dither_offsets_lsb(x: u32, y: u32, seed: u64) -> [f64; 3] {
+    let pixel_hash = dither_pixel_hash(x, y, seed);
+    [0, 1, 2].map(|channel| channel_dither_offset_lsb(pixel_hash, channel))
+}
+
+/// The seed and the packed pixel position folded through [`mix64`].
+fn dither_pixel_hash(x: u32, y: u32, seed: u64) -> u64 {
     let pixel = u64::from(y) << 32 | u64::from(x);
-    let pixel_hash = mix64(mix64(seed ^ 0x6a09_e667_f3bc_c908) ^ pixel);
+    mix64(mix64(seed ^ 0x6a09_e667_f3bc_c908) ^ pixel)
+}
+
+/// The offset of `channel` from its pixel's hash.
+fn channel_dither_offset_lsb(pixel_hash: u64, channel: u32) -> f64 {
     let bits = mix64(pixel_hash ^ u64::from(channel).wrapping_mul(0x9e37_79b9_7f4a_7c15));
     // 53 bits, centred in their cell: (k + ½)/2^53 ∈ (0, 1), never 0 or 1.
     let unit = ((bits >> 11) as f64 + 0.5) * (1.0 / (1u64 << 53) as f64);
     unit - 0.5
+}
+
+/// Intervals of [`SrgbCodeTable`] over display-linear [0, 1].
+const SRGB_TABLE_INTERVALS: usize = 4096;
+
+/// Margin, in codes, by which [`SrgbCodeTable::code`] widens its bracket:
+/// far above every rounding in it (the values are below 258, where an f64
+/// ulp is 6·10⁻¹⁴; `powf` is within an ulp of the true power), far below
+/// the width of an interval (≥ 0.01 codes), so it rarely costs a fallback.
+const SRGB_TABLE_MARGIN: f64 = 1e-9;
+
+/// 255·[`srgb_encode`] + 1.5 at display values i/4096, i = 0…4096: the
+/// quantisation sum `255·encoded + 0.5 + offset` of [`quantize_u8`] at the
+/// interval ends, plus 1 so that every bracket is positive (see
+/// [`SrgbCodeTable::code`]).
+pub struct SrgbCodeTable {
+    shifted_codes: Vec<f64>,
+}
+
+/// The table, built once per process (4097 `powf`).
+pub fn srgb_code_table() -> &'static SrgbCodeTable {
+    static TABLE: std::sync::OnceLock<SrgbCodeTable> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| SrgbCodeTable {
+        shifted_codes: (0..=SRGB_TABLE_INTERVALS)
+            .map(|i| {
+                let display = i as f64 / SRGB_TABLE_INTERVALS as f64;
+                srgb_encode(display).clamp(0.0, 1.0) * 255.0 + 1.5
+            })
+            .collect(),
+    })
+}
+
+impl SrgbCodeTable {
+    /// `quantize_u8(srgb_encode(display), offset_lsb)`, the same byte,
+    /// mostly without the `powf`.
+    ///
+    /// srgb_encode increases on each branch, and its one step down, at the
+    /// branch point 0.0031308, is 3·10⁻⁸, far less than it rises across
+    /// the interval holding it; so on an interval [xᵢ, xᵢ₊₁] of the table
+    /// the sum s = 255·encoded + 0.5 + offset lies between its values at
+    /// the ends (to within rounding: the margin). When both ends floor to
+    /// the same code, so does s: that code is the answer. Otherwise (an
+    /// interval that straddles a code boundary for this offset, about one
+    /// in ten) the exact formula decides. The +1 of the table keeps the
+    /// bracket positive, so truncation is floor.
+    #[inline]
+    pub fn code(&self, display: f64, offset_lsb: f64) -> u8 {
+        if !(0.0..=1.0).contains(&display) {
+            return exact_code(display, offset_lsb);
+        }
+        let position = display * SRGB_TABLE_INTERVALS as f64;
+        // i32 casts: one instruction each (values are in [0, 4096] and
+        // (0, 258)), where usize and u32 casts take a dozen without SSE4.
+        let i = (position as i32).min(SRGB_TABLE_INTERVALS as i32 - 1) as usize;
+        let low = self.shifted_codes[i] + offset_lsb - SRGB_TABLE_MARGIN;
+        let high = self.shifted_codes[i + 1] + offset_lsb + SRGB_TABLE_MARGIN;
+        let (low_code, high_code) = (low as i32, high as i32);
+        if low_code == high_code {
+            (low_code.clamp(1, 256) - 1) as u8
+        } else {
+            exact_code(display, offset_lsb)
+        }
+    }
+}
+
+/// `quantize_u8(srgb_encode(display), offset_lsb)`, the definition: out of
+/// line, so that the table's common path stays small where it is inlined.
+#[cold]
+#[inline(never)]
+fn exact_code(display: f64, offset_lsb: f64) -> u8 {
+    quantize_u8(srgb_encode(display), offset_lsb)
 }
 
 // Hable's "Uncharted 2" filmic curve constants (J. Hable, "Filmic Tonemapping
@@ -280,6 +394,104 @@ mod tests {
         }
         // An empty film is an empty image, not a panic.
         assert_eq!(transform.encode(&[], 0, 3).into_raw(), Vec::<u8>::new());
+    }
+
+    /// The table's code against the exact formula at `display` with a
+    /// spread of dither offsets, the extremes included.
+    fn assert_table_matches_exact(table: &SrgbCodeTable, display: f64, salt: u64) {
+        let hashed = channel_dither_offset_lsb(mix64(display.to_bits() ^ salt), 0);
+        for offset in [hashed, -0.499_999_999_999, 0.0, 0.499_999_999_999, -0.25] {
+            assert_eq!(
+                table.code(display, offset),
+                quantize_u8(srgb_encode(display), offset),
+                "display {display:e} ({:#x}), offset {offset}",
+                display.to_bits()
+            );
+        }
+    }
+
+    #[test]
+    fn srgb_table_gives_the_exact_code_over_a_dense_sweep_of_f32_values() {
+        let table = srgb_code_table();
+        // Every 37th f32 in [0, 1] (28 million values, every exponent),
+        // and 1.0 itself; then inputs outside [0, 1] and NaN.
+        let one = 1.0f32.to_bits();
+        for bits in (0..one).step_by(37).chain([one]) {
+            assert_table_matches_exact(table, f32::from_bits(bits) as f64, 1);
+        }
+        for display in [
+            -0.0,
+            -1e-300,
+            1.0 + f64::EPSILON,
+            2.0,
+            f64::INFINITY,
+            f64::NAN,
+        ] {
+            assert_table_matches_exact(table, display, 2);
+        }
+    }
+
+    #[test]
+    fn srgb_table_gives_the_exact_code_at_code_boundaries_and_interval_ends() {
+        let table = srgb_code_table();
+        let near = |display: f64, salt: u64| {
+            for step in -300i64..=300 {
+                let bits = (display.to_bits() as i64 + step).max(0) as u64;
+                let d = f64::from_bits(bits);
+                if d <= 1.0 {
+                    assert_table_matches_exact(table, d, salt);
+                }
+            }
+        };
+        // Every interval end (and the sRGB branch point) and its neighbours.
+        for i in 0..=SRGB_TABLE_INTERVALS {
+            near(i as f64 / SRGB_TABLE_INTERVALS as f64, 3);
+        }
+        near(0.003_130_8, 4);
+        // Where the exact code steps from k − 1 to k, found by bisection on
+        // the bits of the display value, for offsets across (−½, ½).
+        let offsets = (0..40).map(|j| channel_dither_offset_lsb(mix64(j), 1));
+        for offset in offsets.chain([-0.499_999_999, 0.0, 0.499_999_999]) {
+            let code = |d: f64| quantize_u8(srgb_encode(d), offset);
+            for k in 1..=255u8 {
+                let (mut below, mut above) = (0u64, 1.0f64.to_bits());
+                if code(f64::from_bits(above)) < k {
+                    continue;
+                }
+                while above - below > 1 {
+                    let middle = below + (above - below) / 2;
+                    if code(f64::from_bits(middle)) >= k {
+                        above = middle;
+                    } else {
+                        below = middle;
+                    }
+                }
+                for step in -200i64..=200 {
+                    let d = f64::from_bits((above as i64 + step).max(0) as u64);
+                    if d <= 1.0 {
+                        assert_eq!(
+                            table.code(d, offset),
+                            code(d),
+                            "k {k}, d {d:e}, offset {offset}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_three_channel_offsets_are_those_of_each_channel() {
+        for i in 0..5000u32 {
+            let (x, y, seed) = (i % 71, i / 71, u64::from(i % 5) * 0x1234_5678);
+            let three = dither_offsets_lsb(x, y, seed);
+            for channel in 0..3 {
+                assert_eq!(
+                    three[channel as usize].to_bits(),
+                    dither_offset_lsb(x, y, channel, seed).to_bits()
+                );
+            }
+        }
     }
 
     #[test]

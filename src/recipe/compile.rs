@@ -11,7 +11,7 @@ use std::path::Path;
 
 /// Seed of the compensation tables: they are part of the compiled material,
 /// so every compile of the same file gives the same numbers.
-const COMPENSATION_SEED: u64 = 0x1a9d_a41e;
+pub const COMPENSATION_SEED: u64 = 0x1a9d_a41e;
 
 /// Parse RON text into a [`Material`], mapping every RON/serde error to
 /// `path:line:col: message` with the field name added where RON omits it.
@@ -127,6 +127,16 @@ pub fn load_material(spec: &str) -> Result<LayeredBrdf, RecipeError> {
     compile_material(&source, &material)
 }
 
+/// [`load_material`] without the compensation table, and whether the
+/// material asks for one (`multiple_scattering`), for callers that compute
+/// several tables together (see [`compile_material_without_table`]).
+pub fn load_material_without_table(spec: &str) -> Result<(LayeredBrdf, bool), RecipeError> {
+    let source = locate_material(spec)?;
+    let material = parse_material(&source.path, &source.text)?;
+    let brdf = compile_material_without_table(&source, &material)?;
+    Ok((brdf, material.multiple_scattering))
+}
+
 /// The IOR of a built-in varnish (a library material of one layer).
 fn varnish_ior(name: &str) -> Option<f64> {
     let text = builtin_material_source(name)?;
@@ -172,8 +182,24 @@ fn unknown_name(
     )
 }
 
-/// Resolve names, check the rules serde cannot, and build the BRDF.
+/// Resolve names, check the rules serde cannot, and build the BRDF (with
+/// its compensation table when `m.multiple_scattering`).
 pub fn compile_material(source: &MaterialSource, m: &Material) -> Result<LayeredBrdf, RecipeError> {
+    let brdf = compile_material_without_table(source, m)?;
+    Ok(if m.multiple_scattering {
+        brdf.with_compensation(COMPENSATION_SEED)
+    } else {
+        brdf
+    })
+}
+
+/// [`compile_material`] without the compensation table, for callers that
+/// compute the tables of several materials together
+/// ([`crate::brdf::cache::compensations`] with [`COMPENSATION_SEED`]).
+pub fn compile_material_without_table(
+    source: &MaterialSource,
+    m: &Material,
+) -> Result<LayeredBrdf, RecipeError> {
     let path = source.path.as_str();
     let text = source.text.as_str();
     let layer_error = |index: usize, message: String| match find_position(text, "Layer(", index) {
@@ -258,12 +284,12 @@ pub fn compile_material(source: &MaterialSource, m: &Material) -> Result<Layered
         }
         BaseSpec::Black => Base::Black,
     };
-    let brdf = LayeredBrdf::new(&source.name, m.distribution, interfaces, base);
-    Ok(if m.multiple_scattering {
-        brdf.with_compensation(COMPENSATION_SEED)
-    } else {
-        brdf
-    })
+    Ok(LayeredBrdf::new(
+        &source.name,
+        m.distribution,
+        interfaces,
+        base,
+    ))
 }
 
 /// Normal-incidence reflectance of a library metal, for the table tests.

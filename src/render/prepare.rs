@@ -3,10 +3,7 @@
 
 use std::path::Path;
 
-use rayon::prelude::*;
-
 use crate::geometry::Cabochon;
-use crate::recipe::compile::load_material;
 use crate::render::camera::PinholeCamera;
 use crate::render::environment::Environment;
 use crate::render::integrator::{RenderScene, MATERIAL_ID_FIRST_STONE};
@@ -14,14 +11,16 @@ use crate::render::world::{StoneInstance, World};
 use crate::scene::{EnvironmentSpec, Scene};
 
 use crate::brdf::LayeredBrdf;
-use crate::recipe::compile::{compile_material, MaterialSource};
+use crate::recipe::compile::{
+    compile_material_without_table, load_material_without_table, MaterialSource, COMPENSATION_SEED,
+};
 use crate::recipe::error::RecipeError;
 use crate::recipe::gem::{load_gem_source, parse_gem_with_seed};
 use crate::render::integrator::GemShading;
 
 /// Loads gem `spec` (a built-in name or a `.ron` path), optionally with
-/// another seed, and compiles every material's BRDF (in parallel: each
-/// layered material tabulates its multiple-scattering compensation).
+/// another seed, and compiles every material's BRDF (the layered materials'
+/// multiple-scattering compensation tables together, in parallel).
 /// `material_id_base` is the `material_id` AOV value of its material 0.
 pub fn compile_gem(
     spec: &str,
@@ -52,33 +51,76 @@ pub fn compile_gem_draft_or_full(
     material_id_base: u32,
     draft: bool,
 ) -> Result<(GemShading, String), RecipeError> {
+    let mut gem = gem_without_tables(path, text, seed, material_id_base, draft)?;
+    fill_tables(gem.wanting_tables().collect());
+    Ok((gem.shading, gem.name))
+}
+
+/// A gem compiled without its materials' compensation tables, so that the
+/// tables of a whole scene can be computed together.
+struct GemWithoutTables {
+    shading: GemShading,
+    name: String,
+    /// Per material of `shading.brdfs`, whether it wants a table.
+    wants_table: Vec<bool>,
+}
+
+impl GemWithoutTables {
+    /// The materials that want a compensation table.
+    fn wanting_tables(&mut self) -> impl Iterator<Item = &mut LayeredBrdf> {
+        self.shading
+            .brdfs
+            .iter_mut()
+            .zip(&self.wants_table)
+            .filter_map(|(brdf, wants)| wants.then_some(brdf))
+    }
+}
+
+/// Parses gem recipe `text` (from `path`) and compiles its materials
+/// without their tables; with `draft` none of them wants one.
+fn gem_without_tables(
+    path: &str,
+    text: &str,
+    seed: Option<u64>,
+    material_id_base: u32,
+    draft: bool,
+) -> Result<GemWithoutTables, RecipeError> {
     let gem = parse_gem_with_seed(path, text, seed)?;
-    let brdfs = gem
-        .materials
-        .par_iter()
-        .map(|(name, material)| {
-            let source = MaterialSource {
-                path: path.to_string(),
-                name: name.clone(),
-                text: text.to_string(),
-            };
-            if draft {
-                let mut material = material.clone();
-                material.multiple_scattering = false;
-                compile_material(&source, &material)
-            } else {
-                compile_material(&source, material)
-            }
-        })
-        .collect::<Result<Vec<LayeredBrdf>, RecipeError>>()?;
-    Ok((
-        GemShading {
+    let mut brdfs = Vec::with_capacity(gem.materials.len());
+    let mut wants_table = Vec::with_capacity(gem.materials.len());
+    for (name, material) in &gem.materials {
+        let source = MaterialSource {
+            path: path.to_string(),
+            name: name.clone(),
+            text: text.to_string(),
+        };
+        brdfs.push(compile_material_without_table(&source, material)?);
+        wants_table.push(material.multiple_scattering && !draft);
+    }
+    Ok(GemWithoutTables {
+        shading: GemShading {
             pattern: gem.pattern,
             brdfs,
             material_id_base,
         },
-        gem.name,
-    ))
+        name: gem.name,
+        wants_table,
+    })
+}
+
+/// Gives every material of `brdfs` its compensation table, all computed
+/// together (node by node in one parallel loop, each distinct material
+/// once; see [`crate::brdf::cache::compensations`]): what
+/// [`LayeredBrdf::with_compensation`] gives each one alone.
+fn fill_tables(mut brdfs: Vec<&mut LayeredBrdf>) {
+    let requests: Vec<(&LayeredBrdf, u64)> = brdfs
+        .iter()
+        .map(|brdf| (&**brdf, COMPENSATION_SEED))
+        .collect();
+    let tables = crate::brdf::cache::compensations(&requests);
+    for (brdf, table) in brdfs.iter_mut().zip(tables) {
+        brdf.compensation = table;
+    }
 }
 
 /// Builds everything the integrator reads from a compiled scene.
@@ -86,7 +128,9 @@ pub fn compile_gem_draft_or_full(
 /// Stones without a recipe use `default_gem`; `environment_file`, when
 /// given, replaces the scene's environment (the `--env` option). Each
 /// distinct (gem, seed) pair is compiled once. `report` hears what is being
-/// compiled (slow layered materials tabulate their compensation).
+/// compiled (slow layered materials tabulate their compensation). The
+/// compensation tables of every gem and of the ground are computed together
+/// while the environment is built (baked or loaded) beside them.
 pub fn prepare_scene(
     scene: &Scene,
     default_gem: &str,
@@ -116,24 +160,41 @@ pub fn prepare_scene(
     let mut material_id_base = MATERIAL_ID_FIRST_STONE;
     for (spec, seed) in &keys {
         report(&format!("compiling gem {spec}"));
-        let (gem, _) = compile_gem(spec, *seed, material_id_base).map_err(|e| e.to_string())?;
-        material_id_base += gem.brdfs.len() as u32;
+        let (path, text) = load_gem_source(spec).map_err(|e| e.to_string())?;
+        let gem = gem_without_tables(&path, &text, *seed, material_id_base, false)
+            .map_err(|e| e.to_string())?;
+        material_id_base += gem.shading.brdfs.len() as u32;
         gems.push(gem);
     }
-    let ground_brdf = match &scene.ground {
-        Some(ground) => Some(load_material(&ground.material).map_err(|e| e.to_string())?),
+    let mut ground = match &scene.ground {
+        Some(ground) => {
+            Some(load_material_without_table(&ground.material).map_err(|e| e.to_string())?)
+        }
         None => None,
     };
-    let environment = match environment_file {
-        Some(path) => Environment::from_file(path, 0.0, 1.0).map_err(|e| e.to_string())?,
-        None => environment_for_spec(&scene.environment)?,
-    };
+    let ((), environment) = rayon::join(
+        || {
+            let ground_wanting = ground
+                .iter_mut()
+                .filter_map(|(brdf, wants)| wants.then_some(brdf));
+            fill_tables(
+                gems.iter_mut()
+                    .flat_map(GemWithoutTables::wanting_tables)
+                    .chain(ground_wanting)
+                    .collect(),
+            );
+        },
+        || match environment_file {
+            Some(path) => Environment::from_file(path, 0.0, 1.0).map_err(|e| e.to_string()),
+            None => environment_for_spec(&scene.environment),
+        },
+    );
     Ok(RenderScene {
         world: World::new(stones, scene.ground.as_ref().map(|g| g.height)),
-        gems,
-        ground_brdf,
+        gems: gems.into_iter().map(|gem| gem.shading).collect(),
+        ground_brdf: ground.map(|(brdf, _)| brdf),
         lights: scene.lights.clone(),
-        environment,
+        environment: environment?,
         max_bounces,
         ambient_occlusion: None,
     })
