@@ -13,39 +13,12 @@ use lapidary::texture::pattern::{Pattern, Resolved};
 use lapidary::texture::voronoi::{CertifiedNearest, Voronoi};
 use rayon::prelude::*;
 
-/// Deterministic test randomness (xorshift64*), independent of the library.
-struct TestRng(u64);
+mod common;
+use common::rng::TestRng;
 
-impl TestRng {
-    fn unit(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, low: f64, high: f64) -> f64 {
-        low + (high - low) * self.unit()
-    }
-    fn point(&mut self, lo: DVec3, hi: DVec3) -> DVec3 {
-        DVec3::new(
-            self.range(lo.x, hi.x),
-            self.range(lo.y, hi.y),
-            self.range(lo.z, hi.z),
-        )
-    }
-    fn direction(&mut self) -> DVec3 {
-        loop {
-            let v = self.point(-DVec3::ONE, DVec3::ONE);
-            let len = v.length();
-            if len > 0.1 && len <= 1.0 {
-                return v / len;
-            }
-        }
-    }
-    /// A step length log-uniform in `[10^lo, 10^hi]`.
-    fn step(&mut self, lo: f64, hi: f64) -> f64 {
-        10f64.powf(self.range(lo, hi))
-    }
+/// A step length log-uniform in `[10^lo, 10^hi]`.
+fn step(rng: &mut TestRng, lo: f64, hi: f64) -> f64 {
+    10f64.powf(rng.range(lo, hi))
 }
 
 fn builtin(name: &str) -> CompiledGem {
@@ -83,23 +56,23 @@ fn assert_cached_equals_uncached(pattern: &Pattern, points: &[DVec3], what: &str
 
 /// Far jumps: independent uniform points.
 fn uniform_points(rng: &mut TestRng, n: usize) -> Vec<DVec3> {
-    (0..n).map(|_| rng.point(LO, HI)).collect()
+    (0..n).map(|_| rng.point_in(LO, HI)).collect()
 }
 
 /// Random walks with steps from 10⁻¹³ to 10⁻¹ texture units (tiny steps
 /// inside a cell up to steps across several small cells), restarting now
 /// and then far away, and sometimes stepping straight back.
 fn walk_points(rng: &mut TestRng, n: usize) -> Vec<DVec3> {
-    let mut p = rng.point(LO, HI);
+    let mut p = rng.point_in(LO, HI);
     let mut points = Vec::with_capacity(n);
     for _ in 0..n {
         let u = rng.unit();
         p = if u < 0.02 {
-            rng.point(LO, HI)
+            rng.point_in(LO, HI)
         } else if u < 0.1 && !points.is_empty() {
             points[points.len() - 1 - (rng.unit() * points.len().min(8) as f64) as usize]
         } else {
-            p + rng.direction() * rng.step(-13.0, -1.0)
+            p + rng.direction() * step(rng, -13.0, -1.0)
         };
         points.push(p);
     }
@@ -109,9 +82,9 @@ fn walk_points(rng: &mut TestRng, n: usize) -> Vec<DVec3> {
 /// Pixel-like clusters: 16 points within a small disc-ish blob, the next
 /// blob next to it, as a render's samples of neighbouring pixels.
 fn pixel_points(rng: &mut TestRng, n: usize) -> Vec<DVec3> {
-    let mut centre = rng.point(LO, HI);
+    let mut centre = rng.point_in(LO, HI);
     let row = rng.direction();
-    let footprint = rng.step(-4.0, -2.0);
+    let footprint = step(rng, -4.0, -2.0);
     let mut points = Vec::with_capacity(n);
     while points.len() < n {
         for _ in 0..16 {
@@ -146,7 +119,7 @@ fn border_between(v: &Voronoi, mut a: DVec3, mut b: DVec3) -> DVec3 {
 fn border_points(rng: &mut TestRng, v: &Voronoi, n: usize) -> Vec<DVec3> {
     let mut points = Vec::with_capacity(n);
     while points.len() < n {
-        let a = rng.point(LO, HI);
+        let a = rng.point_in(LO, HI);
         let b = a + rng.direction() * v.cell_size * 1.5;
         if v.nearest(a).cell_id == v.nearest(b).cell_id {
             continue;
@@ -158,7 +131,7 @@ fn border_points(rng: &mut TestRng, v: &Voronoi, n: usize) -> Vec<DVec3> {
             let scale = if rng.unit() < 0.5 {
                 f64::EPSILON * border.abs().max_element().max(1e-300) * 8.0
             } else {
-                rng.step(-15.0, -6.0)
+                step(rng, -15.0, -6.0)
             };
             points.push(border + across * k * scale);
         }
@@ -289,12 +262,12 @@ fn a_certificate_covers_only_points_with_the_same_nearest_site() {
             } else {
                 DVec3::ZERO
             };
-            let p0 = offset + rng.point(-8.0 * scale, 8.0 * scale);
+            let p0 = offset + rng.point_in(-8.0 * scale, 8.0 * scale);
             let certified = v.certify_nearest(p0);
             assert_eq!(certified.site, v.nearest(p0).site(), "{v:?} at {p0:?}");
             for _ in 0..20 {
-                let step = rng.step(-14.0, 0.3) * v.cell_size;
-                let p = p0 + rng.direction() * step * v.stretch;
+                let length = step(&mut rng, -14.0, 0.3) * v.cell_size;
+                let p = p0 + rng.direction() * length * v.stretch;
                 if v.nearest_within(&certified, p) {
                     covered += 1;
                     assert_eq!(
@@ -318,7 +291,7 @@ fn certificates_near_borders_stay_exact() {
         let scale = v.stretch * v.cell_size;
         let mut n = 0;
         while n < 400 {
-            let a = rng.point(-6.0 * scale, 6.0 * scale);
+            let a = rng.point_in(-6.0 * scale, 6.0 * scale);
             let b = a + rng.direction() * 1.5 * scale;
             if v.nearest(a).cell_id == v.nearest(b).cell_id {
                 continue;
@@ -329,11 +302,11 @@ fn certificates_near_borders_stay_exact() {
             // Certify on either side at distances from ulps to 10⁻⁵ cells;
             // query on both sides.
             for _ in 0..8 {
-                let p0 = border + across * rng.range(-1.0, 1.0) * rng.step(-16.0, -5.0);
+                let p0 = border + across * rng.range(-1.0, 1.0) * step(&mut rng, -16.0, -5.0);
                 let certified = v.certify_nearest(p0);
                 assert_eq!(certified.site, v.nearest(p0).site());
                 for _ in 0..8 {
-                    let p = border + across * rng.range(-1.0, 1.0) * rng.step(-16.0, -3.0);
+                    let p = border + across * rng.range(-1.0, 1.0) * step(&mut rng, -16.0, -3.0);
                     if v.nearest_within(&certified, p) {
                         assert_eq!(
                             certified.site,

@@ -6,49 +6,22 @@ use glam::DVec3;
 use lapidary::texture::voronoi::{Voronoi, VoronoiSample};
 use rayon::prelude::*;
 
-/// Deterministic test randomness (xorshift64*), independent of the library hash.
-struct TestRng(u64);
+mod common;
+use common::rng::TestRng;
 
-impl TestRng {
-    fn unit(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545F4914F6CDD1D) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, low: f64, high: f64) -> f64 {
-        low + (high - low) * self.unit()
-    }
-    fn point(&mut self, half_extent: f64) -> DVec3 {
-        DVec3::new(
-            self.range(-half_extent, half_extent),
-            self.range(-half_extent, half_extent),
-            self.range(-half_extent, half_extent),
-        )
-    }
-    fn direction(&mut self) -> DVec3 {
-        loop {
-            let v = self.point(1.0);
-            let len = v.length();
-            if len > 0.1 && len <= 1.0 {
-                return v / len;
-            }
+/// A point with some coordinates on or within 1e-12 of a lattice plane
+/// `k · cell_size · stretch`, including negative k.
+fn point_near_planes(rng: &mut TestRng, v: &Voronoi) -> DVec3 {
+    let scale = v.stretch * v.cell_size;
+    let mut p = rng.cube(12.0);
+    for axis in 0..3 {
+        if rng.unit() < 0.6 {
+            let k = (rng.range(-8.0, 8.0)).round();
+            let nudge = [0.0, 1e-12, -1e-12, 1e-15, -1e-15][(rng.unit() * 5.0) as usize];
+            p[axis] = (k + nudge) * scale[axis];
         }
     }
-    /// A point with some coordinates on or within 1e-12 of a lattice plane
-    /// `k · cell_size · stretch`, including negative k.
-    fn point_near_planes(&mut self, v: &Voronoi) -> DVec3 {
-        let scale = v.stretch * v.cell_size;
-        let mut p = self.point(12.0);
-        for axis in 0..3 {
-            if self.unit() < 0.6 {
-                let k = (self.range(-8.0, 8.0)).round();
-                let nudge = [0.0, 1e-12, -1e-12, 1e-15, -1e-15][(self.unit() * 5.0) as usize];
-                p[axis] = (k + nudge) * scale[axis];
-            }
-        }
-        p
-    }
+    p
 }
 
 const TOLERANCE: f64 = 1e-9;
@@ -100,9 +73,9 @@ fn compare_with_brute_force(v: &Voronoi, count: usize, seed: u64, near_planes: b
     let mut rng = TestRng(seed);
     for _ in 0..count {
         let p = if near_planes {
-            rng.point_near_planes(v)
+            point_near_planes(&mut rng, v)
         } else {
-            rng.point(15.0)
+            rng.cube(15.0)
         };
         assert_agree(v, p, &v.query(p), &v.query_brute_force(p));
     }
@@ -154,7 +127,7 @@ fn regular_grid_cells_are_the_lattice_cells() {
     let s = v.cell_size;
     let mut rng = TestRng(9);
     for _ in 0..20_000 {
-        let p = rng.point(20.0);
+        let p = rng.cube(20.0);
         let sample = v.query(p);
         let cell = (p / s).floor();
         let f = p / s - cell;
@@ -179,7 +152,7 @@ fn feature_points_are_consistent_with_distances_and_cells() {
         let scale = v.cell_size * stretch;
         let mut rng = TestRng(10);
         for _ in 0..10_000 {
-            let p = rng.point(15.0);
+            let p = rng.cube(15.0);
             let s = v.query(p);
             let stretched = |a: DVec3, b: DVec3| ((a - b) / stretch).length();
             assert!((s.f1 - stretched(p, s.feature_point)).abs() < 1e-9);
@@ -205,7 +178,7 @@ fn edge_distance_is_at_most_the_distance_to_the_second_sites_bisector() {
     let v = voronoi(1.0, DVec3::ONE, 23);
     let mut rng = TestRng(11);
     for _ in 0..20_000 {
-        let p = rng.point(15.0);
+        let p = rng.cube(15.0);
         let s = v.query(p);
         let separation = s.feature_point.distance(s.second_feature_point);
         let bound = (s.f2 * s.f2 - s.f1 * s.f1) / (2.0 * separation);
@@ -221,7 +194,7 @@ fn a_step_shorter_than_the_edge_distance_stays_in_the_cell() {
     let v = voronoi(1.0, DVec3::ONE, 29);
     let mut rng = TestRng(12);
     for _ in 0..20_000 {
-        let p = rng.point(15.0);
+        let p = rng.cube(15.0);
         let s = v.query(p);
         let step = rng.direction() * (0.999 * s.edge_distance);
         assert_eq!(
@@ -241,7 +214,7 @@ fn edge_distance_vanishes_on_a_cell_border() {
         let mut rng = TestRng(13 + seed);
         let mut borders = 0;
         for _ in 0..300 {
-            let mut a = rng.point(10.0);
+            let mut a = rng.cube(10.0);
             let mut b = a + rng.direction() * 1.5;
             let id_a = v.nearest(a).cell_id;
             if v.nearest(b).cell_id == id_a {
@@ -278,7 +251,7 @@ fn no_seams_at_lattice_planes() {
     let mut rng = TestRng(14);
     for k in -4..=4 {
         for _ in 0..500 {
-            let mut p = rng.point(5.0);
+            let mut p = rng.cube(5.0);
             let axis = (rng.unit() * 3.0) as usize;
             p[axis] = k as f64 * v.cell_size;
             let mut below = p;
@@ -301,7 +274,7 @@ fn a_different_seed_gives_different_cells() {
     let mut rng = TestRng(15);
     let mut same = 0;
     for _ in 0..2000 {
-        let p = rng.point(15.0);
+        let p = rng.cube(15.0);
         let (sa, sb) = (a.query(p), b.query(p));
         if sa.cell_id == sb.cell_id || sa.feature_point == sb.feature_point {
             same += 1;
@@ -314,7 +287,7 @@ fn a_different_seed_gives_different_cells() {
 fn queries_are_identical_on_one_and_eight_threads() {
     let v = voronoi(1.0, DVec3::new(1.5, 1.0, 1.0), 41);
     let mut rng = TestRng(16);
-    let pts: Vec<DVec3> = (0..20_000).map(|_| rng.point(20.0)).collect();
+    let pts: Vec<DVec3> = (0..20_000).map(|_| rng.cube(20.0)).collect();
     let serial: Vec<VoronoiSample> = pts.iter().map(|&p| v.query(p)).collect();
     for threads in [1, 8] {
         let pool = rayon::ThreadPoolBuilder::new()
@@ -335,7 +308,7 @@ fn the_sample_for_a_cell_does_not_depend_on_the_query_cell() {
     let v = voronoi(1.0, DVec3::ONE, 43);
     let mut rng = TestRng(17);
     for _ in 0..2000 {
-        let p = rng.point(10.0);
+        let p = rng.cube(10.0);
         let s = v.query(p);
         let from_site = v.query(s.feature_point);
         assert_eq!(from_site.cell, s.cell);

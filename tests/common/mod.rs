@@ -9,8 +9,10 @@
 //!   tests of pbrt-v4 and Mitsuba 3.
 //! * [`ks`]: one-sample Kolmogorov–Smirnov test of scalar samples against a
 //!   known CDF.
+//! * [`rng`]: deterministic test randomness (xorshift64*).
 #![allow(dead_code)]
 
 pub mod chi2;
 pub mod cli;
 pub mod ks;
+pub mod rng;
