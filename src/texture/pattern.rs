@@ -744,6 +744,24 @@ pub struct Resolved {
     pub map_index: u32,
 }
 
+impl Resolved {
+    /// The point's answer from its surface `(material, cell, map index)`
+    /// (what [`Pattern::resolve_surface`] returns) and, when it lies in a
+    /// filled glitter cell, that flake's `(material, normal, cell)`, which
+    /// covers the surface.
+    #[inline]
+    fn new(surface: (u32, u64, u32), flake: Option<(u32, FlakeNormal, u64)>) -> Resolved {
+        let (surface_material, surface_cell, map_index) = surface;
+        Resolved {
+            material: flake.map_or(surface_material, |f| f.0),
+            flake_normal: flake.map(|f| f.1),
+            surface_cell,
+            glitter_cell: flake.map(|f| f.2),
+            map_index,
+        }
+    }
+}
+
 /// The compiled pattern: flat nodes, the surface root and the optional
 /// glitter layer. Plain data, `Send + Sync`, immutable once built.
 ///
@@ -943,7 +961,7 @@ impl Pattern {
     /// entries (or none).
     #[inline]
     fn resolve_cached(&self, p: DVec3, cache: &mut ResolveCache) -> Resolved {
-        let (surface_material, surface_cell, map_index) =
+        let surface =
             self.resolve_surface_cached(p, &mut cache.pattern.nodes, &mut cache.switch_reads);
         if let Some(g) = &self.glitter {
             let glitter = &mut cache.pattern.glitter;
@@ -954,22 +972,11 @@ impl Pattern {
             });
             if let Some(material) = filled_material {
                 let facet_id = cache.pattern.facets.site(&g.facets.voronoi, p).cell_id;
-                return Resolved {
-                    material,
-                    flake_normal: Some(g.facets.normal_of_cell(facet_id)),
-                    surface_cell,
-                    glitter_cell: Some(site.cell_id),
-                    map_index,
-                };
+                let flake = (material, g.facets.normal_of_cell(facet_id), site.cell_id);
+                return Resolved::new(surface, Some(flake));
             }
         }
-        Resolved {
-            material: surface_material,
-            flake_normal: None,
-            surface_cell,
-            glitter_cell: None,
-            map_index,
-        }
+        Resolved::new(surface, None)
     }
 
     /// [`Pattern::resolve_surface`] through the per-node memos of a
@@ -1036,27 +1043,16 @@ impl Pattern {
     /// searched and every switch read afresh.
     #[inline]
     pub fn resolve_uncached(&self, p: DVec3) -> Resolved {
-        let (surface_material, surface_cell, map_index) = self.resolve_surface(p);
+        let surface = self.resolve_surface(p);
         if let Some(g) = &self.glitter {
             let near = g.voronoi.nearest(p);
             if g.is_filled(near.cell_id, near.feature_point) {
                 let (normal, _) = g.facets.normal_at(p);
-                return Resolved {
-                    material: g.material_of_cell(near.cell_id),
-                    flake_normal: Some(normal),
-                    surface_cell,
-                    glitter_cell: Some(near.cell_id),
-                    map_index,
-                };
+                let flake = (g.material_of_cell(near.cell_id), normal, near.cell_id);
+                return Resolved::new(surface, Some(flake));
             }
         }
-        Resolved {
-            material: surface_material,
-            flake_normal: None,
-            surface_cell,
-            glitter_cell: None,
-            map_index,
-        }
+        Resolved::new(surface, None)
     }
 }
 
