@@ -197,6 +197,13 @@ impl RenderScene {
 
     /// Radiance arriving at the camera along one ray, and what the ray hit
     /// first. Consumes numbers from `stream` in a fixed order.
+    ///
+    /// Inlined into the film's per-sample loop (its only caller): as a call
+    /// it saved six registers, re-read a dozen scene fields into stack slots
+    /// and returned the 80-byte `FirstHit` through memory on every sample,
+    /// ~100 instructions that the loop now hoists or keeps in registers
+    /// (peer scene render loop 315.1 -> 305.7 M instructions).
+    #[inline(always)]
     pub fn radiance(
         &self,
         mut origin: DVec3,
