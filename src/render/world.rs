@@ -337,6 +337,7 @@ impl World {
     /// has the whole stone behind it, so such a ray cannot meet that stone
     /// again and it is not tested. A stone vertex's shadow ray and its next
     /// path segment each skip one stone intersection.
+    #[inline(always)]
     pub fn intersect_leaving(
         &self,
         origin: DVec3,
