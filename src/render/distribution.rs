@@ -126,7 +126,7 @@ impl Distribution1D {
     /// on each side absorbs the rounding of `u·n`).
     fn invert_cdf(&self, u: f64) -> usize {
         let n = self.func.len();
-        let k = ((u * n as f64) as usize).min(n - 1);
+        let k = bin_of_scaled(u * n as f64, n);
         let lo = self.guide[k.saturating_sub(1)] as usize;
         let hi = self.guide[(k + 2).min(n)] as usize;
         // cdf[lo] ≤ u, and every i with cdf[i] ≤ u is ≤ hi.
@@ -153,13 +153,25 @@ impl Distribution1D {
     /// both [`Self::sample`] and [`Self::pdf`] use, so they agree.
     pub fn bin(&self, x: f64) -> usize {
         let n = self.func.len();
-        ((x * n as f64).max(0.0) as usize).min(n - 1)
+        bin_of_scaled(x * n as f64, n)
     }
 
     /// Inverts the CDF at `u ∈ [0, 1)`: returns the continuous point
     /// `x ∈ [0, 1)`, its density `f[i] / I` and its bin `i`. Bins of zero
     /// weight are never returned, and `self.bin(x) == i` always holds.
     pub fn sample(&self, u: f64) -> (f64, f64, usize) {
+        let (x, i) = self.sample_point(u);
+        let pdf = if self.integral > 0.0 {
+            self.func[i] / self.integral
+        } else {
+            0.0
+        };
+        (x, pdf, i)
+    }
+
+    /// [`Self::sample`] without the density: the point `x` and its bin `i`
+    /// (what [`Distribution2D::sample`] needs, a division fewer).
+    fn sample_point(&self, u: f64) -> (f64, usize) {
         let n = self.func.len();
         // Clamp into [0, 1): the last bin of positive weight ends at a CDF of
         // exactly 1, so any u < 1 lands in a bin of positive weight.
@@ -176,13 +188,7 @@ impl Distribution1D {
         } else {
             0.5
         };
-        let x = self.snap_into_bin((i as f64 + du) / n as f64, i);
-        let pdf = if self.integral > 0.0 {
-            self.func[i] / self.integral
-        } else {
-            0.0
-        };
-        (x, pdf, i)
+        (self.snap_into_bin((i as f64 + du) / n as f64, i), i)
     }
 
     /// Nudges `x` into `[0, 1)` and then by ulps until [`Self::bin`] maps it
@@ -191,6 +197,9 @@ impl Distribution1D {
     fn snap_into_bin(&self, x: f64, i: usize) -> f64 {
         // The last bin is closed by clamping in `bin`; keep x inside [0, 1).
         let mut x = x.clamp(0.0, 1.0_f64.next_down());
+        if self.is_in_bin(x, i) {
+            return x;
+        }
         for _ in 0..8 {
             match self.bin(x).cmp(&i) {
                 std::cmp::Ordering::Equal => return x,
@@ -200,6 +209,16 @@ impl Distribution1D {
         }
         // Unreachable for n < 2⁵²; the bin centre is always safe.
         (i as f64 + 0.5) / self.func.len() as f64
+    }
+
+    /// Whether [`Self::bin`] maps `x ∈ [0, 1)` to bin `i < n`, by two
+    /// comparisons instead of a float-to-integer conversion: ⌊x n⌋ = i ⇔
+    /// i ≤ x n < i + 1, exact as long as i + 1 ≤ 2⁵³ (no distribution that
+    /// fits in memory has more bins); the last bin also takes x n = n.
+    fn is_in_bin(&self, x: f64, i: usize) -> bool {
+        let n = self.func.len();
+        let scaled = x * n as f64;
+        scaled >= i as f64 && (scaled < (i + 1) as f64 || i + 1 == n)
     }
 
     /// Density at `x` with respect to length on `[0, 1)`; zero outside it.
@@ -259,8 +278,8 @@ impl Distribution2D {
     /// conditional) and returns it with its density with respect to
     /// `du dv`, which equals [`Self::pdf`] at the returned point.
     pub fn sample(&self, u: [f64; 2]) -> (glam::DVec2, f64) {
-        let (v, _, row) = self.marginal.sample(u[1]);
-        let (x, _, col) = self.conditional[row].sample(u[0]);
+        let (v, row) = self.marginal.sample_point(u[1]);
+        let (x, col) = self.conditional[row].sample_point(u[0]);
         // f / I directly, as in `pdf`: the product p(v) p(u|v) is the same
         // number mathematically but not always to the last bit.
         let pdf = self.conditional[row].func[col] / self.marginal.integral;
@@ -287,6 +306,16 @@ impl Distribution2D {
         }
         self.conditional[row].func[col] / (self.marginal.integral * (w * h) as f64)
     }
+}
+
+/// The bin `⌊scaled⌋` of `scaled = x n`, clamped into `0..n` (NaN and
+/// negatives to bin 0, beyond `n` to bin `n − 1`). Through `i64`, whose
+/// saturating conversion is a few instructions cheaper than `usize`'s and
+/// gives the same bin for every input: `n ≤ isize::MAX < 2⁶³` for any slice
+/// length, so the `i64::MAX` a huge value saturates to still clamps to
+/// `n − 1`, and NaN converts to 0 like the negative values.
+pub(crate) fn bin_of_scaled(scaled: f64, n: usize) -> usize {
+    ((scaled as i64).max(0) as usize).min(n - 1)
 }
 
 /// Checks shape and values: `width × height` finite, non-negative weights.
@@ -316,6 +345,144 @@ mod tests {
     /// The plain binary search the guide table replaces.
     fn invert_by_full_search(d: &Distribution1D, u: f64) -> usize {
         d.cdf.partition_point(|&c| c <= u).max(1) - 1
+    }
+
+    /// The bin rule before [`bin_of_scaled`]: `Distribution1D::bin`'s
+    /// (clamped at 0 first) and the texel lookup's (without the clamp).
+    fn bin_through_usize(scaled: f64, n: usize, clamp_at_zero: bool) -> usize {
+        let scaled = if clamp_at_zero {
+            scaled.max(0.0)
+        } else {
+            scaled
+        };
+        (scaled as usize).min(n - 1)
+    }
+
+    #[test]
+    fn bins_through_i64_equal_bins_through_usize_for_every_kind_of_input() {
+        let mut rng = Rng::new(21, 22);
+        let mut scaled = vec![
+            f64::NAN,
+            -f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::MAX,
+            f64::MIN,
+            0.0,
+            -0.0,
+            f64::MIN_POSITIVE,
+            -f64::MIN_POSITIVE,
+            2f64.powi(31),
+            2f64.powi(32),
+            2f64.powi(63),
+            2f64.powi(63).next_down(),
+            2f64.powi(64),
+            1e30,
+            -1e30,
+        ];
+        for k in -3..1100 {
+            let k = k as f64;
+            scaled.extend([k, k.next_up(), k.next_down()]);
+        }
+        scaled.extend((0..20_000).map(|_| (rng.next_f64() - 0.25) * 2000.0));
+        for n in [1, 2, 3, 256, 1024, 16384, usize::MAX >> 1] {
+            for &t in &scaled {
+                for clamp in [true, false] {
+                    assert_eq!(
+                        bin_of_scaled(t, n),
+                        bin_through_usize(t, n, clamp),
+                        "n = {n}, scaled = {t}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// [`Distribution1D::sample`] before the snap's fast path: the ulp
+    /// loop run from the start, through the `usize` bin rule.
+    fn sample_by_snap_loop(d: &Distribution1D, u: f64) -> (f64, f64, usize) {
+        let n = d.func.len();
+        let u = if u.is_finite() {
+            u.clamp(0.0, 1.0_f64.next_down())
+        } else {
+            0.0
+        };
+        let i = invert_by_full_search(d, u).min(n - 1);
+        let width = d.cdf[i + 1] - d.cdf[i];
+        let du = if width > 0.0 {
+            ((u - d.cdf[i]) / width).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        let old_bin = |x: f64| bin_through_usize(x * n as f64, n, true);
+        let mut x = ((i as f64 + du) / n as f64).clamp(0.0, 1.0_f64.next_down());
+        let mut snapped = None;
+        for _ in 0..8 {
+            match old_bin(x).cmp(&i) {
+                std::cmp::Ordering::Equal => {
+                    snapped = Some(x);
+                    break;
+                }
+                std::cmp::Ordering::Greater => x = x.next_down(),
+                std::cmp::Ordering::Less => x = x.next_up(),
+            }
+        }
+        let x = snapped.unwrap_or((i as f64 + 0.5) / n as f64);
+        let pdf = if d.integral > 0.0 {
+            d.func[i] / d.integral
+        } else {
+            0.0
+        };
+        (x, pdf, i)
+    }
+
+    #[test]
+    fn sampling_with_the_snap_fast_path_equals_the_ulp_loop_bit_for_bit() {
+        let mut rng = Rng::new(31, 32);
+        let cases: Vec<Vec<f64>> = vec![
+            vec![1.0],
+            vec![0.0, 0.0, 3.0, 0.0],
+            vec![1.0; 3],
+            vec![1.0; 49],
+            (0..256).map(|i| 1.0 + (i as f64 * 0.3).sin()).collect(),
+            (0..1024)
+                .map(|i| if i % 97 == 5 { 1e12 } else { 1.0 })
+                .collect(),
+            (0..777).map(|_| rng.next_f64().powi(8)).collect(),
+        ];
+        for weights in &cases {
+            let d = Distribution1D::new(weights).unwrap();
+            let n = weights.len();
+            let mut us: Vec<f64> = (0..20_000).map(|_| rng.next_f64()).collect();
+            us.extend([
+                0.0,
+                -0.0,
+                1.0,
+                1.0_f64.next_down(),
+                1.0_f64.next_down().next_down(),
+                -1.0,
+                2.0,
+                f64::NAN,
+                f64::INFINITY,
+            ]);
+            // Every bin edge in u (CDF values) and in x (k / n), with their
+            // neighbouring floats.
+            for k in 0..=n {
+                for c in [d.cdf[k], k as f64 / n as f64] {
+                    us.extend([c, c.next_up(), c.next_down()]);
+                }
+            }
+            for u in us {
+                let (x, pdf, i) = d.sample(u);
+                let (x_ref, pdf_ref, i_ref) = sample_by_snap_loop(&d, u);
+                assert_eq!(
+                    (x.to_bits(), pdf.to_bits(), i),
+                    (x_ref.to_bits(), pdf_ref.to_bits(), i_ref),
+                    "n = {n}, u = {u}"
+                );
+                assert_eq!(d.bin(x), i, "n = {n}, u = {u}");
+            }
+        }
     }
 
     #[test]

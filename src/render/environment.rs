@@ -483,7 +483,7 @@ impl EnvironmentMap {
             return None;
         }
         let theta = (direction.z / len).clamp(-1.0, 1.0).acos();
-        let phi_map = (direction.y.atan2(direction.x) - self.rotation_rad).rem_euclid(TAU);
+        let phi_map = wrap_to_full_turn(direction.y.atan2(direction.x) - self.rotation_rad);
         // rem_euclid may round up to exactly 2π; keep u < 1.
         let u = (phi_map / TAU).min(1.0_f64.next_down());
         let v = (theta * FRAC_1_PI).min(1.0_f64.next_down());
@@ -568,6 +568,22 @@ impl EnvironmentMap {
             radiance: self.texel_at(uv),
             pdf,
         })
+    }
+}
+
+/// `angle_rad.rem_euclid(2π)`, the angle in `[0, 2π]`, without the `fmod`
+/// call when it is within one turn of zero (always for a map turned by less
+/// than a turn): there the remainder is the angle itself, exactly, and a
+/// negative one gets one turn added, as `rem_euclid` does.
+fn wrap_to_full_turn(angle_rad: f64) -> f64 {
+    if angle_rad.abs() < TAU {
+        if angle_rad < 0.0 {
+            angle_rad + TAU
+        } else {
+            angle_rad
+        }
+    } else {
+        angle_rad.rem_euclid(TAU)
     }
 }
 
@@ -1074,4 +1090,45 @@ fn read_exr(path: &Path) -> Result<RgbTexels, EnvironmentError> {
         )));
     }
     Ok((width, height, texels))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Rng;
+
+    #[test]
+    fn wrapping_to_a_full_turn_equals_rem_euclid_bit_for_bit() {
+        let mut rng = Rng::new(41, 42);
+        let mut angles = vec![
+            0.0,
+            -0.0,
+            TAU,
+            -TAU,
+            TAU.next_down(),
+            TAU.next_up(),
+            (-TAU).next_up(),
+            (-TAU).next_down(),
+            PI,
+            -PI,
+            f64::MIN_POSITIVE,
+            -f64::MIN_POSITIVE,
+            -1e-300,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            1e20,
+            -1e20,
+        ];
+        // atan2's range shifted by rotations of up to several turns.
+        angles.extend((0..50_000).map(|_| (rng.next_f64() - 0.5) * 8.0 * TAU));
+        angles.extend((0..10_000).map(|_| (rng.next_f64() - 0.5) * 1e-12));
+        for a in angles {
+            assert_eq!(
+                wrap_to_full_turn(a).to_bits(),
+                a.rem_euclid(TAU).to_bits(),
+                "angle {a}"
+            );
+        }
+    }
 }
