@@ -22,7 +22,7 @@
 //! file; a file that cannot be read or parsed is ignored and rewritten.
 
 use crate::brdf::compensation::Compensation;
-use crate::brdf::compensation::{needs_no_table, TABLE_NODES};
+use crate::brdf::compensation::{needs_no_table, AlbedoPair, TABLE_NODES};
 use crate::brdf::stack::LayeredBrdf;
 use crate::brdf::Rgb;
 use std::collections::HashMap;
@@ -43,8 +43,6 @@ fn tables() -> &'static Mutex<HashMap<String, Option<Compensation>>> {
 /// E_single with a black and with a white diffuse base under each coat
 /// computed so far (see `Compensation::compute_many`), by [`material_key`]
 /// of the white material.
-type AlbedoPair = (Vec<Rgb>, Vec<Rgb>);
-
 fn single_albedo_pairs() -> &'static Mutex<HashMap<String, AlbedoPair>> {
     static PAIRS: OnceLock<Mutex<HashMap<String, AlbedoPair>>> = OnceLock::new();
     PAIRS.get_or_init(Default::default)

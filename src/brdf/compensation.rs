@@ -405,7 +405,7 @@ enum PairPlan {
 }
 
 /// E_single of a black and of a white base at every node.
-type AlbedoPair = (Vec<Rgb>, Vec<Rgb>);
+pub(crate) type AlbedoPair = (Vec<Rgb>, Vec<Rgb>);
 
 /// One table node to compute: the unit of the batch's parallel loop.
 #[derive(Clone, Copy)]
@@ -508,17 +508,23 @@ impl<'a> TablePlan<'a> {
             }
             NodeJob::Single { material: m, k } => {
                 let plan = material(m);
-                single_crossing_albedo(plan.brdf, node_cosine(k), plan.seed ^ 0xa1b2)
+                single_albedo_at_node(plan.brdf, k, plan.seed)
             }
             NodeJob::PairSingle { pair, white, k } => match &self.pairs[pair] {
                 PairPlan::ToCompute(twins, seed) => {
                     let twin = if white { &twins.1 } else { &twins.0 };
-                    single_crossing_albedo(twin, node_cosine(k), seed ^ 0xa1b2)
+                    single_albedo_at_node(twin, k, *seed)
                 }
                 PairPlan::Known(_) => unreachable!("known pairs have no jobs"),
             },
         }
     }
+}
+
+/// E_single of `brdf` at table node `k`, with the stream every table of
+/// `seed` uses for it (salted apart from the E_stack walks' streams).
+fn single_albedo_at_node(brdf: &LayeredBrdf, k: usize, seed: u64) -> Rgb {
+    single_crossing_albedo(brdf, node_cosine(k), seed ^ 0xa1b2)
 }
 
 impl Compensation {

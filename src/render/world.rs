@@ -337,6 +337,10 @@ impl World {
     /// has the whole stone behind it, so such a ray cannot meet that stone
     /// again and it is not tested. A stone vertex's shadow ray and its next
     /// path segment each skip one stone intersection.
+    ///
+    /// Inlined into the integrator: the call passed both vectors and the
+    /// optional hit through memory (peer render loop 297.9 -> 294.5 M
+    /// instructions; inlining `occluded_leaving` as well cost +5.9 %).
     #[inline(always)]
     pub fn intersect_leaving(
         &self,
