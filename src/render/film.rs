@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use crate::brdf::Rgb;
 use crate::render::camera::PinholeCamera;
 use crate::render::integrator::{RayCounts, RenderScene};
-use crate::render::sampler::PixelSampler;
+use crate::render::sampler::{PixelSampler, SampleBatch, SAMPLE_BATCH};
 
 /// What to render.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -126,33 +126,39 @@ fn render_row(
         let (mut depth_sum, mut hits, mut glints) = (0.0, 0u32, 0u32);
         let (mut cell, mut material) = (0, 0);
         let mut unoccluded = 0.0;
-        for s in 0..spp {
-            let mut stream = pixel.stream(s);
-            let [fx, fy] = stream.next_2d();
-            let ray = camera.ray(f64::from(x) + 0.5 + tent(fx), f64::from(y) + 0.5 + tent(fy));
-            let mut counts = RayCounts::default();
-            let (radiance, first) =
-                scene.radiance(ray.origin, ray.direction, &mut stream, &mut counts);
-            stats.traced_rays += counts.traced;
-            stats.shadow_rays += counts.shadow;
-            if radiance.is_finite() && radiance.min_element() >= 0.0 {
-                sum += radiance;
-            } else {
-                stats.bad_samples += 1;
-            }
-            unoccluded += first.unoccluded;
-            if s == 0 {
-                cell = first.surface_cell;
-                material = first.material_id;
-            }
-            if first.material_id != 0 {
-                hits += 1;
-                depth_sum += first.depth;
-                if first.albedo.is_finite() {
-                    albedo += first.albedo;
+        // The Sobol points of SAMPLE_BATCH samples at a time, made together.
+        let mut batch = SampleBatch::default();
+        for first_sample in (0..spp).step_by(SAMPLE_BATCH as usize) {
+            pixel.refill(&mut batch, first_sample);
+            for lane in 0..(spp - first_sample).min(SAMPLE_BATCH) {
+                let s = first_sample + lane;
+                let mut stream = batch.stream(lane);
+                let [fx, fy] = stream.next_2d();
+                let ray = camera.ray(f64::from(x) + 0.5 + tent(fx), f64::from(y) + 0.5 + tent(fy));
+                let mut counts = RayCounts::default();
+                let (radiance, first) =
+                    scene.radiance(ray.origin, ray.direction, &mut stream, &mut counts);
+                stats.traced_rays += counts.traced;
+                stats.shadow_rays += counts.shadow;
+                if radiance.is_finite() && radiance.min_element() >= 0.0 {
+                    sum += radiance;
+                } else {
+                    stats.bad_samples += 1;
                 }
-                normal += first.normal;
-                glints += u32::from(first.glitter);
+                unoccluded += first.unoccluded;
+                if s == 0 {
+                    cell = first.surface_cell;
+                    material = first.material_id;
+                }
+                if first.material_id != 0 {
+                    hits += 1;
+                    depth_sum += first.depth;
+                    if first.albedo.is_finite() {
+                        albedo += first.albedo;
+                    }
+                    normal += first.normal;
+                    glints += u32::from(first.glitter);
+                }
             }
         }
         let n = f64::from(spp);

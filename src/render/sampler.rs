@@ -10,6 +10,11 @@
 //! dimensions, where stratification buys little, come from a SplitMix64
 //! stream. Every number is a pure function of (seed, pixel, sample index,
 //! dimension): which thread renders the pixel does not matter.
+//!
+//! The Sobol points are made [`SAMPLE_BATCH`] samples at a time, every pair
+//! at once ([`PixelSampler::batch`]): integer arithmetic on eight lanes that
+//! the compiler turns into vector instructions (AVX2, chosen at run time on
+//! x86-64), the same bits as one point at a time.
 
 use crate::sampling::{mix64, Rng};
 
@@ -42,14 +47,53 @@ impl PixelSampler {
         }
     }
 
-    /// The stream of the pixel's sample `sample_index`.
-    pub fn stream(&self, sample_index: u32) -> SampleStream<'_> {
+    /// The Sobol points of the pixel's samples `first_sample` to
+    /// `first_sample + SAMPLE_BATCH − 1` (wrapping), every pair of each:
+    /// one vectorised pass instead of one scalar pass per point drawn.
+    pub fn batch(&self, first_sample: u32) -> SampleBatch {
+        let mut batch = SampleBatch {
+            pixel_seed: self.pixel_seed,
+            first_sample,
+            points: [[[0.0; 2]; SOBOL_PAIRS as usize]; SAMPLE_BATCH as usize],
+        };
+        self.refill(&mut batch, first_sample);
+        batch
+    }
+
+    /// Makes `batch` hold [`PixelSampler::batch`]`(first_sample)` in place
+    /// (a batch is 768 bytes: the render loop reuses one rather than copy
+    /// a new one in).
+    #[inline(always)]
+    pub fn refill(&self, batch: &mut SampleBatch, first_sample: u32) {
+        batch.pixel_seed = self.pixel_seed;
+        batch.first_sample = first_sample;
+        fill_batch(&self.pair_seeds, first_sample, &mut batch.points);
+    }
+}
+
+/// How many consecutive samples of a pixel [`PixelSampler::batch`] makes
+/// points for: eight 32-bit lanes fill one AVX2 register.
+pub const SAMPLE_BATCH: u32 = 8;
+
+/// Every Sobol pair of [`SAMPLE_BATCH`] consecutive samples of one pixel
+/// (the default is all zeros, to be filled by [`PixelSampler::refill`]).
+#[derive(Clone, Debug, Default)]
+pub struct SampleBatch {
+    pixel_seed: u64,
+    first_sample: u32,
+    /// `points[lane][pair]`: pair `pair` of sample `first_sample + lane`.
+    points: [[[f64; 2]; SOBOL_PAIRS as usize]; SAMPLE_BATCH as usize],
+}
+
+impl SampleBatch {
+    /// The stream of sample `first_sample + lane` (lane < [`SAMPLE_BATCH`]).
+    #[inline(always)]
+    pub fn stream(&self, lane: u32) -> SampleStream<'_> {
+        let sample_index = self.first_sample.wrapping_add(lane);
         SampleStream {
-            pixel: self,
+            pixel_seed: self.pixel_seed,
             sample_index,
-            // rev by the low halves of the tables: four loads instead of a
-            // byte swap and three mask-and-shift steps.
-            reversed_index: rev_and_reversed_sobol_1(sample_index) as u32,
+            points: &self.points[lane as usize],
             next_pair: 0,
             tail: Rng::new(self.pixel_seed, u64::from(sample_index)),
         }
@@ -59,10 +103,10 @@ impl PixelSampler {
 /// The random numbers of one sample of one pixel, drawn in a fixed order.
 #[derive(Clone, Debug)]
 pub struct SampleStream<'a> {
-    pixel: &'a PixelSampler,
+    pixel_seed: u64,
     sample_index: u32,
-    /// `sample_index` with its bits reversed, computed once per sample.
-    reversed_index: u32,
+    /// This sample's Sobol pairs, from its [`SampleBatch`].
+    points: &'a [[f64; 2]; SOBOL_PAIRS as usize],
     next_pair: u32,
     tail: Rng,
 }
@@ -75,7 +119,7 @@ impl SampleStream<'_> {
         let pair = self.next_pair;
         self.next_pair += 1;
         if pair < SOBOL_PAIRS {
-            owen_sobol_2d_reversed(self.reversed_index, self.pixel.pair_seeds[pair as usize])
+            self.points[pair as usize]
         } else {
             [self.tail.next_f64(), self.tail.next_f64()]
         }
@@ -91,10 +135,7 @@ impl SampleStream<'_> {
     /// numbers must not shift the main stream: turning the option on leaves
     /// the beauty image unchanged.
     pub fn side_stream(&self, salt: u64) -> Rng {
-        Rng::new(
-            mix64(self.pixel.pixel_seed ^ salt),
-            u64::from(self.sample_index),
-        )
+        Rng::new(mix64(self.pixel_seed ^ salt), u64::from(self.sample_index))
     }
 
     /// Three numbers for a BRDF sample: a Sobol pair and one more.
@@ -108,7 +149,8 @@ impl SampleStream<'_> {
 
 /// Point `index` of the shuffled, scrambled 2-D Sobol sequence for `seed`.
 pub fn owen_sobol_2d(index: u32, seed: u64) -> [f64; 2] {
-    owen_sobol_2d_reversed(index.reverse_bits(), scramble_seeds(seed))
+    let (x, y) = owen_sobol_point(index.reverse_bits(), scramble_seeds(seed));
+    [to_unit(x), to_unit(y)]
 }
 
 /// Three independent 32-bit scrambling seeds (index shuffle, x, y) from one
@@ -118,51 +160,79 @@ fn scramble_seeds(seed: u64) -> [u32; 3] {
     [h as u32, (h >> 32) as u32, mix64(h) as u32]
 }
 
-/// [`owen_sobol_2d`] from the bit-reversed index. Written out,
-/// x = nus(sobol₀(shuffled)) and y = nus(sobol₁(shuffled)) with
-/// shuffled = nus(index) and nus(v) = rev(LK(rev(v))); since sobol₀ = rev,
-/// the reversals cancel down to three per point: with r = LK(rev(index)),
-/// x = rev(LK(rev(r))) and y = rev(LK(rev ∘ sobol₁ ∘ rev(r))). Both maps
-/// of r are linear over GF(2) and share one set of byte tables
-/// ([`REV_AND_REVERSED_SOBOL_1_TABLES`]); the last two reversals are done
-/// together on one 64-bit word (x86-64 has no bit-reverse instruction, so
-/// each reversal is a byte swap and three mask-and-shift steps).
-fn owen_sobol_2d_reversed(reversed_index: u32, seeds: [u32; 3]) -> [f64; 2] {
-    let r = laine_karras_permutation(reversed_index, seeds[0]);
-    let both = rev_and_reversed_sobol_1(r);
-    let x = laine_karras_permutation(both as u32, seeds[1]);
-    let y = laine_karras_permutation((both >> 32) as u32, seeds[2]);
-    // rev(y ‖ x) = rev(x) ‖ rev(y).
-    let reversed = ((u64::from(y) << 32) | u64::from(x)).reverse_bits();
-    [to_unit((reversed >> 32) as u32), to_unit(reversed as u32)]
-}
-
-/// rev(r) in the low and rev(sobol₁(rev(r))) in the high 32 bits.
-fn rev_and_reversed_sobol_1(r: u32) -> u64 {
-    let [b0, b1, b2, b3] = r.to_le_bytes();
-    let t = &REV_AND_REVERSED_SOBOL_1_TABLES;
-    t[0][b0 as usize] ^ t[1][b1 as usize] ^ t[2][b2 as usize] ^ t[3][b3 as usize]
-}
-
-/// `REV_AND_REVERSED_SOBOL_1_TABLES[k][b]` holds, for v = b << 8k, rev(v)
-/// in the low and rev(sobol₁(rev(v))) in the high 32 bits: two GF(2)-linear
-/// maps looked up at once.
-static REV_AND_REVERSED_SOBOL_1_TABLES: [[u64; 256]; 4] = rev_and_reversed_sobol_1_tables();
-
-const fn rev_and_reversed_sobol_1_tables() -> [[u64; 256]; 4] {
-    let reversed_sobol = sobol_1_tables(true);
-    let mut tables = [[0u64; 256]; 4];
-    let mut k = 0;
-    while k < 4 {
-        let mut byte = 0;
-        while byte < 256 {
-            let v = (byte as u32) << (8 * k);
-            tables[k][byte] = (v.reverse_bits() as u64) | ((reversed_sobol[k][byte] as u64) << 32);
-            byte += 1;
-        }
-        k += 1;
+/// Fills `points[lane][pair]` with pair `pair` of sample
+/// `first_sample + lane` of the pixel whose pairs are scrambled by
+/// `pair_seeds`. On x86-64 with AVX2 the same code is compiled for eight
+/// 32-bit lanes per instruction (checked once per call; the standard
+/// library caches the CPU query); integer arithmetic, so both versions give
+/// the same bits.
+fn fill_batch(
+    pair_seeds: &[[u32; 3]; SOBOL_PAIRS as usize],
+    first_sample: u32,
+    points: &mut BatchPoints,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: `fill_batch_avx2` only needs AVX2, which the CPU was
+        // just checked to have.
+        unsafe { fill_batch_avx2(pair_seeds, first_sample, points) };
+        return;
     }
-    tables
+    fill_batch_lanes(pair_seeds, first_sample, points);
+}
+
+/// `points[lane][pair]` of one [`SampleBatch`].
+type BatchPoints = [[[f64; 2]; SOBOL_PAIRS as usize]; SAMPLE_BATCH as usize];
+
+/// [`fill_batch_lanes`] compiled with AVX2 enabled.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn fill_batch_avx2(
+    pair_seeds: &[[u32; 3]; SOBOL_PAIRS as usize],
+    first_sample: u32,
+    points: &mut BatchPoints,
+) {
+    fill_batch_lanes(pair_seeds, first_sample, points);
+}
+
+/// The batch as loops over fixed-size lane arrays, which the compiler
+/// vectorises: every step of [`owen_sobol_point`] is one operation on all
+/// lanes (`reverse_bits` becomes byte shuffles).
+#[inline(always)]
+fn fill_batch_lanes(
+    pair_seeds: &[[u32; 3]; SOBOL_PAIRS as usize],
+    first_sample: u32,
+    points: &mut BatchPoints,
+) {
+    const LANES: usize = SAMPLE_BATCH as usize;
+    let mut reversed_index = [0u32; LANES];
+    for (lane, r) in (0u32..).zip(reversed_index.iter_mut()) {
+        *r = first_sample.wrapping_add(lane).reverse_bits();
+    }
+    for (pair, seeds) in pair_seeds.iter().enumerate() {
+        let (mut xs, mut ys) = ([0u32; LANES], [0u32; LANES]);
+        for lane in 0..LANES {
+            (xs[lane], ys[lane]) = owen_sobol_point(reversed_index[lane], *seeds);
+        }
+        for lane in 0..LANES {
+            points[lane][pair] = [to_unit(xs[lane]), to_unit(ys[lane])];
+        }
+    }
+}
+
+/// The two 32-bit coordinates of one point of [`owen_sobol_2d`], from the
+/// bit-reversed index. Written out, x = nus(sobol₀(shuffled)) and
+/// y = nus(sobol₁(shuffled)) with shuffled = nus(index) and
+/// nus(v) = rev(LK(rev(v))); since sobol₀ = rev the reversals cancel down
+/// to three per point: with q = rev(LK(rev(index))), x = rev(LK(q)) and
+/// y = rev(LK(pascal(q))), as rev ∘ sobol₁ = pascal (see
+/// [`sobol_dimension_1`]).
+#[inline(always)]
+fn owen_sobol_point(reversed_index: u32, seeds: [u32; 3]) -> (u32, u32) {
+    let q = laine_karras_permutation(reversed_index, seeds[0]).reverse_bits();
+    let x = laine_karras_permutation(q, seeds[1]);
+    let y = laine_karras_permutation(pascal(q), seeds[2]);
+    (x.reverse_bits(), y.reverse_bits())
 }
 
 /// The first Sobol dimension: the base-2 radical inverse (van der Corput).
@@ -171,67 +241,30 @@ pub fn sobol_dimension_0(index: u32) -> u32 {
 }
 
 /// The second Sobol dimension: direction numbers `v₀ = 2³¹`,
-/// `vᵢ = vᵢ₋₁ ⊕ (vᵢ₋₁ >> 1)` (the primitive polynomial x + 1). The product
-/// of the generator matrix with the index is linear over GF(2), so it is the
-/// XOR of four byte-wise partial products looked up in tables built at
-/// compile time (a scrambled index has all 32 bits set at random, so a
-/// bit-by-bit loop would run 32 times per point).
+/// `vᵢ = vᵢ₋₁ ⊕ (vᵢ₋₁ >> 1)` (the primitive polynomial x + 1), i.e.
+/// rev(vᵢ) = (1 + x)ⁱ over GF(2) with bit k the coefficient of xᵏ. So
+/// rev(sobol₁(i)) = Σ iₖ (1 + x)ᵏ = [`pascal`](i): the binary Pascal
+/// matrix, five shift-and-XOR steps instead of a loop over 32 bits.
 pub fn sobol_dimension_1(index: u32) -> u32 {
-    by_byte_tables(&SOBOL_1_TABLES, index)
+    pascal(index).reverse_bits()
 }
 
-/// A GF(2)-linear map of 32-bit words given by its value on every byte.
-type ByteTables = [[u32; 256]; 4];
-
-fn by_byte_tables(tables: &ByteTables, v: u32) -> u32 {
-    let [b0, b1, b2, b3] = v.to_le_bytes();
-    tables[0][b0 as usize]
-        ^ tables[1][b1 as usize]
-        ^ tables[2][b2 as usize]
-        ^ tables[3][b3 as usize]
+/// p(y) ↦ p(1 + x) for the polynomial p over GF(2) whose coefficient of yᵏ
+/// is bit k of `v`. Split p into halves of s = 16, 8, … 1 coefficients,
+/// p = p_hi·yˢ + p_lo: then p(1 + x) = p_hi(1 + x)·(1 + xˢ) + p_lo(1 + x),
+/// since (1 + x)ˢ = 1 + xˢ over GF(2) for s a power of two, so each level
+/// XORs the upper half of every 2s-bit block into its lower half.
+#[inline(always)]
+fn pascal(mut v: u32) -> u32 {
+    v ^= (v & 0xaaaa_aaaa) >> 1;
+    v ^= (v & 0xcccc_cccc) >> 2;
+    v ^= (v & 0xf0f0_f0f0) >> 4;
+    v ^= (v & 0xff00_ff00) >> 8;
+    v ^= (v & 0xffff_0000) >> 16;
+    v
 }
 
-/// `SOBOL_1_TABLES[k][b]` is the second Sobol dimension of `b << 8k`.
-static SOBOL_1_TABLES: ByteTables = sobol_1_tables(false);
-
-/// The tables of sobol₁, or with `reversed` of the same map conjugated by
-/// bit reversal: v ↦ rev(sobol₁(rev(v))).
-const fn sobol_1_tables(reversed: bool) -> ByteTables {
-    // The image of every single index bit.
-    let mut image = [0u32; 32];
-    let mut v = 1u32 << 31;
-    let mut bit = 0;
-    while bit < 32 {
-        if reversed {
-            image[31 - bit] = v.reverse_bits();
-        } else {
-            image[bit] = v;
-        }
-        v ^= v >> 1;
-        bit += 1;
-    }
-    let mut tables = [[0u32; 256]; 4];
-    let mut k = 0;
-    while k < 4 {
-        let mut byte = 0;
-        while byte < 256 {
-            let mut result = 0;
-            let mut b = 0;
-            while b < 8 {
-                if byte & (1 << b) != 0 {
-                    result ^= image[8 * k + b];
-                }
-                b += 1;
-            }
-            tables[k][byte] = result;
-            byte += 1;
-        }
-        k += 1;
-    }
-    tables
-}
-
-/// The second Sobol dimension bit by bit: the definition the tables are
+/// The second Sobol dimension bit by bit: the definition [`pascal`] is
 /// checked against.
 #[cfg(test)]
 fn sobol_dimension_1_by_bits(mut index: u32) -> u32 {
@@ -295,7 +328,7 @@ mod tests {
     }
 
     #[test]
-    fn byte_tables_equal_the_bit_by_bit_generator_matrix() {
+    fn the_pascal_transform_equals_the_bit_by_bit_generator_matrix() {
         let mut rng = crate::sampling::Rng::new(3, 4);
         for i in (0..4096u32).chain((0..4096).map(|_| (rng.next_u64() >> 32) as u32)) {
             assert_eq!(
@@ -303,10 +336,6 @@ mod tests {
                 sobol_dimension_1_by_bits(i),
                 "index {i}"
             );
-            let both = rev_and_reversed_sobol_1(i);
-            let direct = sobol_dimension_1_by_bits(i.reverse_bits()).reverse_bits();
-            assert_eq!((both >> 32) as u32, direct, "reversed, index {i}");
-            assert_eq!(both as u32, i.reverse_bits(), "reversal, index {i}");
         }
         // Joe & Kuo's second dimension has m = 1, 3, 5, 15: direction
         // numbers 1/2, 3/4, 5/8, 15/16, so indices 1, 2, 3, 4, 8 give
@@ -338,8 +367,8 @@ mod tests {
 
     #[test]
     fn different_pixels_get_different_points() {
-        let a = PixelSampler::new(1, 10).stream(0).next_2d();
-        let b = PixelSampler::new(1, 11).stream(0).next_2d();
+        let a = PixelSampler::new(1, 10).batch(0).stream(0).next_2d();
+        let b = PixelSampler::new(1, 11).batch(0).stream(0).next_2d();
         assert_ne!(a, b);
     }
 
@@ -347,7 +376,8 @@ mod tests {
     fn a_stream_is_a_pure_function_of_its_coordinates() {
         let draw = || {
             let pixel = PixelSampler::new(9, 77);
-            let mut s = pixel.stream(5);
+            let batch = pixel.batch(5);
+            let mut s = batch.stream(0);
             (0..10).map(|_| s.next_2d()).collect::<Vec<_>>()
         };
         assert_eq!(draw(), draw());
@@ -363,7 +393,10 @@ mod tests {
             let pixel = PixelSampler::new(seed, pixel_index);
             let pixel_seed = mix64(seed ^ mix64(pixel_index.wrapping_add(0x5851_f42d_4c95_7f2d)));
             for i in [0u32, 1, 2, 3, 15, 16, 63, 1000, u32::MAX] {
-                let mut stream = pixel.stream(i);
+                // Sample i from batches starting at i and at i − 3 (lane 3).
+                let (batch, shifted) = (pixel.batch(i), pixel.batch(i.wrapping_sub(3)));
+                let mut stream = batch.stream(0);
+                let mut from_lane_3 = shifted.stream(3);
                 let mut tail = Rng::new(pixel_seed, u64::from(i));
                 for pair in 0..SOBOL_PAIRS {
                     let expected = owen_sobol_2d(i, pixel_seed ^ (u64::from(pair) * 0x9e37_79b9));
@@ -372,10 +405,23 @@ mod tests {
                         expected,
                         "pixel {pixel_index} sample {i} pair {pair}"
                     );
+                    assert_eq!(from_lane_3.next_2d(), expected, "lane 3, sample {i}");
                 }
                 assert_eq!(stream.next_2d(), [tail.next_f64(), tail.next_f64()]);
                 assert_eq!(stream.next_1d(), tail.next_f64());
             }
+        }
+    }
+
+    #[test]
+    fn the_vectorised_batch_equals_the_portable_one() {
+        // `fill_batch` takes the AVX2 build where the CPU has it; the
+        // plain loops are the other build. Integer arithmetic: same bits.
+        for (seed, pixel_index, first) in [(0u64, 0u64, 0u32), (5, 99, 64), (7, 3, u32::MAX - 2)] {
+            let pixel = PixelSampler::new(seed, pixel_index);
+            let mut portable = [[[0.0; 2]; SOBOL_PAIRS as usize]; SAMPLE_BATCH as usize];
+            fill_batch_lanes(&pixel.pair_seeds, first, &mut portable);
+            assert_eq!(pixel.batch(first).points, portable, "first sample {first}");
         }
     }
 }
