@@ -86,6 +86,11 @@ pub struct SampleBatch {
 }
 
 impl SampleBatch {
+    /// Pair 0 (the pixel footprint) of every lane's sample.
+    pub fn footprints(&self) -> [[f64; 2]; SAMPLE_BATCH as usize] {
+        self.points.map(|pairs| pairs[0])
+    }
+
     /// The stream of sample `first_sample + lane` (lane < [`SAMPLE_BATCH`]).
     #[inline(always)]
     pub fn stream(&self, lane: u32) -> SampleStream<'_> {
@@ -123,6 +128,13 @@ impl SampleStream<'_> {
         } else {
             [self.tail.next_f64(), self.tail.next_f64()]
         }
+    }
+
+    /// Passes over the next two numbers (those the caller already took
+    /// from the batch, as the film does with the footprints).
+    #[inline(always)]
+    pub fn skip_2d(&mut self) {
+        self.next_2d();
     }
 
     /// The next single number in [0, 1) (from the hashed tail, so a lone
