@@ -386,3 +386,49 @@ fn the_material_cache_never_changes_a_byte_cold_warm_off_or_damaged() {
     let damaged = render("damaged.png", None);
     assert!(off == cold && cold == warm && warm == damaged);
 }
+
+#[test]
+fn the_vector_code_path_writes_the_same_bytes_as_the_portable_one() {
+    // `LAPIDARY_SIMD=off` runs the portable copy of the hot loops; on an
+    // x86-64-v3 CPU the default runs the copy compiled for AVX2 (the
+    // summary line names which). EXR with ambient occlusion: every AOV and
+    // every optional ray of the integrator is compared.
+    let dir = scratch("simd");
+    let default = dir.join("default.exr");
+    let portable = dir.join("portable.exr");
+    let mut summaries = Vec::new();
+    for (path, simd) in [(&default, None), (&portable, Some("off"))] {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_lapidary"));
+        command.args([
+            "render",
+            "-o",
+            path.to_str().unwrap(),
+            "--size",
+            "40",
+            "--spp",
+            "11",
+            "--ao",
+            "2",
+        ]);
+        if let Some(value) = simd {
+            command.env("LAPIDARY_SIMD", value);
+        }
+        let out = command.output().unwrap();
+        assert!(out.status.success(), "{}", stderr(&out));
+        summaries.push(stderr(&out));
+    }
+    assert!(
+        summaries[1].contains("portable code"),
+        "LAPIDARY_SIMD=off ran: {}",
+        summaries[1]
+    );
+    assert!(
+        summaries[0].contains("x86-64-v3 code") || summaries[0].contains("portable code"),
+        "no code path named: {}",
+        summaries[0]
+    );
+    assert_eq!(
+        std::fs::read(&default).unwrap(),
+        std::fs::read(&portable).unwrap()
+    );
+}

@@ -312,13 +312,14 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     }
     let rays = stats.traced_rays + stats.shadow_rays;
     report(&format!(
-        "wrote {} ({width} × {height}, {} spp) in {:.1} s: {:.2} Mrays/s, {:.2} M samples/s, {:.1} s total",
+        "wrote {} ({width} × {height}, {} spp) in {:.1} s: {:.2} Mrays/s, {:.2} M samples/s, {:.1} s total, {} code",
         args.output.display(),
         args.spp,
         seconds,
         rays as f64 / seconds / 1e6,
         f64::from(width) * f64::from(height) * f64::from(args.spp) / seconds / 1e6,
         started.elapsed().as_secs_f64(),
+        lapidary::render::code_path::code_path().name(),
     ));
     Ok(())
 }

@@ -14,6 +14,8 @@ use rayon::prelude::*;
 
 use crate::brdf::Rgb;
 use crate::render::camera::{CameraRay, PinholeCamera};
+#[cfg(target_arch = "x86_64")]
+use crate::render::code_path::{code_path, CodePath};
 use crate::render::integrator::{RayCounts, RenderScene};
 use crate::render::sampler::{PixelSampler, SampleBatch, SAMPLE_BATCH};
 
@@ -107,8 +109,8 @@ fn tent(u: f64) -> f64 {
 /// The camera rays' directions for a batch's samples of pixel (x, y): the
 /// footprints (pair 0) through the tent filter, then
 /// [`PinholeCamera::directions`]; the same bits as `camera.ray` per sample.
-/// On x86-64 with AVX2 the lanes are compiled four to a register (checked
-/// at each call; the standard library caches the CPU query).
+/// In the x86-64-v3 code path ([`crate::render::code_path`]) the lanes are
+/// compiled four to a register.
 fn camera_directions(
     camera: &PinholeCamera,
     x: u32,
@@ -116,9 +118,9 @@ fn camera_directions(
     batch: &SampleBatch,
 ) -> [DVec3; SAMPLE_BATCH as usize] {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: `camera_directions_avx2` only needs AVX2, which the CPU
-        // was just checked to have.
+    if code_path() == CodePath::X86_64V3 {
+        // SAFETY: `camera_directions_avx2` only needs AVX2, which
+        // `code_path` found on this CPU.
         return unsafe { camera_directions_avx2(camera, x, y, batch) };
     }
     camera_directions_lanes(camera, x, y, batch)
@@ -155,7 +157,45 @@ fn to_f32x3(v: DVec3) -> [f32; 3] {
 }
 
 /// Renders row `y` into `row`; returns its ray counts.
+///
+/// In the x86-64-v3 code path ([`crate::render::code_path`]) the row is
+/// rendered by a copy of the same code compiled for those features: VEX
+/// encoding's three-operand instructions drop register copies and spills
+/// from the path tracer's loop (peer render loop −7 % of instructions).
+/// Both copies write the same bytes (tested).
 fn render_row(
+    scene: &RenderScene,
+    camera: &PinholeCamera,
+    settings: &FilmSettings,
+    y: u32,
+    row: RowOut<'_>,
+) -> RenderStats {
+    #[cfg(target_arch = "x86_64")]
+    if code_path() == CodePath::X86_64V3 {
+        // SAFETY: `render_row_x86_64_v3` needs only the features that
+        // `code_path` found on this CPU.
+        return unsafe { render_row_x86_64_v3(scene, camera, settings, y, row) };
+    }
+    render_row_portable(scene, camera, settings, y, row)
+}
+
+/// [`render_row_portable`] compiled for x86-64-v3 (see [`render_row`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt")]
+fn render_row_x86_64_v3(
+    scene: &RenderScene,
+    camera: &PinholeCamera,
+    settings: &FilmSettings,
+    y: u32,
+    row: RowOut<'_>,
+) -> RenderStats {
+    render_row_portable(scene, camera, settings, y, row)
+}
+
+/// The row loop itself, for the baseline x86-64 (or any other) target;
+/// inlined into [`render_row_x86_64_v3`] for the other copy.
+#[inline(always)]
+fn render_row_portable(
     scene: &RenderScene,
     camera: &PinholeCamera,
     settings: &FilmSettings,

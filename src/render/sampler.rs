@@ -16,6 +16,8 @@
 //! the compiler turns into vector instructions (AVX2, chosen at run time on
 //! x86-64), the same bits as one point at a time.
 
+#[cfg(target_arch = "x86_64")]
+use crate::render::code_path::{code_path, CodePath};
 use crate::sampling::{mix64, Rng};
 
 /// How many 2-D dimension pairs come from the scrambled Sobol sequence.
@@ -174,19 +176,18 @@ fn scramble_seeds(seed: u64) -> [u32; 3] {
 
 /// Fills `points[lane][pair]` with pair `pair` of sample
 /// `first_sample + lane` of the pixel whose pairs are scrambled by
-/// `pair_seeds`. On x86-64 with AVX2 the same code is compiled for eight
-/// 32-bit lanes per instruction (checked once per call; the standard
-/// library caches the CPU query); integer arithmetic, so both versions give
-/// the same bits.
+/// `pair_seeds`. In the x86-64-v3 code path ([`crate::render::code_path`])
+/// the same code is compiled for eight 32-bit lanes per instruction (AVX2);
+/// integer arithmetic, so both versions give the same bits.
 fn fill_batch(
     pair_seeds: &[[u32; 3]; SOBOL_PAIRS as usize],
     first_sample: u32,
     points: &mut BatchPoints,
 ) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: `fill_batch_avx2` only needs AVX2, which the CPU was
-        // just checked to have.
+    if code_path() == CodePath::X86_64V3 {
+        // SAFETY: `fill_batch_avx2` only needs AVX2, which `code_path`
+        // found on this CPU.
         unsafe { fill_batch_avx2(pair_seeds, first_sample, points) };
         return;
     }
