@@ -542,7 +542,7 @@ fn a_gem_compiled_in_one_batch_has_each_material_s_own_table() {
         let (path, text) = load_gem_source(name).unwrap();
         let gem = parse_gem_with_seed(&path, &text, Some(3)).unwrap();
         assert_eq!(shading.brdfs.len(), gem.materials.len());
-        for ((material_name, material), batched) in gem.materials.iter().zip(&shading.brdfs) {
+        for ((material_name, material), batched) in gem.materials.iter().zip(shading.brdfs.iter()) {
             let source = MaterialSource {
                 path: path.clone(),
                 name: material_name.clone(),

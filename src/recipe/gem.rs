@@ -366,7 +366,24 @@ pub fn parse_gem_with_seed(
     text: &str,
     seed: Option<u64>,
 ) -> Result<CompiledGem, RecipeError> {
-    let mut spec = ron::from_str::<GemSpec>(text).map_err(|e| ron_error(path, text, e))?;
+    compile_gem_spec(path, text, parse_gem_spec(path, text)?, seed)
+}
+
+/// Gem recipe `text` (from `path`) read into its spec, not yet compiled:
+/// a scene with many seeds of one recipe reads it once and compiles it
+/// once per seed ([`compile_gem_spec`]).
+pub fn parse_gem_spec(path: &str, text: &str) -> Result<GemSpec, RecipeError> {
+    ron::from_str::<GemSpec>(text).map_err(|e| ron_error(path, text, e))
+}
+
+/// Compiles `spec`, read by [`parse_gem_spec`] from `text` at `path` (both
+/// for error messages), with its seed replaced by `seed` when given.
+pub fn compile_gem_spec(
+    path: &str,
+    text: &str,
+    mut spec: GemSpec,
+    seed: Option<u64>,
+) -> Result<CompiledGem, RecipeError> {
     if let Some(seed) = seed {
         spec.seed = seed;
     }

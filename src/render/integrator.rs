@@ -7,6 +7,8 @@
 //! the varnish), so a path bounces between stones and the ground until it
 //! escapes to the environment, meets a light, or reaches `max_bounces`.
 
+use std::sync::Arc;
+
 use glam::DVec3;
 
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
@@ -26,8 +28,10 @@ pub const TEXTURE_UNITS_PER_SCENE_UNIT: f64 = 0.1;
 pub struct GemShading {
     /// The pattern tree (figure 4.6) in texture space.
     pub pattern: Pattern,
-    /// BRDF per pattern material index.
-    pub brdfs: Vec<LayeredBrdf>,
+    /// BRDF per pattern material index. Shared by the gems of one recipe
+    /// with different seeds (a seed changes the pattern, never a
+    /// material): a tray of 1000 lepidolites holds 19 BRDFs, not 19 000.
+    pub brdfs: Arc<[LayeredBrdf]>,
     /// `material_id` AOV value of this gem's material 0.
     pub material_id_base: u32,
 }

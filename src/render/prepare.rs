@@ -2,6 +2,7 @@
 //! BRDFs) and single materials (the ground).
 
 use std::path::Path;
+use std::sync::Arc;
 
 use crate::geometry::Cabochon;
 use crate::render::camera::PinholeCamera;
@@ -15,8 +16,9 @@ use crate::recipe::compile::{
     compile_material_without_table, load_material_without_table, MaterialSource, COMPENSATION_SEED,
 };
 use crate::recipe::error::RecipeError;
-use crate::recipe::gem::{load_gem_source, parse_gem_with_seed};
+use crate::recipe::gem::{compile_gem_spec, load_gem_source, parse_gem_spec, GemSpec};
 use crate::render::integrator::GemShading;
+use crate::texture::pattern::Pattern;
 
 /// Loads gem `spec` (a built-in name or a `.ron` path), optionally with
 /// another seed, and compiles every material's BRDF (the layered materials'
@@ -51,41 +53,67 @@ pub fn compile_gem_draft_or_full(
     material_id_base: u32,
     draft: bool,
 ) -> Result<(GemShading, String), RecipeError> {
-    let mut gem = gem_without_tables(path, text, seed, material_id_base, draft)?;
+    let spec = parse_gem_spec(path, text)?;
+    let mut gem = gem_without_tables((path, text, spec), seed, material_id_base, draft)?;
     fill_tables(gem.wanting_tables().collect());
-    Ok((gem.shading, gem.name))
+    Ok(finish_gems(vec![gem]).remove(0))
 }
 
 /// A gem compiled without its materials' compensation tables, so that the
 /// tables of a whole scene can be computed together.
 struct GemWithoutTables {
-    shading: GemShading,
+    pattern: Pattern,
+    /// The materials' BRDFs; empty when `shares_brdfs_of` is set.
+    brdfs: Vec<LayeredBrdf>,
+    /// The gem (an index into the scene's gems) of the same recipe with
+    /// another seed whose BRDFs this one uses.
+    shares_brdfs_of: Option<usize>,
+    material_id_base: u32,
     name: String,
-    /// Per material of `shading.brdfs`, whether it wants a table.
+    /// Per material of `brdfs`, whether it wants a table.
     wants_table: Vec<bool>,
 }
 
 impl GemWithoutTables {
     /// The materials that want a compensation table.
     fn wanting_tables(&mut self) -> impl Iterator<Item = &mut LayeredBrdf> {
-        self.shading
-            .brdfs
+        self.brdfs
             .iter_mut()
             .zip(&self.wants_table)
             .filter_map(|(brdf, wants)| wants.then_some(brdf))
     }
 }
 
-/// Parses gem recipe `text` (from `path`) and compiles its materials
-/// without their tables; with `draft` none of them wants one.
+/// The finished gems of a scene: each recipe's BRDFs once, shared by its
+/// other seeds.
+fn finish_gems(gems: Vec<GemWithoutTables>) -> Vec<(GemShading, String)> {
+    let mut finished: Vec<(GemShading, String)> = Vec::with_capacity(gems.len());
+    for gem in gems {
+        let brdfs = match gem.shares_brdfs_of {
+            Some(first) => Arc::clone(&finished[first].0.brdfs),
+            None => Arc::from(gem.brdfs),
+        };
+        finished.push((
+            GemShading {
+                pattern: gem.pattern,
+                brdfs,
+                material_id_base: gem.material_id_base,
+            },
+            gem.name,
+        ));
+    }
+    finished
+}
+
+/// Compiles gem `spec` (read from recipe `text` at `path`) and its
+/// materials without their tables; with `draft` none of them wants one.
 fn gem_without_tables(
-    path: &str,
-    text: &str,
+    (path, text, spec): (&str, &str, GemSpec),
     seed: Option<u64>,
     material_id_base: u32,
     draft: bool,
 ) -> Result<GemWithoutTables, RecipeError> {
-    let gem = parse_gem_with_seed(path, text, seed)?;
+    let gem = compile_gem_spec(path, text, spec, seed)?;
     let mut brdfs = Vec::with_capacity(gem.materials.len());
     let mut wants_table = Vec::with_capacity(gem.materials.len());
     for (name, material) in &gem.materials {
@@ -98,13 +126,32 @@ fn gem_without_tables(
         wants_table.push(material.multiple_scattering && !draft);
     }
     Ok(GemWithoutTables {
-        shading: GemShading {
-            pattern: gem.pattern,
-            brdfs,
-            material_id_base,
-        },
+        pattern: gem.pattern,
+        brdfs,
+        shares_brdfs_of: None,
+        material_id_base,
         name: gem.name,
         wants_table,
+    })
+}
+
+/// The gem of a recipe already read (`spec`, from `text` at `path`) with
+/// another `seed`, using the BRDFs of gem number `first` (the same recipe,
+/// compiled): only the pattern depends on the seed.
+fn reseeded_gem(
+    (path, text, spec): (&str, &str, &GemSpec),
+    seed: Option<u64>,
+    material_id_base: u32,
+    first: usize,
+) -> Result<GemWithoutTables, RecipeError> {
+    let gem = compile_gem_spec(path, text, spec.clone(), seed)?;
+    Ok(GemWithoutTables {
+        pattern: gem.pattern,
+        brdfs: Vec::new(),
+        shares_brdfs_of: Some(first),
+        material_id_base,
+        name: gem.name,
+        wants_table: Vec::new(),
     })
 }
 
@@ -156,14 +203,32 @@ pub fn prepare_scene(
             }
         };
     }
-    let mut gems = Vec::with_capacity(keys.len());
+    let mut gems: Vec<GemWithoutTables> = Vec::with_capacity(keys.len());
+    // Per recipe, read once: its name, path, text and spec, and its first gem.
+    let mut recipes: Vec<(&str, String, String, GemSpec, usize)> = Vec::new();
     let mut material_id_base = MATERIAL_ID_FIRST_STONE;
-    for (spec, seed) in &keys {
-        report(&format!("compiling gem {spec}"));
-        let (path, text) = load_gem_source(spec).map_err(|e| e.to_string())?;
-        let gem = gem_without_tables(&path, &text, *seed, material_id_base, false)
-            .map_err(|e| e.to_string())?;
-        material_id_base += gem.shading.brdfs.len() as u32;
+    for (name, seed) in &keys {
+        let gem = match recipes.iter().find(|r| r.0 == name) {
+            Some((_, path, text, spec, first)) => {
+                reseeded_gem((path, text, spec), *seed, material_id_base, *first)
+            }
+            None => {
+                report(&format!("compiling gem {name}"));
+                let (path, text) = load_gem_source(name).map_err(|e| e.to_string())?;
+                let spec = parse_gem_spec(&path, &text).map_err(|e| e.to_string())?;
+                let gem = gem_without_tables(
+                    (&path, &text, spec.clone()),
+                    *seed,
+                    material_id_base,
+                    false,
+                );
+                recipes.push((name, path, text, spec, gems.len()));
+                gem
+            }
+        }
+        .map_err(|e| e.to_string())?;
+        let first = gem.shares_brdfs_of.map_or(&gem, |first| &gems[first]);
+        material_id_base += first.brdfs.len() as u32;
         gems.push(gem);
     }
     let mut ground = match &scene.ground {
@@ -191,7 +256,10 @@ pub fn prepare_scene(
     );
     Ok(RenderScene {
         world: World::new(stones, scene.ground.as_ref().map(|g| g.height)),
-        gems: gems.into_iter().map(|gem| gem.shading).collect(),
+        gems: finish_gems(gems)
+            .into_iter()
+            .map(|(shading, _)| shading)
+            .collect(),
         ground_brdf: ground.map(|(brdf, _)| brdf),
         lights: scene.lights.clone(),
         environment: environment?,
@@ -247,4 +315,66 @@ pub fn camera_for(scene: &Scene, width: u32, height: u32) -> PinholeCamera {
         width,
         height,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::parse_scene;
+    use glam::DVec3;
+
+    /// Three stones: the default gem with seeds 1 and 2, then goldstone.
+    const THREE_STONES: &str = r#"Scene(
+        camera: Orbit(target: (0.0, 0.0, 0.0), distance: 5.0, elevation_deg: 35.0,
+                      azimuth_deg: -90.0, vertical_fov_deg: 30.0),
+        stones: [
+            Stone(shape: Cabochon(outline: Oval, length: 1.0, width: 0.7, dome_height: 0.3),
+                  position: (-1.0, 0.0, 0.0), seed: Some(1)),
+            Stone(shape: Cabochon(outline: Oval, length: 1.0, width: 0.7, dome_height: 0.3),
+                  position: (0.0, 0.0, 0.0), seed: Some(2)),
+            Stone(recipe: Some("goldstone"),
+                  shape: Cabochon(outline: Oval, length: 1.0, width: 0.7, dome_height: 0.3),
+                  position: (1.0, 0.0, 0.0)),
+        ],
+        lights: [],
+        environment: Constant(radiance: (1.0, 1.0, 1.0)),
+    )"#;
+
+    #[test]
+    fn seeds_of_one_recipe_share_its_brdfs_and_keep_their_own_patterns() {
+        let scene = parse_scene(THREE_STONES, None).unwrap();
+        let prepared = prepare_scene(&scene, "green-aventurine", None, 2, &|_| {}).unwrap();
+        let gems = &prepared.gems;
+        assert_eq!(gems.len(), 3);
+        assert!(Arc::ptr_eq(&gems[0].brdfs, &gems[1].brdfs));
+        assert!(!Arc::ptr_eq(&gems[0].brdfs, &gems[2].brdfs));
+        // material_id AOV values: each gem its own run, as without sharing.
+        assert_eq!(gems[0].material_id_base, MATERIAL_ID_FIRST_STONE);
+        let n = gems[0].brdfs.len() as u32;
+        assert_eq!(gems[1].material_id_base, MATERIAL_ID_FIRST_STONE + n);
+        assert_eq!(gems[2].material_id_base, MATERIAL_ID_FIRST_STONE + 2 * n);
+
+        // The shared BRDFs are those of seed 2 compiled alone, bit for bit,
+        // compensation tables included.
+        let (alone, _) = compile_gem("green-aventurine", Some(2), 0).unwrap();
+        assert_eq!(alone.brdfs.len(), gems[1].brdfs.len());
+        let (wi, wo) = (
+            DVec3::new(0.3, -0.2, 0.9).normalize(),
+            DVec3::new(-0.5, 0.1, 0.7).normalize(),
+        );
+        for (a, b) in alone.brdfs.iter().zip(gems[1].brdfs.iter()) {
+            assert_eq!(a.compensation.is_some(), b.compensation.is_some());
+            assert_eq!(a.eval(wi, wo), b.eval(wi, wo), "{}", a.name);
+            assert_eq!(a.pdf(wi, wo), b.pdf(wi, wo), "{}", a.name);
+        }
+
+        // The seeds still change the pattern: the surface cells differ.
+        let differing = (0..64)
+            .map(|i| DVec3::new(0.013 * f64::from(i), 0.007 * f64::from(i), 0.02))
+            .filter(|p| {
+                gems[0].pattern.resolve(*p).surface_cell != gems[1].pattern.resolve(*p).surface_cell
+            })
+            .count();
+        assert!(differing > 32, "only {differing} of 64 points differ");
+    }
 }
