@@ -173,9 +173,11 @@ fn fill_tables(mut brdfs: Vec<&mut LayeredBrdf>) {
 /// Builds everything the integrator reads from a compiled scene.
 ///
 /// Stones without a recipe use `default_gem`; `environment_file`, when
-/// given, replaces the scene's environment (the `--env` option). Each
-/// distinct (gem, seed) pair is compiled once. `report` hears what is being
-/// compiled (slow layered materials tabulate their compensation). The
+/// given, replaces the scene's environment (the `--env` option). Each gem
+/// recipe is read and its materials compiled once; each distinct (gem,
+/// seed) pair gets its own pattern and shares the recipe's BRDFs. `report`
+/// hears what is being compiled (slow layered materials tabulate their
+/// compensation). The
 /// compensation tables of every gem and of the ground are computed together
 /// while the environment is built (baked or loaded) beside them.
 pub fn prepare_scene(
