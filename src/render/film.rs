@@ -216,9 +216,10 @@ fn render_row_portable(
         // The Sobol points of SAMPLE_BATCH samples at a time, made together.
         let mut batch = SampleBatch::default();
         for first_sample in (0..spp).step_by(SAMPLE_BATCH as usize) {
-            pixel.refill(&mut batch, first_sample);
+            let lanes = (spp - first_sample).min(SAMPLE_BATCH);
+            pixel.refill(&mut batch, first_sample, lanes);
             let directions = camera_directions(camera, x, y, &batch);
-            for lane in 0..(spp - first_sample).min(SAMPLE_BATCH) {
+            for lane in 0..lanes {
                 let s = first_sample + lane;
                 let mut stream = batch.stream(lane);
                 stream.skip_2d(); // the footprint, already in `directions`

@@ -12,9 +12,9 @@
 //! dimension): which thread renders the pixel does not matter.
 //!
 //! The Sobol points are made [`SAMPLE_BATCH`] samples at a time, every pair
-//! at once ([`PixelSampler::batch`]): integer arithmetic on eight lanes that
-//! the compiler turns into vector instructions (AVX2, chosen at run time on
-//! x86-64), the same bits as one point at a time.
+//! at once ([`PixelSampler::batch`]): integer arithmetic on sixteen lanes
+//! that the compiler turns into vector instructions (AVX2, chosen at run
+//! time on x86-64), the same bits as one point at a time.
 
 #[cfg(target_arch = "x86_64")]
 use crate::render::code_path::{code_path, CodePath};
@@ -58,24 +58,33 @@ impl PixelSampler {
             first_sample,
             points: [[[0.0; 2]; SOBOL_PAIRS as usize]; SAMPLE_BATCH as usize],
         };
-        self.refill(&mut batch, first_sample);
+        self.refill(&mut batch, first_sample, SAMPLE_BATCH);
         batch
     }
 
-    /// Makes `batch` hold [`PixelSampler::batch`]`(first_sample)` in place
-    /// (a batch is 768 bytes: the render loop reuses one rather than copy
-    /// a new one in).
+    /// Makes the first `lanes` lanes of `batch` hold those of
+    /// [`PixelSampler::batch`]`(first_sample)`, in place (a batch is 1.5 KB:
+    /// the render loop reuses one rather than copy a new one in). A full
+    /// batch is made in vector code; fewer lanes (a pixel's last samples, or
+    /// a preview's one sample) one point at a time, so that 1 spp does not
+    /// pay for 16 samples' points.
     #[inline(always)]
-    pub fn refill(&self, batch: &mut SampleBatch, first_sample: u32) {
+    pub fn refill(&self, batch: &mut SampleBatch, first_sample: u32, lanes: u32) {
         batch.pixel_seed = self.pixel_seed;
         batch.first_sample = first_sample;
-        fill_batch(&self.pair_seeds, first_sample, &mut batch.points);
+        if lanes >= SAMPLE_BATCH {
+            fill_batch(&self.pair_seeds, first_sample, &mut batch.points);
+        } else {
+            fill_lanes_one_by_one(&self.pair_seeds, first_sample, lanes, &mut batch.points);
+        }
     }
 }
 
 /// How many consecutive samples of a pixel [`PixelSampler::batch`] makes
-/// points for: eight 32-bit lanes fill one AVX2 register.
-pub const SAMPLE_BATCH: u32 = 8;
+/// points for: sixteen 32-bit lanes, two AVX2 registers (a batch of eight,
+/// one register, took 1.4 % more instructions per sample: the fixed steps
+/// of a batch are shared by fewer samples).
+pub const SAMPLE_BATCH: u32 = 16;
 
 /// Every Sobol pair of [`SAMPLE_BATCH`] consecutive samples of one pixel
 /// (the default is all zeros, to be filled by [`PixelSampler::refill`]).
@@ -177,8 +186,10 @@ fn scramble_seeds(seed: u64) -> [u32; 3] {
 /// Fills `points[lane][pair]` with pair `pair` of sample
 /// `first_sample + lane` of the pixel whose pairs are scrambled by
 /// `pair_seeds`. In the x86-64-v3 code path ([`crate::render::code_path`])
-/// the same code is compiled for eight 32-bit lanes per instruction (AVX2);
-/// integer arithmetic, so both versions give the same bits.
+/// the same code is compiled for eight 32-bit lanes per instruction (AVX2,
+/// two registers per step; an AVX-512 copy of sixteen lanes was no faster
+/// on the benchmark machine); integer arithmetic, so both versions give the
+/// same bits.
 fn fill_batch(
     pair_seeds: &[[u32; 3]; SOBOL_PAIRS as usize],
     first_sample: u32,
@@ -229,6 +240,25 @@ fn fill_batch_lanes(
         }
         for lane in 0..LANES {
             points[lane][pair] = [to_unit(xs[lane]), to_unit(ys[lane])];
+        }
+    }
+}
+
+/// The first `lanes` lanes of [`fill_batch_lanes`], in a loop the compiler
+/// does not unroll into vectors (kept out of line: a pixel's last batch
+/// only).
+#[inline(never)]
+fn fill_lanes_one_by_one(
+    pair_seeds: &[[u32; 3]; SOBOL_PAIRS as usize],
+    first_sample: u32,
+    lanes: u32,
+    points: &mut BatchPoints,
+) {
+    for (lane, lane_points) in (0..lanes).zip(points.iter_mut()) {
+        let reversed_index = first_sample.wrapping_add(lane).reverse_bits();
+        for (seeds, point) in pair_seeds.iter().zip(lane_points.iter_mut()) {
+            let (x, y) = owen_sobol_point(reversed_index, *seeds);
+            *point = [to_unit(x), to_unit(y)];
         }
     }
 }
@@ -435,6 +465,13 @@ mod tests {
             let mut portable = [[[0.0; 2]; SOBOL_PAIRS as usize]; SAMPLE_BATCH as usize];
             fill_batch_lanes(&pixel.pair_seeds, first, &mut portable);
             assert_eq!(pixel.batch(first).points, portable, "first sample {first}");
+            // A partial batch (a pixel's last samples) one lane at a time.
+            for lanes in [1, 3, SAMPLE_BATCH - 1] {
+                let mut partial = SampleBatch::default();
+                pixel.refill(&mut partial, first, lanes);
+                let n = lanes as usize;
+                assert_eq!(partial.points[..n], portable[..n], "{lanes} lanes");
+            }
         }
     }
 }
