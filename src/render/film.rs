@@ -106,17 +106,31 @@ fn tent(u: f64) -> f64 {
     f64::from_bits(half.to_bits() ^ sign_bit)
 }
 
-/// The camera rays' directions for a batch's samples of pixel (x, y): the
-/// footprints (pair 0) through the tent filter, then
+/// The camera rays' directions for the first `lanes` samples of a batch of
+/// pixel (x, y): the footprints (pair 0) through the tent filter, then
 /// [`PinholeCamera::directions`]; the same bits as `camera.ray` per sample.
 /// In the x86-64-v3 code path ([`crate::render::code_path`]) the lanes are
-/// compiled four to a register.
+/// compiled four to a register. A partial batch (a pixel's last samples)
+/// takes one `camera.ray` per sample instead.
 fn camera_directions(
     camera: &PinholeCamera,
     x: u32,
     y: u32,
     batch: &SampleBatch,
+    lanes: u32,
 ) -> [DVec3; SAMPLE_BATCH as usize] {
+    if lanes < SAMPLE_BATCH {
+        let footprints = batch.footprints();
+        let mut directions = [DVec3::ZERO; SAMPLE_BATCH as usize];
+        for ([fx, fy], direction) in footprints.iter().zip(&mut directions).take(lanes as usize) {
+            let (x_px, y_px) = (
+                f64::from(x) + 0.5 + tent(*fx),
+                f64::from(y) + 0.5 + tent(*fy),
+            );
+            *direction = camera.ray(x_px, y_px).direction;
+        }
+        return directions;
+    }
     #[cfg(target_arch = "x86_64")]
     if code_path() == CodePath::X86_64V3 {
         // SAFETY: `camera_directions_avx2` only needs AVX2, which
@@ -218,7 +232,7 @@ fn render_row_portable(
         for first_sample in (0..spp).step_by(SAMPLE_BATCH as usize) {
             let lanes = (spp - first_sample).min(SAMPLE_BATCH);
             pixel.refill(&mut batch, first_sample, lanes);
-            let directions = camera_directions(camera, x, y, &batch);
+            let directions = camera_directions(camera, x, y, &batch, lanes);
             for lane in 0..lanes {
                 let s = first_sample + lane;
                 let mut stream = batch.stream(lane);
