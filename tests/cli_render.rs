@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::cli::{lapidary, stderr};
+use common::cli::{lapidary, lapidary_with_env, stderr};
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -399,23 +399,22 @@ fn the_vector_code_path_writes_the_same_bytes_as_the_portable_one() {
     let default = dir.join("default.exr");
     let portable = dir.join("portable.exr");
     let mut summaries = Vec::new();
-    for (path, simd) in [(&default, None), (&portable, Some("off"))] {
-        let mut command = Command::new(env!("CARGO_BIN_EXE_lapidary"));
-        command.args([
+    for (path, env) in [
+        (&default, &[][..]),
+        (&portable, &[("LAPIDARY_SIMD", "off")][..]),
+    ] {
+        let args = [
             "render",
             "-o",
             path.to_str().unwrap(),
-            "--size",
-            "32",
-            "--spp",
-            "21",
             "--ao",
             "2",
-        ]);
-        if let Some(value) = simd {
-            command.env("LAPIDARY_SIMD", value);
-        }
-        let out = command.output().unwrap();
+            "--spp",
+            "21",
+            "--size",
+            "32",
+        ];
+        let out = lapidary_with_env(&args, env);
         assert!(out.status.success(), "{}", stderr(&out));
         summaries.push(stderr(&out));
     }

@@ -11,6 +11,15 @@ pub fn lapidary(args: &[&str]) -> Output {
         .expect("binary runs")
 }
 
+/// Runs `lapidary ARGS…` with the environment variables `env` set.
+pub fn lapidary_with_env(args: &[&str], env: &[(&str, &str)]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lapidary"))
+        .args(args)
+        .envs(env.iter().copied())
+        .output()
+        .expect("binary runs")
+}
+
 /// A fresh, empty directory for one test (`suite` and `name` keep tests of
 /// different files and of one file apart; the process id keeps runs apart).
 pub fn scratch(suite: &str, name: &str) -> PathBuf {
