@@ -120,14 +120,13 @@ fn camera_directions(
     lanes: u32,
 ) -> [DVec3; SAMPLE_BATCH as usize] {
     if lanes < SAMPLE_BATCH {
-        let footprints = batch.footprints();
         let mut directions = [DVec3::ZERO; SAMPLE_BATCH as usize];
-        for ([fx, fy], direction) in footprints.iter().zip(&mut directions).take(lanes as usize) {
-            let (x_px, y_px) = (
-                f64::from(x) + 0.5 + tent(*fx),
-                f64::from(y) + 0.5 + tent(*fy),
-            );
-            *direction = camera.ray(x_px, y_px).direction;
+        let footprints = batch.footprints();
+        for (footprint, direction) in footprints.iter().zip(&mut directions).take(lanes as usize) {
+            let [fx, fy] = *footprint;
+            *direction = camera
+                .ray(film_coordinate(x, fx), film_coordinate(y, fy))
+                .direction;
         }
         return directions;
     }
@@ -160,10 +159,29 @@ fn camera_directions_lanes(
     y: u32,
     batch: &SampleBatch,
 ) -> [DVec3; SAMPLE_BATCH as usize] {
-    let footprints = batch.footprints();
-    let x_px = footprints.map(|[fx, _]| f64::from(x) + 0.5 + tent(fx));
-    let y_px = footprints.map(|[_, fy]| f64::from(y) + 0.5 + tent(fy));
+    let (x_px, y_px) = film_points(x, y, batch);
     camera.directions(&x_px, &y_px)
+}
+
+/// Where each lane's camera ray crosses the film of pixel (x, y).
+#[inline(always)]
+fn film_points(
+    x: u32,
+    y: u32,
+    batch: &SampleBatch,
+) -> ([f64; SAMPLE_BATCH as usize], [f64; SAMPLE_BATCH as usize]) {
+    let footprints = batch.footprints();
+    (
+        footprints.map(|[fx, _]| film_coordinate(x, fx)),
+        footprints.map(|[_, fy]| film_coordinate(y, fy)),
+    )
+}
+
+/// One film coordinate of a sample of pixel number `pixel` (along x or y):
+/// the pixel's centre moved by `footprint` through the tent filter.
+#[inline(always)]
+fn film_coordinate(pixel: u32, footprint: f64) -> f64 {
+    f64::from(pixel) + 0.5 + tent(footprint)
 }
 
 fn to_f32x3(v: DVec3) -> [f32; 3] {

@@ -54,7 +54,7 @@ pub fn compile_gem_draft_or_full(
     draft: bool,
 ) -> Result<(GemShading, String), RecipeError> {
     let spec = parse_gem_spec(path, text)?;
-    let mut gem = gem_without_tables((path, text, spec), seed, material_id_base, draft)?;
+    let mut gem = gem_without_tables((path, text, spec), seed, material_id_base, draft, None)?;
     fill_tables(gem.wanting_tables().collect());
     Ok(finish_gems(vec![gem]).remove(0))
 }
@@ -107,51 +107,37 @@ fn finish_gems(gems: Vec<GemWithoutTables>) -> Vec<(GemShading, String)> {
 
 /// Compiles gem `spec` (read from recipe `text` at `path`) and its
 /// materials without their tables; with `draft` none of them wants one.
+/// With `shares_brdfs_of`, the gem of that index (the same recipe, another
+/// seed) lends its BRDFs and only the pattern is compiled: a seed changes
+/// the pattern, never a material.
 fn gem_without_tables(
     (path, text, spec): (&str, &str, GemSpec),
     seed: Option<u64>,
     material_id_base: u32,
     draft: bool,
+    shares_brdfs_of: Option<usize>,
 ) -> Result<GemWithoutTables, RecipeError> {
     let gem = compile_gem_spec(path, text, spec, seed)?;
-    let mut brdfs = Vec::with_capacity(gem.materials.len());
-    let mut wants_table = Vec::with_capacity(gem.materials.len());
-    for (name, material) in &gem.materials {
-        let source = MaterialSource {
-            path: path.to_string(),
-            name: name.clone(),
-            text: text.to_string(),
-        };
-        brdfs.push(compile_material_without_table(&source, material)?);
-        wants_table.push(material.multiple_scattering && !draft);
+    let mut brdfs = Vec::new();
+    let mut wants_table = Vec::new();
+    if shares_brdfs_of.is_none() {
+        for (name, material) in &gem.materials {
+            let source = MaterialSource {
+                path: path.to_string(),
+                name: name.clone(),
+                text: text.to_string(),
+            };
+            brdfs.push(compile_material_without_table(&source, material)?);
+            wants_table.push(material.multiple_scattering && !draft);
+        }
     }
     Ok(GemWithoutTables {
         pattern: gem.pattern,
         brdfs,
-        shares_brdfs_of: None,
+        shares_brdfs_of,
         material_id_base,
         name: gem.name,
         wants_table,
-    })
-}
-
-/// The gem of a recipe already read (`spec`, from `text` at `path`) with
-/// another `seed`, using the BRDFs of gem number `first` (the same recipe,
-/// compiled): only the pattern depends on the seed.
-fn reseeded_gem(
-    (path, text, spec): (&str, &str, &GemSpec),
-    seed: Option<u64>,
-    material_id_base: u32,
-    first: usize,
-) -> Result<GemWithoutTables, RecipeError> {
-    let gem = compile_gem_spec(path, text, spec.clone(), seed)?;
-    Ok(GemWithoutTables {
-        pattern: gem.pattern,
-        brdfs: Vec::new(),
-        shares_brdfs_of: Some(first),
-        material_id_base,
-        name: gem.name,
-        wants_table: Vec::new(),
     })
 }
 
@@ -177,9 +163,9 @@ fn fill_tables(mut brdfs: Vec<&mut LayeredBrdf>) {
 /// recipe is read and its materials compiled once; each distinct (gem,
 /// seed) pair gets its own pattern and shares the recipe's BRDFs. `report`
 /// hears what is being compiled (slow layered materials tabulate their
-/// compensation). The
-/// compensation tables of every gem and of the ground are computed together
-/// while the environment is built (baked or loaded) beside them.
+/// compensation). The compensation tables of every gem and of the ground
+/// are computed together while the environment is built (baked or loaded)
+/// beside them.
 pub fn prepare_scene(
     scene: &Scene,
     default_gem: &str,
@@ -210,24 +196,25 @@ pub fn prepare_scene(
     let mut recipes: Vec<(&str, String, String, GemSpec, usize)> = Vec::new();
     let mut material_id_base = MATERIAL_ID_FIRST_STONE;
     for (name, seed) in &keys {
-        let gem = match recipes.iter().find(|r| r.0 == name) {
-            Some((_, path, text, spec, first)) => {
-                reseeded_gem((path, text, spec), *seed, material_id_base, *first)
-            }
+        let recipe = match recipes.iter().position(|r| r.0 == name) {
+            Some(i) => i,
             None => {
                 report(&format!("compiling gem {name}"));
                 let (path, text) = load_gem_source(name).map_err(|e| e.to_string())?;
                 let spec = parse_gem_spec(&path, &text).map_err(|e| e.to_string())?;
-                let gem = gem_without_tables(
-                    (&path, &text, spec.clone()),
-                    *seed,
-                    material_id_base,
-                    false,
-                );
                 recipes.push((name, path, text, spec, gems.len()));
-                gem
+                recipes.len() - 1
             }
-        }
+        };
+        let (_, path, text, spec, first) = &recipes[recipe];
+        let shares_brdfs_of = (*first != gems.len()).then_some(*first);
+        let gem = gem_without_tables(
+            (path, text, spec.clone()),
+            *seed,
+            material_id_base,
+            false,
+            shares_brdfs_of,
+        )
         .map_err(|e| e.to_string())?;
         let first = gem.shares_brdfs_of.map_or(&gem, |first| &gems[first]);
         material_id_base += first.brdfs.len() as u32;
