@@ -16,7 +16,7 @@ use crate::brdf::Rgb;
 use crate::render::camera::{CameraRay, PinholeCamera};
 #[cfg(target_arch = "x86_64")]
 use crate::render::code_path::{code_path, CodePath};
-use crate::render::integrator::{RayCounts, RenderScene};
+use crate::render::integrator::{FirstHitSums, RayCounts, RenderScene};
 use crate::render::sampler::{PixelSampler, SampleBatch, SAMPLE_BATCH};
 
 /// What to render.
@@ -240,11 +240,7 @@ fn render_row_portable(
         let pixel_index = u64::from(y) * u64::from(settings.width) + u64::from(x);
         let pixel = PixelSampler::new(settings.seed, pixel_index);
         let mut sum = Rgb::ZERO;
-        let mut albedo = Rgb::ZERO;
-        let mut normal = DVec3::ZERO;
-        let (mut depth_sum, mut hits, mut glints) = (0.0, 0u32, 0u32);
-        let (mut cell, mut material) = (0, 0);
-        let mut unoccluded = 0.0;
+        let mut first_hits = FirstHitSums::default();
         // The Sobol points of SAMPLE_BATCH samples at a time, made together.
         let mut batch = SampleBatch::default();
         for first_sample in (0..spp).step_by(SAMPLE_BATCH as usize) {
@@ -260,8 +256,14 @@ fn render_row_portable(
                     direction: directions[lane as usize],
                 };
                 let mut counts = RayCounts::default();
-                let (radiance, first) =
-                    scene.radiance(ray.origin, ray.direction, &mut stream, &mut counts);
+                let radiance = scene.radiance(
+                    ray.origin,
+                    ray.direction,
+                    &mut stream,
+                    &mut counts,
+                    &mut first_hits,
+                    s == 0,
+                );
                 stats.traced_rays += counts.traced;
                 stats.shadow_rays += counts.shadow;
                 if radiance.is_finite() && radiance.min_element() >= 0.0 {
@@ -269,37 +271,24 @@ fn render_row_portable(
                 } else {
                     stats.bad_samples += 1;
                 }
-                unoccluded += first.unoccluded;
-                if s == 0 {
-                    cell = first.surface_cell;
-                    material = first.material_id;
-                }
-                if first.material_id != 0 {
-                    hits += 1;
-                    depth_sum += first.depth;
-                    if first.albedo.is_finite() {
-                        albedo += first.albedo;
-                    }
-                    normal += first.normal;
-                    glints += u32::from(first.glitter);
-                }
             }
         }
         let n = f64::from(spp);
         let x = x as usize;
         row.rgb[x] = to_f32x3(sum / n);
-        row.alpha[x] = (f64::from(hits) / n) as f32;
-        row.albedo[x] = to_f32x3(albedo / n);
-        row.normal[x] = to_f32x3(normal / n);
-        row.depth[x] = if hits > 0 {
-            (depth_sum / f64::from(hits)) as f32
+        let first = &first_hits;
+        row.alpha[x] = (f64::from(first.hits) / n) as f32;
+        row.albedo[x] = to_f32x3(first.albedo / n);
+        row.normal[x] = to_f32x3(first.normal / n);
+        row.depth[x] = if first.hits > 0 {
+            (first.depth / f64::from(first.hits)) as f32
         } else {
             f32::INFINITY
         };
-        row.surface_cell[x] = cell;
-        row.glitter[x] = (f64::from(glints) / n) as f32;
-        row.material_id[x] = material;
-        row.ao[x] = (unoccluded / n) as f32;
+        row.surface_cell[x] = first.surface_cell;
+        row.glitter[x] = (f64::from(first.glints) / n) as f32;
+        row.material_id[x] = first.material_id;
+        row.ao[x] = (first.unoccluded / n) as f32;
     }
     stats
 }

@@ -356,8 +356,14 @@ impl World {
         let mut ground = None;
         if let Some(h) = self.ground_height {
             if direction.z < 0.0 && origin.z > h {
+                // h − origin.z < 0 (exactly, for distinct numbers) over
+                // direction.z < 0: t > 0, so `t > t_min` holds for every
+                // t_min ≤ 0 and is tested only above 0. Written as
+                // `t > t_min && t < limit`, with the camera ray's (0, ∞)
+                // LLVM fused the two into a 13-instruction test of t's
+                // bits (1 % of a ground sample).
                 let t = (h - origin.z) / direction.z;
-                if t > t_min && t < limit {
+                if t < limit && (t_min <= 0.0 || t > t_min) {
                     limit = t;
                     ground = Some(h);
                 }
