@@ -87,7 +87,7 @@ pub struct FirstHit {
 /// A pixel's sums of its samples' [`FirstHit`]s, which
 /// [`RenderScene::radiance`] adds to where the first hit is known: a
 /// returned `FirstHit` went through an 80-byte stack copy at the end of
-/// every path and back (peer render loop ≈ 1 % of its instructions).
+/// every path and back (peer render loop 235.1 -> 234.4 M instructions).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FirstHitSums {
     /// Σ depth over the samples that hit something.
