@@ -726,21 +726,25 @@ fn lambert_sample(value: Rgb, u: [f64; 3]) -> Option<BrdfSample> {
     // is positive and finite (wi.z = √(1 − u₁) ≥ 2⁻²⁷ for u₁ < 1), and
     // tested as `0 < pdf < ∞` it compiled to ten integer instructions on
     // the density's bits, on every bounce off a Lambert surface.
-    let finite = value.x.is_finite() & value.y.is_finite() & value.z.is_finite();
-    finite.then_some(BrdfSample {
+    all_finite(value).then_some(BrdfSample {
         wi,
         value,
         pdf: cosine_hemisphere_pdf(wi),
     })
 }
 
+/// Whether every channel of `value` is finite; `&` rather than `&&`: no
+/// branch per channel.
+#[inline(always)]
+fn all_finite(value: Rgb) -> bool {
+    value.x.is_finite() & value.y.is_finite() & value.z.is_finite()
+}
+
 /// The sample (wi, f, pdf) unless it carries no usable energy: the density
 /// must be positive and finite and the value finite.
 #[inline]
 fn accept(wi: DVec3, value: Rgb, pdf: f64) -> Option<BrdfSample> {
-    // `&` rather than `&&`: no branch per channel.
-    let finite = value.x.is_finite() & value.y.is_finite() & value.z.is_finite();
-    if pdf > 0.0 && pdf < f64::INFINITY && finite {
+    if pdf > 0.0 && pdf < f64::INFINITY && all_finite(value) {
         Some(BrdfSample { wi, value, pdf })
     } else {
         None

@@ -31,6 +31,8 @@ const ENV: f64 = 0.2;
 const ALBEDO: f64 = 0.5;
 const INV_AXES: [f64; 3] = [1.0, 1.0 / 0.7, 1.0 / 0.45];
 const CAM: [f64; 3] = [0.0, -4.0957, 2.8679];
+/// Height of a ground point above the plane (lapidary's ray offset).
+const GROUND_OFFSET: f64 = 1e-9;
 
 #[inline(always)]
 fn mix(mut z: u64) -> u64 {
@@ -111,26 +113,18 @@ fn sphere_entry(o: [f64; 3], d: [f64; 3]) -> f64 {
     }
 }
 
-/// One ground sample: radiance, or NaN when it needs the general path.
+/// Next-event estimation at the ground point (px, py): the sphere light's
+/// MIS-weighted contribution (0 below the ground or behind the stone) and
+/// the cone's density, from the uniform numbers u0, u1. Written without
+/// early returns, so that the lane loops of [`run_vector`] use it as it is.
 #[inline(always)]
-fn ground_sample(i: u64, d: [f64; 3]) -> f64 {
-    let o = CAM;
-    if d[2] >= 0.0 {
-        return f64::NAN;
-    }
-    let t = -o[2] / d[2];
-    if stone_crosses(o, d, 0.0, t) || sphere_entry(o, d) < t {
-        return f64::NAN;
-    }
-    let p = [o[0] + d[0] * t, o[1] + d[1] * t, 1e-9];
-    let mut rad = 0.0;
-    // NEE: sphere light cone sample
+fn light_sample(px: f64, py: f64, u0: f64, u1: f64) -> (f64, f64) {
+    let p = [px, py, GROUND_OFFSET];
     let to = [C[0] - p[0], C[1] - p[1], C[2] - p[2]];
     let d2 = to[0] * to[0] + to[1] * to[1] + to[2] * to[2];
     let dist_c = d2.sqrt();
     let axis = [to[0] / dist_c, to[1] / dist_c, to[2] / dist_c];
     let cos_max = (1.0 - R * R / d2).max(0.0).sqrt();
-    let (u0, u1) = (unit(i, 1), unit(i, 2));
     let cos_theta = 1.0 - u0 * (1.0 - cos_max);
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
     let (sp, cp) = sincos_turns(u1);
@@ -146,28 +140,50 @@ fn ground_sample(i: u64, d: [f64; 3]) -> f64 {
     ];
     let reach = dist_c * cos_theta - (R * R - d2 * (1.0 - cos_theta * cos_theta)).max(0.0).sqrt();
     let pdf_l = 1.0 / (2.0 * PI * (1.0 - cos_max).max(1e-300));
-    if dir[2] > 0.0 && !stone_crosses(p, dir, 0.0, reach) {
-        let f = ALBEDO / PI;
-        let bpdf = dir[2] / PI;
-        rad += f * LE * dir[2] / pdf_l * power(pdf_l, bpdf);
-    }
-    // BRDF sample
-    let (u2, u3) = (unit(i, 3), unit(i, 4));
+    let lit = dir[2] > 0.0 && !stone_crosses(p, dir, 0.0, reach);
+    let f = ALBEDO / PI;
+    let bpdf = dir[2] / PI;
+    let contribution = f * LE * dir[2] / pdf_l * power(pdf_l, bpdf);
+    (if lit { contribution } else { 0.0 }, pdf_l)
+}
+
+/// The cosine-sampled bounce from the ground point (px, py), from u2, u3:
+/// what it brings back (the light, MIS-weighted against `pdf_l`, or the
+/// sky) and whether it meets the stone (a sample for the general path).
+#[inline(always)]
+fn bounce(px: f64, py: f64, u2: f64, u3: f64, pdf_l: f64) -> (f64, bool) {
+    let p = [px, py, GROUND_OFFSET];
     let r = u2.sqrt();
     let (s3, c3) = sincos_turns(u3);
     let wi = [r * c3, r * s3, (1.0 - u2).max(0.0).sqrt()];
     let bpdf = wi[2] / PI;
-    let thr = ALBEDO;
-    if stone_crosses(p, wi, 0.0, f64::INFINITY) {
+    let blocked = stone_crosses(p, wi, 0.0, f64::INFINITY);
+    let brought = if sphere_entry(p, wi).is_finite() {
+        ALBEDO * LE * power(bpdf, pdf_l)
+    } else {
+        ALBEDO * ENV
+    };
+    (brought, blocked)
+}
+
+/// One ground sample: radiance, or NaN when it needs the general path.
+#[inline(always)]
+fn ground_sample(i: u64, d: [f64; 3]) -> f64 {
+    let o = CAM;
+    if d[2] >= 0.0 {
         return f64::NAN;
     }
-    let tl = sphere_entry(p, wi);
-    if tl.is_finite() {
-        rad += thr * LE * power(bpdf, pdf_l);
-    } else {
-        rad += thr * ENV;
+    let t = -o[2] / d[2];
+    if stone_crosses(o, d, 0.0, t) || sphere_entry(o, d) < t {
+        return f64::NAN;
     }
-    rad
+    let (px, py) = (o[0] + d[0] * t, o[1] + d[1] * t);
+    let (direct, pdf_l) = light_sample(px, py, unit(i, 1), unit(i, 2));
+    let (brought, blocked) = bounce(px, py, unit(i, 3), unit(i, 4), pdf_l);
+    if blocked {
+        return f64::NAN;
+    }
+    direct + brought
 }
 
 #[target_feature(enable = "avx2,fma")]
@@ -216,64 +232,13 @@ unsafe fn run_vector(dirs: &[[f64; 3]], base: u64) -> (f64, usize) {
             ok[l] &= !stone_crosses(CAM, [dx[l], dy[l], dz[l]], 0.0, t[l])
                 && !(sphere_entry(CAM, [dx[l], dy[l], dz[l]]) < t[l]);
         }
-        let pz = 1e-9;
         let i0 = base + (chunk_i * L) as u64;
-        let mut u0: V = [0.0; L];
-        let mut u1: V = [0.0; L];
-        let mut u2: V = [0.0; L];
-        let mut u3: V = [0.0; L];
         for l in 0..L {
             let i = i0 + l as u64;
-            u0[l] = unit(i, 1);
-            u1[l] = unit(i, 2);
-            u2[l] = unit(i, 3);
-            u3[l] = unit(i, 4);
-        }
-        let mut rad: V = [0.0; L];
-        let mut pdf_l: V = [0.0; L];
-        for l in 0..L {
-            let to = [C[0] - px[l], C[1] - py[l], C[2] - pz];
-            let d2 = to[0] * to[0] + to[1] * to[1] + to[2] * to[2];
-            let dist_c = d2.sqrt();
-            let axis = [to[0] / dist_c, to[1] / dist_c, to[2] / dist_c];
-            let cos_max = (1.0 - R * R / d2).max(0.0).sqrt();
-            let cos_theta = 1.0 - u0[l] * (1.0 - cos_max);
-            let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-            let (sp, cp) = sincos_turns(u1[l]);
-            let (pp, qq) = (sin_theta * cp, sin_theta * sp);
-            let s = 1.0f64.copysign(axis[2]);
-            let a = -1.0 / (s + axis[2]);
-            let w = s * axis[0] * pp + axis[1] * qq;
-            let m = a * w + cos_theta;
-            let dir = [
-                pp + axis[0] * m,
-                s * qq + axis[1] * m,
-                axis[2] * cos_theta - w,
-            ];
-            let reach =
-                dist_c * cos_theta - (R * R - d2 * (1.0 - cos_theta * cos_theta)).max(0.0).sqrt();
-            let pl = 1.0 / (2.0 * PI * (1.0 - cos_max).max(1e-300));
-            pdf_l[l] = pl;
-            let lit = dir[2] > 0.0 && !stone_crosses([px[l], py[l], pz], dir, 0.0, reach);
-            let f = ALBEDO / PI;
-            let bpdf = dir[2] / PI;
-            let c = f * LE * dir[2] / pl * power(pl, bpdf);
-            rad[l] = if lit { c } else { 0.0 };
-        }
-        for l in 0..L {
-            let r = u2[l].sqrt();
-            let (s3, c3) = sincos_turns(u3[l]);
-            let wi = [r * c3, r * s3, (1.0 - u2[l]).max(0.0).sqrt()];
-            let bpdf = wi[2] / PI;
-            let p = [px[l], py[l], pz];
-            ok[l] &= !stone_crosses(p, wi, 0.0, f64::INFINITY);
-            let tl = sphere_entry(p, wi);
-            let add = if tl.is_finite() {
-                ALBEDO * LE * power(bpdf, pdf_l[l])
-            } else {
-                ALBEDO * ENV
-            };
-            out[l] = rad[l] + add;
+            let (direct, pdf_l) = light_sample(px[l], py[l], unit(i, 1), unit(i, 2));
+            let (brought, blocked) = bounce(px[l], py[l], unit(i, 3), unit(i, 4), pdf_l);
+            ok[l] &= !blocked;
+            out[l] = direct + brought;
         }
         for l in 0..L {
             if ok[l] {
