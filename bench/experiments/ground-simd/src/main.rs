@@ -49,53 +49,37 @@ trait Real:
     fn low_bits(self) -> u32;
 }
 
-impl Real for f64 {
-    const LANES: usize = 4;
-    const ROUNDER: f64 = 6_755_399_441_055_744.0;
-    const TINY: f64 = f64::MIN_POSITIVE;
-    fn of(x: f64) -> f64 {
-        x
-    }
-    fn to_f64(self) -> f64 {
-        self
-    }
-    fn sqrt(self) -> f64 {
-        f64::sqrt(self)
-    }
-    fn max(self, other: f64) -> f64 {
-        f64::max(self, other)
-    }
-    fn copysign(self, sign: f64) -> f64 {
-        f64::copysign(self, sign)
-    }
-    fn low_bits(self) -> u32 {
-        (self.to_bits() & 3) as u32
-    }
+/// `Real` for a primitive float `$t` with `$lanes` lanes to an AVX2
+/// register and the rounding constant 1.5 · 2^(mantissa bits).
+macro_rules! impl_real {
+    ($t:ident, $lanes:expr, $rounder:expr) => {
+        impl Real for $t {
+            const LANES: usize = $lanes;
+            const ROUNDER: $t = $rounder;
+            const TINY: $t = $t::MIN_POSITIVE;
+            fn of(x: f64) -> $t {
+                x as $t
+            }
+            fn to_f64(self) -> f64 {
+                self as f64
+            }
+            fn sqrt(self) -> $t {
+                $t::sqrt(self)
+            }
+            fn max(self, other: $t) -> $t {
+                $t::max(self, other)
+            }
+            fn copysign(self, sign: $t) -> $t {
+                $t::copysign(self, sign)
+            }
+            fn low_bits(self) -> u32 {
+                (self.to_bits() & 3) as u32
+            }
+        }
+    };
 }
-
-impl Real for f32 {
-    const LANES: usize = 8;
-    const ROUNDER: f32 = 12_582_912.0;
-    const TINY: f32 = f32::MIN_POSITIVE;
-    fn of(x: f64) -> f32 {
-        x as f32
-    }
-    fn to_f64(self) -> f64 {
-        f64::from(self)
-    }
-    fn sqrt(self) -> f32 {
-        f32::sqrt(self)
-    }
-    fn max(self, other: f32) -> f32 {
-        f32::max(self, other)
-    }
-    fn copysign(self, sign: f32) -> f32 {
-        f32::copysign(self, sign)
-    }
-    fn low_bits(self) -> u32 {
-        self.to_bits() & 3
-    }
-}
+impl_real!(f64, 4, 6_755_399_441_055_744.0);
+impl_real!(f32, 8, 12_582_912.0);
 
 /// The most lanes of any [`Real`] (the size of the lane arrays).
 const MAX_LANES: usize = 8;
@@ -340,20 +324,14 @@ fn run_lanes<T: Real>(dirs: &[[T; 3]]) -> (f64, usize) {
     (sum, fallback)
 }
 
+/// [`run_one_by_one`] compiled with AVX2 and FMA enabled.
 #[target_feature(enable = "avx2,fma")]
-unsafe fn scalar_f64(dirs: &[[f64; 3]]) -> (f64, usize) {
+unsafe fn one_by_one_avx2<T: Real>(dirs: &[[T; 3]]) -> (f64, usize) {
     run_one_by_one(dirs)
 }
+/// [`run_lanes`] compiled with AVX2 and FMA enabled.
 #[target_feature(enable = "avx2,fma")]
-unsafe fn lanes_f64(dirs: &[[f64; 3]]) -> (f64, usize) {
-    run_lanes(dirs)
-}
-#[target_feature(enable = "avx2,fma")]
-unsafe fn scalar_f32(dirs: &[[f32; 3]]) -> (f64, usize) {
-    run_one_by_one(dirs)
-}
-#[target_feature(enable = "avx2,fma")]
-unsafe fn lanes_f32(dirs: &[[f32; 3]]) -> (f64, usize) {
+unsafe fn lanes_avx2<T: Real>(dirs: &[[T; 3]]) -> (f64, usize) {
     run_lanes(dirs)
 }
 
@@ -405,10 +383,10 @@ fn main() {
         // SAFETY: the four kernels need AVX2 and FMA, which every x86-64
         // machine this measurement is run on has (checked below).
         assert!(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma"));
-        let s64 = timed(n, || unsafe { scalar_f64(&dirs) });
-        let v64 = timed(n, || unsafe { lanes_f64(&dirs) });
-        let s32 = timed(n, || unsafe { scalar_f32(&dirs32) });
-        let v32 = timed(n, || unsafe { lanes_f32(&dirs32) });
+        let s64 = timed(n, || unsafe { one_by_one_avx2(&dirs) });
+        let v64 = timed(n, || unsafe { lanes_avx2(&dirs) });
+        let s32 = timed(n, || unsafe { one_by_one_avx2(&dirs32) });
+        let v32 = timed(n, || unsafe { lanes_avx2(&dirs32) });
         println!(
             "round {round}: ns/sample f64 one lane {:.1}, f64x4 {:.1} ({:.2}x), f32 one lane {:.1}, f32x8 {:.1} ({:.2}x; f32x8 / f64x4 {:.2}x)",
             s64.0, v64.0, s64.0 / v64.0, s32.0, v32.0, s32.0 / v32.0, v64.0 / v32.0
