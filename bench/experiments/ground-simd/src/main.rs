@@ -223,7 +223,10 @@ fn light_sample<T: Real>(px: T, py: T, u0: T, u1: T) -> (T, T) {
         s * qq + axis[1] * m,
         axis[2] * cos_theta - w,
     ];
-    let reach = dist_c * cos_theta - (r2 - d2 * (k(1.0) - cos_theta * cos_theta)).max(k(0.0)).sqrt();
+    let reach = dist_c * cos_theta
+        - (r2 - d2 * (k(1.0) - cos_theta * cos_theta))
+            .max(k(0.0))
+            .sqrt();
     let pdf_l = k(1.0) / (k(2.0 * PI) * (k(1.0) - cos_max).max(T::TINY));
     let lit = dir[2] > k(0.0) && !stone_crosses(p, dir, k(0.0), reach);
     let f = k(ALBEDO / PI);
@@ -258,7 +261,7 @@ fn bounce<T: Real>(px: T, py: T, u2: T, u3: T, pdf_l: T) -> (T, bool) {
 fn camera_ground<T: Real>(d: [T; 3]) -> (bool, T, T) {
     let o: [T; 3] = v3(CAM);
     let t = -o[2] / d[2];
-    let ok = d[2] < T::of(0.0) && !stone_crosses(o, d, T::of(0.0), t) && !(sphere_entry(o, d) < t);
+    let ok = d[2] < T::of(0.0) && !stone_crosses(o, d, T::of(0.0), t) && sphere_entry(o, d) >= t;
     (ok, o[0] + d[0] * t, o[1] + d[1] * t)
 }
 
@@ -339,7 +342,11 @@ unsafe fn lanes_avx2<T: Real>(dirs: &[[T; 3]]) -> (f64, usize) {
 fn timed(n: usize, run: impl FnOnce() -> (f64, usize)) -> (f64, f64, usize) {
     let start = Instant::now();
     let (sum, fallbacks) = run();
-    (start.elapsed().as_secs_f64() / n as f64 * 1e9, sum / n as f64, fallbacks)
+    (
+        start.elapsed().as_secs_f64() / n as f64 * 1e9,
+        sum / n as f64,
+        fallbacks,
+    )
 }
 
 fn main() {
