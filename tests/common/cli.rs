@@ -5,10 +5,7 @@ use std::process::{Command, Output};
 
 /// Runs `lapidary ARGS…` and waits for it.
 pub fn lapidary(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lapidary"))
-        .args(args)
-        .output()
-        .expect("binary runs")
+    lapidary_with_env(args, &[])
 }
 
 /// Runs `lapidary ARGS…` with the environment variables `env` set.
