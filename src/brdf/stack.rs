@@ -344,7 +344,7 @@ impl LayeredBrdf {
     /// diffuse base with σ ≤ 0 (where `oren_nayar` is exactly
     /// `lambert(colour)`) and no compensation lobe.
     #[inline]
-    fn bare_lambert(&self) -> Option<Rgb> {
+    pub(crate) fn bare_lambert(&self) -> Option<Rgb> {
         match (&self.compensation, self.interfaces.is_empty(), &self.base) {
             (
                 None,

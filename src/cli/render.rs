@@ -311,13 +311,22 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         );
     }
     let rays = stats.traced_rays + stats.shadow_rays;
+    let samples = f64::from(width) * f64::from(height) * f64::from(args.spp);
+    let kernel = if stats.kernel_samples > 0 {
+        format!(
+            ", {:.0} % of samples by the ground path kernel",
+            stats.kernel_samples as f64 / samples * 100.0
+        )
+    } else {
+        String::new()
+    };
     report(&format!(
-        "wrote {} ({width} × {height}, {} spp) in {:.1} s: {:.2} Mrays/s, {:.2} M samples/s, {:.1} s total, {} code",
+        "wrote {} ({width} × {height}, {} spp) in {:.1} s: {:.2} Mrays/s, {:.2} M samples/s, {:.1} s total, {} code{kernel}",
         args.output.display(),
         args.spp,
         seconds,
         rays as f64 / seconds / 1e6,
-        f64::from(width) * f64::from(height) * f64::from(args.spp) / seconds / 1e6,
+        samples / seconds / 1e6,
         started.elapsed().as_secs_f64(),
         lapidary::render::code_path::code_path().name(),
     ));

@@ -464,6 +464,21 @@ impl Cabochon {
         self.flat_oval_hit(chord, origin, dir, t_min, t_max)
     }
 
+    /// This stone's constants for
+    /// [`HalfEllipsoidTest::crosses`](crate::geometry::half_ellipsoid::HalfEllipsoidTest::crosses),
+    /// the select form of [`Self::half_ellipsoid_crosses`]; only meaningful
+    /// when [`Self::is_half_ellipsoid`].
+    pub fn half_ellipsoid_test(&self) -> crate::geometry::half_ellipsoid::HalfEllipsoidTest {
+        crate::geometry::half_ellipsoid::HalfEllipsoidTest {
+            inv_axes: self.inv_axes,
+            buffed: self.buffed,
+            z_top: self.z_top,
+            // As `half_ellipsoid_chord` clips: at −girdle (−0 here).
+            base_z: -self.girdle,
+            size: self.size,
+        }
+    }
+
     /// [`Self::crosses`] for a half ellipsoid (see
     /// [`Self::intersect_half_ellipsoid`]).
     #[inline(always)]

@@ -16,7 +16,10 @@ use crate::brdf::Rgb;
 use crate::render::camera::{CameraRay, PinholeCamera};
 #[cfg(target_arch = "x86_64")]
 use crate::render::code_path::{code_path, CodePath};
-use crate::render::integrator::{FirstHitSums, RayCounts, RenderScene};
+use crate::render::ground_paths::GroundPaths;
+use crate::render::integrator::{
+    FirstHit, FirstHitSums, RayCounts, RenderScene, MATERIAL_ID_GROUND,
+};
 use crate::render::sampler::{PixelSampler, SampleBatch, SAMPLE_BATCH};
 
 /// What to render.
@@ -79,6 +82,9 @@ pub struct RenderStats {
     /// Samples whose radiance was NaN, infinite or negative, dropped from
     /// the film (counted so a user can see the integrator misbehaved).
     pub bad_samples: u64,
+    /// Samples traced by the ground path kernel
+    /// ([`crate::render::ground_paths`]) rather than the general loop.
+    pub kernel_samples: u64,
 }
 
 /// One row of the film, borrowed for writing.
@@ -197,6 +203,7 @@ fn to_f32x3(v: DVec3) -> [f32; 3] {
 /// Both copies write the same bytes (tested).
 fn render_row(
     scene: &RenderScene,
+    ground_paths: Option<&GroundPaths>,
     camera: &PinholeCamera,
     settings: &FilmSettings,
     y: u32,
@@ -206,9 +213,9 @@ fn render_row(
     if code_path() == CodePath::X86_64V3 {
         // SAFETY: `render_row_x86_64_v3` needs only the features that
         // `code_path` found on this CPU.
-        return unsafe { render_row_x86_64_v3(scene, camera, settings, y, row) };
+        return unsafe { render_row_x86_64_v3(scene, ground_paths, camera, settings, y, row) };
     }
-    render_row_portable(scene, camera, settings, y, row)
+    render_row_portable(scene, ground_paths, camera, settings, y, row)
 }
 
 /// [`render_row_portable`] compiled for x86-64-v3 (see [`render_row`]).
@@ -216,19 +223,24 @@ fn render_row(
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt")]
 fn render_row_x86_64_v3(
     scene: &RenderScene,
+    ground_paths: Option<&GroundPaths>,
     camera: &PinholeCamera,
     settings: &FilmSettings,
     y: u32,
     row: RowOut<'_>,
 ) -> RenderStats {
-    render_row_portable(scene, camera, settings, y, row)
+    render_row_portable(scene, ground_paths, camera, settings, y, row)
 }
 
 /// The row loop itself, for the baseline x86-64 (or any other) target;
-/// inlined into [`render_row_x86_64_v3`] for the other copy.
+/// inlined into [`render_row_x86_64_v3`] for the other copy. With
+/// `ground_paths`, each full batch of a pixel's samples goes through the
+/// ground path kernel first, and only the samples it leaves are traced by
+/// [`RenderScene::radiance`]; the samples are summed in order either way.
 #[inline(always)]
 fn render_row_portable(
     scene: &RenderScene,
+    ground_paths: Option<&GroundPaths>,
     camera: &PinholeCamera,
     settings: &FilmSettings,
     y: u32,
@@ -247,8 +259,43 @@ fn render_row_portable(
             let lanes = (spp - first_sample).min(SAMPLE_BATCH);
             pixel.refill(&mut batch, first_sample, lanes);
             let directions = camera_directions(camera, x, y, &batch, lanes);
+            // No closures here: a closure is compiled without the
+            // x86-64-v3 features of the function it is written in.
+            let kernel = match ground_paths {
+                Some(kernel) if lanes == SAMPLE_BATCH => {
+                    Some(kernel.trace(camera.position(), &directions, &batch))
+                }
+                _ => None,
+            };
             for lane in 0..lanes {
                 let s = first_sample + lane;
+                let by_kernel = match &kernel {
+                    Some(traced) => traced.traced[lane as usize],
+                    None => false,
+                };
+                if let (true, Some(traced)) = (by_kernel, &kernel) {
+                    let lane = lane as usize;
+                    let first = FirstHit {
+                        depth: traced.depth[lane],
+                        normal: DVec3::Z,
+                        albedo: traced.albedo[lane],
+                        unoccluded: 1.0,
+                        surface_cell: 0,
+                        glitter: false,
+                        material_id: MATERIAL_ID_GROUND,
+                    };
+                    first_hits.add(&first, s == 0);
+                    stats.traced_rays += 2;
+                    stats.shadow_rays += u64::from(traced.shadow_rays[lane]);
+                    stats.kernel_samples += 1;
+                    let radiance = traced.radiance[lane];
+                    if radiance.is_finite() && radiance.min_element() >= 0.0 {
+                        sum += radiance;
+                    } else {
+                        stats.bad_samples += 1;
+                    }
+                    continue;
+                }
                 let mut stream = batch.stream(lane);
                 stream.skip_2d(); // the footprint, already in `directions`
                 let ray = CameraRay {
@@ -316,6 +363,27 @@ pub fn render_cancellable(
     progress: &(dyn Fn(u64) + Sync),
     cancel: &AtomicBool,
 ) -> Option<Film> {
+    let ground_paths = GroundPaths::for_scene(scene);
+    render_film(
+        scene,
+        ground_paths.as_ref(),
+        camera,
+        settings,
+        progress,
+        cancel,
+    )
+}
+
+/// [`render_cancellable`] with the ground path kernel given (None: every
+/// sample through the general loop).
+fn render_film(
+    scene: &RenderScene,
+    ground_paths: Option<&GroundPaths>,
+    camera: &PinholeCamera,
+    settings: &FilmSettings,
+    progress: &(dyn Fn(u64) + Sync),
+    cancel: &AtomicBool,
+) -> Option<Film> {
     let pixels = settings.width as usize * settings.height as usize;
     let w = settings.width as usize;
     let mut film = Film {
@@ -365,7 +433,7 @@ pub fn render_cancellable(
                     material_id,
                     ao,
                 };
-                let stats = render_row(scene, camera, settings, y as u32, row);
+                let stats = render_row(scene, ground_paths, camera, settings, y as u32, row);
                 progress(u64::from(settings.width));
                 stats
             },
@@ -374,6 +442,7 @@ pub fn render_cancellable(
             traced_rays: a.traced_rays + b.traced_rays,
             shadow_rays: a.shadow_rays + b.shadow_rays,
             bad_samples: a.bad_samples + b.bad_samples,
+            kernel_samples: a.kernel_samples + b.kernel_samples,
         });
     if cancel.load(Ordering::Relaxed) {
         return None;

@@ -291,7 +291,8 @@ fn sun_radiance(angular_diameter_deg: f64, irradiance: Rgb) -> Rgb {
 }
 
 /// Uniform density over a cone of directions with cos half-angle `cos_max`.
-fn cone_pdf(cos_max: f64) -> f64 {
+#[inline(always)]
+pub(crate) fn cone_pdf(cos_max: f64) -> f64 {
     1.0 / (2.0 * PI * (1.0 - cos_max).max(1e-300))
 }
 
@@ -315,7 +316,7 @@ fn cone_pdf(cos_max: f64) -> f64 {
 /// within 10⁻¹³): no normalisation, whose division and square root are a
 /// tenth of a light sample's time.
 #[inline(always)]
-fn sample_cone(axis: DVec3, cos_max: f64, u: [f64; 2]) -> (DVec3, f64) {
+pub(crate) fn sample_cone(axis: DVec3, cos_max: f64, u: [f64; 2]) -> (DVec3, f64) {
     let cos_theta = 1.0 - u[0] * (1.0 - cos_max);
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
     let (sin_phi, cos_phi) = crate::sampling::sin_cos_turns(u[1]);
@@ -349,6 +350,36 @@ fn sphere_entry(origin: DVec3, direction: DVec3, centre: DVec3, radius: f64) -> 
         Some(far)
     } else {
         None
+    }
+}
+
+/// [`sphere_entry`] as selects, for lane loops: the same distance, or
+/// infinity where that returns None.
+#[inline(always)]
+pub(crate) fn sphere_entry_or_infinity(
+    origin: DVec3,
+    direction: DVec3,
+    centre: DVec3,
+    radius: f64,
+) -> f64 {
+    let oc = origin - centre;
+    let b = oc.dot(direction);
+    let c = oc.length_squared() - radius * radius;
+    let disc = b * b - c;
+    let root = disc.sqrt();
+    let near = -b - root;
+    let far = -b + root;
+    let t = if near > 0.0 {
+        near
+    } else if (far > 0.0) & (c > 0.0) {
+        far
+    } else {
+        f64::INFINITY
+    };
+    if disc < 0.0 {
+        f64::INFINITY
+    } else {
+        t
     }
 }
 
@@ -527,6 +558,13 @@ mod tests {
                 })
                 .flatten()
                 .filter(|t| *t < t_max);
+            // The select form for lane loops gives the same distance, bit
+            // for bit, or infinity for no entry.
+            assert_eq!(
+                sphere_entry_or_infinity(origin, direction, centre, radius),
+                sphere_entry(origin, direction, centre, radius).unwrap_or(f64::INFINITY),
+                "ray {i}"
+            );
             match (light.hit(origin, direction, t_max), expected) {
                 (Some((t, emitted)), Some(want)) => {
                     hits += 1;

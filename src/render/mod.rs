@@ -11,6 +11,7 @@ pub mod distribution;
 pub mod environment;
 pub mod figures;
 pub mod film;
+pub mod ground_paths;
 pub mod integrator;
 pub mod lights;
 pub mod prepare;

@@ -9,6 +9,7 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::ray::{Ray, RayHit};
 use obvhs::{Boundable, BvhBuildParams};
 
+use crate::geometry::half_ellipsoid::HalfEllipsoidTest;
 use crate::geometry::{Cabochon, Hit};
 use crate::render::stone_grid::StoneGrid;
 
@@ -168,6 +169,31 @@ impl Placement {
     }
 }
 
+/// A world's only stone, a half ellipsoid, for the lane loops of the
+/// ground path kernel (see [`World::lone_stone_for_lanes`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LoneStone {
+    position: DVec3,
+    /// None when the stone is not rotated (as [`Placement::unrotated`]).
+    world_to_object: Option<DMat3>,
+    shape: HalfEllipsoidTest,
+}
+
+impl LoneStone {
+    /// Whether the world ray crosses the stone in (`t_min`, `t_max`): the
+    /// answer of the lone-stone branches of [`World::intersect_leaving`]
+    /// (a hit or not) and [`World::occluded_leaving`], as selects.
+    #[inline(always)]
+    pub(crate) fn crosses(&self, origin: DVec3, direction: DVec3, t_min: f64, t_max: f64) -> bool {
+        // `Placement::object_ray`.
+        let (o, d) = match self.world_to_object {
+            None => (origin - self.position, direction),
+            Some(m) => (m * (origin - self.position), m * direction),
+        };
+        self.shape.crosses(o, d, t_min, t_max)
+    }
+}
+
 /// Scenes with at most this many stones test each stone's box directly:
 /// a slab test is cheaper than descending a BVH of a handful of boxes.
 const MAX_STONES_WITHOUT_BVH: usize = 4;
@@ -311,6 +337,23 @@ impl World {
     /// The stones, in scene order.
     pub fn stones(&self) -> &[StoneInstance] {
         &self.stones
+    }
+
+    /// What the ground path kernel ([`crate::render::ground_paths`]) needs
+    /// of the stones: `Some(None)` when there are none, `Some(Some(stone))`
+    /// when the only one is a half ellipsoid (tested as
+    /// [`World::intersect_leaving`] and [`World::occluded_leaving`] test
+    /// it), `None` for every other world (the kernel does not apply).
+    pub(crate) fn lone_stone_for_lanes(&self) -> Option<Option<LoneStone>> {
+        match (&self.lone_half_ellipsoid, self.stones.len()) {
+            (_, 0) => Some(None),
+            (Some((stone, placement)), _) => Some(Some(LoneStone {
+                position: stone.position,
+                world_to_object: (!placement.unrotated).then_some(placement.world_to_object),
+                shape: stone.cabochon.half_ellipsoid_test(),
+            })),
+            (None, _) => None,
+        }
     }
 
     /// The ground plane's height, if there is one.
