@@ -193,19 +193,6 @@ impl GroundPaths {
     ) -> GroundLanes {
         let zero: Lanes = [0.0; LANES];
         let lights = self.lights.len();
-        // The random numbers, in the stream's order: the footprint (already
-        // in `directions`), one pair per light, the bounce's three.
-        let mut light_u = [[[0.0; 2]; LANES]; MAX_LIGHTS];
-        let mut bounce_u = [[0.0; 3]; LANES];
-        for lane in 0..LANES {
-            let mut stream = batch.stream(lane as u32);
-            stream.skip_2d();
-            for light_u in light_u.iter_mut().take(lights) {
-                light_u[lane] = stream.next_2d();
-            }
-            bounce_u[lane] = stream.next_3d();
-        }
-
         // Each step below is a loop over the lanes with a straight-line
         // body (a loop over the lights inside one would keep LLVM from
         // vectorising it), the stone's tests in loops of their own.
@@ -239,8 +226,31 @@ impl GroundPaths {
                 traced[lane] &= t_light >= depth[lane];
             }
         }
+        // A batch of a pixel on the stone (or the sky) ends here.
+        if !traced.contains(&true) {
+            return GroundLanes {
+                traced,
+                radiance: [Rgb::ZERO; LANES],
+                depth,
+                albedo: [Rgb::ZERO; LANES],
+                shadow_rays: [0; LANES],
+            };
+        }
         let pz = h + 1.0 * RAY_OFFSET;
         let point = |lane: usize| DVec3::new(px[lane], py[lane], pz);
+
+        // The random numbers, in the stream's order: the footprint (already
+        // in `directions`), one pair per light, the bounce's three.
+        let mut light_u = [[[0.0; 2]; LANES]; MAX_LIGHTS];
+        let mut bounce_u = [[0.0; 3]; LANES];
+        for lane in 0..LANES {
+            let mut stream = batch.stream(lane as u32);
+            stream.skip_2d();
+            for light_u in light_u.iter_mut().take(lights) {
+                light_u[lane] = stream.next_2d();
+            }
+            bounce_u[lane] = stream.next_3d();
+        }
 
         // Next-event estimation of each light (`Light::sample` of a sphere,
         // then `RenderScene::direct` with the Lambert value and the power
