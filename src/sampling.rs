@@ -54,7 +54,6 @@ pub fn mix64(mut z: u64) -> u64 {
 /// are Taylor polynomials to x¹³ and x¹⁴ (the first omitted terms are below
 /// (π/4)¹⁵/15! ≈ 2·10⁻¹⁴ and (π/4)¹⁶/16! ≈ 10⁻¹⁵); several times faster
 /// than libm's `sin_cos`, which rounds correctly at a cost no sample needs.
-#[inline(always)]
 pub fn sin_cos_turns(t: f64) -> (f64, f64) {
     let (quarter, quadrant) = nearest_quarter_turn(t);
     let x = (t - quarter * 0.25) * (2.0 * PI);
@@ -90,17 +89,13 @@ pub fn sin_cos_turns(t: f64) -> (f64, f64) {
     // than a match, so that the lane loops of
     // [`crate::render::ground_paths`] compile it to vector blends (the
     // same bits: a negation is exact).
+    // The sine is negated for q = 2, 3 (bit 1 of q), the cosine for
+    // q = 1, 2 (bit 1 of q + 1).
     let odd = quadrant & 1 == 1;
     let (sin_abs, cos_abs) = if odd { (cos, sin) } else { (sin, cos) };
-    let sin_sign = if quadrant >= 2 { 1u64 << 63 } else { 0 };
-    let cos_sign = if quadrant == 1 || quadrant == 2 {
-        1u64 << 63
-    } else {
-        0
-    };
     (
-        f64::from_bits(sin_abs.to_bits() ^ sin_sign),
-        f64::from_bits(cos_abs.to_bits() ^ cos_sign),
+        f64::from_bits(sin_abs.to_bits() ^ ((quadrant & 2) << 62)),
+        f64::from_bits(cos_abs.to_bits() ^ (((quadrant + 1) & 2) << 62)),
     )
 }
 
@@ -110,7 +105,6 @@ pub fn sin_cos_turns(t: f64) -> (f64, f64) {
 /// |4t| < 2⁵¹. The sum 1.5·2⁵² + q has an ulp of 1, so its lowest
 /// mantissa bits are those of 2⁵¹ + q: q mod 4, read without a float to
 /// integer conversion.
-#[inline(always)]
 fn nearest_quarter_turn(t: f64) -> (f64, u64) {
     const ROUNDER: f64 = 6_755_399_441_055_744.0;
     let shifted = t * 4.0 + ROUNDER;
@@ -118,7 +112,6 @@ fn nearest_quarter_turn(t: f64) -> (f64, u64) {
 }
 
 /// Cosine-weighted direction on the upper hemisphere (z up); pdf = cosθ/π.
-#[inline(always)]
 pub fn cosine_hemisphere(u1: f64, u2: f64) -> DVec3 {
     let r = u1.sqrt();
     let (sin_phi, cos_phi) = sin_cos_turns(u2);
