@@ -41,7 +41,7 @@ use crate::render::code_path::{code_path, CodePath};
 use crate::render::environment::Environment;
 use crate::render::integrator::RenderScene;
 use crate::render::lights::{cone_pdf, sample_cone, sphere_entry_or_infinity, Light};
-use crate::render::sampler::{SampleBatch, SAMPLE_BATCH};
+use crate::render::sampler::{SampleBatch, SAMPLE_BATCH, SOBOL_PAIRS};
 use crate::render::world::{LoneStone, RAY_OFFSET};
 use crate::sampling::cosine_hemisphere;
 
@@ -51,6 +51,7 @@ pub const LANES: usize = SAMPLE_BATCH as usize;
 /// The most sphere lights the kernel takes: their samples and the bounce's
 /// must all come from the batch's Sobol pairs (footprint, lights, bounce).
 pub const MAX_LIGHTS: usize = 4;
+const _: () = assert!(1 + MAX_LIGHTS < SOBOL_PAIRS as usize);
 
 /// Whether `LAPIDARY_KERNELS=off` turns the kernel off for this process
 /// (to check that it changes no byte, or to rule it out when chasing a
@@ -239,17 +240,12 @@ impl GroundPaths {
         let pz = h + 1.0 * RAY_OFFSET;
         let point = |lane: usize| DVec3::new(px[lane], py[lane], pz);
 
-        // The random numbers, in the stream's order: the footprint (already
-        // in `directions`), one pair per light, the bounce's three.
-        let mut light_u = [[[0.0; 2]; LANES]; MAX_LIGHTS];
-        let mut bounce_u = [[0.0; 3]; LANES];
-        for lane in 0..LANES {
-            let mut stream = batch.stream(lane as u32);
-            stream.skip_2d();
-            for light_u in light_u.iter_mut().take(lights) {
-                light_u[lane] = stream.next_2d();
-            }
-            bounce_u[lane] = stream.next_3d();
+        // The random numbers, in each stream's order: Sobol pair 0 is the
+        // footprint (already in `directions`), pair 1 + i light i's sample,
+        // pair 1 + lights and the tail's first number the bounce's.
+        let mut bounce_tail = zero;
+        for (lane, tail) in bounce_tail.iter_mut().enumerate() {
+            *tail = batch.first_tail_number(lane as u32);
         }
 
         // Next-event estimation of each light (`Light::sample` of a sphere,
@@ -273,7 +269,7 @@ impl GroundPaths {
                 let d = d2.sqrt();
                 let axis = to / d;
                 let cos_max = (1.0 - r2 / d2).max(0.0).sqrt();
-                let (sampled, cos_theta) = sample_cone(axis, cos_max, light_u[index][lane]);
+                let (sampled, cos_theta) = sample_cone(axis, cos_max, batch.pair(lane, 1 + index));
                 let sin2_theta = 1.0 - cos_theta * cos_theta;
                 let distance = d * cos_theta - (r2 - d2 * sin2_theta).max(0.0).sqrt();
                 light_pdf[index][lane] = cone_pdf(cos_max);
@@ -310,8 +306,9 @@ impl GroundPaths {
         let mut wi = [DVec3::ZERO; LANES];
         let mut brdf_pdf = zero;
         for lane in 0..LANES {
-            let u = bounce_u[lane];
-            let sampled = cosine_hemisphere(u[1], u[2]);
+            // `lambert_sample` reads u₁ and u₂ of (u₀, u₁, u₂).
+            let [_, u1] = batch.pair(lane, 1 + lights);
+            let sampled = cosine_hemisphere(u1, bounce_tail[lane]);
             let pdf = sampled.z / PI;
             let weight = self.ground_value * (sampled.z / pdf);
             let throughput = Rgb::ONE * weight;

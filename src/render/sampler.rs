@@ -102,6 +102,24 @@ impl SampleBatch {
         self.points.map(|pairs| pairs[0])
     }
 
+    /// Sobol pair `pair` (< [`SOBOL_PAIRS`]) of sample `first_sample +
+    /// lane`: what that sample's stream returns from its `pair`-th
+    /// [`SampleStream::next_2d`], for kernels that read the lanes directly.
+    #[inline(always)]
+    pub fn pair(&self, lane: usize, pair: usize) -> [f64; 2] {
+        self.points[lane][pair]
+    }
+
+    /// The first number of the hashed tail of sample `first_sample + lane`:
+    /// what that sample's stream returns from its first
+    /// [`SampleStream::next_1d`] (the third number of its first
+    /// [`SampleStream::next_3d`]).
+    #[inline(always)]
+    pub fn first_tail_number(&self, lane: u32) -> f64 {
+        let sample_index = self.first_sample.wrapping_add(lane);
+        Rng::new(self.pixel_seed, u64::from(sample_index)).next_f64()
+    }
+
     /// The stream of sample `first_sample + lane` (lane < [`SAMPLE_BATCH`]).
     #[inline(always)]
     pub fn stream(&self, lane: u32) -> SampleStream<'_> {
