@@ -85,12 +85,11 @@ pub fn sin_cos_turns(t: f64) -> (f64, f64) {
     let sin = x * (1.0 + x2 * horner(&sin_terms));
     let cos = 1.0 + x2 * horner(&cos_terms);
     // sin and cos of q·π/2 + x: (sin, cos), (cos, −sin), (−sin, −cos),
-    // (−cos, sin) for q = 0…3, written as selects and sign flips rather
-    // than a match, so that the lane loops of
-    // [`crate::render::ground_paths`] compile it to vector blends (the
-    // same bits: a negation is exact).
-    // The sine is negated for q = 2, 3 (bit 1 of q), the cosine for
-    // q = 1, 2 (bit 1 of q + 1).
+    // (−cos, sin) for q = 0…3. The pair swaps for odd q, the sine is
+    // negated for q = 2, 3 (bit 1 of q) and the cosine for q = 1, 2 (bit 1
+    // of q + 1): a select and two sign flips rather than a match, so that
+    // the lane loops of [`crate::render::ground_paths`] compile it to
+    // vector blends (the same bits: a negation is exact).
     let odd = quadrant & 1 == 1;
     let (sin_abs, cos_abs) = if odd { (cos, sin) } else { (sin, cos) };
     (

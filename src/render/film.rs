@@ -13,13 +13,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use rayon::prelude::*;
 
 use crate::brdf::Rgb;
-use crate::render::camera::{CameraRay, PinholeCamera};
+use crate::render::camera::PinholeCamera;
 #[cfg(target_arch = "x86_64")]
 use crate::render::code_path::{code_path, CodePath};
-use crate::render::ground_paths::GroundPaths;
-use crate::render::integrator::{
-    FirstHit, FirstHitSums, RayCounts, RenderScene, MATERIAL_ID_GROUND,
-};
+use crate::render::ground_paths::{GroundPaths, TRACED_RAYS_PER_PATH};
+use crate::render::integrator::{FirstHitSums, RayCounts, RenderScene};
 use crate::render::sampler::{PixelSampler, SampleBatch, SAMPLE_BATCH};
 
 /// What to render.
@@ -269,50 +267,32 @@ fn render_row_portable(
             };
             for lane in 0..lanes {
                 let s = first_sample + lane;
-                let by_kernel = match &kernel {
-                    Some(traced) => traced.traced[lane as usize],
-                    None => false,
-                };
-                if let (true, Some(traced)) = (by_kernel, &kernel) {
-                    let lane = lane as usize;
-                    let first = FirstHit {
-                        depth: traced.depth[lane],
-                        normal: DVec3::Z,
-                        albedo: traced.albedo[lane],
-                        unoccluded: 1.0,
-                        surface_cell: 0,
-                        glitter: false,
-                        material_id: MATERIAL_ID_GROUND,
-                    };
-                    first_hits.add(&first, s == 0);
-                    stats.traced_rays += 2;
-                    stats.shadow_rays += u64::from(traced.shadow_rays[lane]);
-                    stats.kernel_samples += 1;
-                    let radiance = traced.radiance[lane];
-                    if radiance.is_finite() && radiance.min_element() >= 0.0 {
-                        sum += radiance;
-                    } else {
-                        stats.bad_samples += 1;
+                let radiance = match &kernel {
+                    Some(traced) if traced.traced[lane as usize] => {
+                        let lane = lane as usize;
+                        first_hits.add(&traced.first_hit(lane), s == 0);
+                        stats.traced_rays += TRACED_RAYS_PER_PATH;
+                        stats.shadow_rays += u64::from(traced.shadow_rays[lane]);
+                        stats.kernel_samples += 1;
+                        traced.radiance[lane]
                     }
-                    continue;
-                }
-                let mut stream = batch.stream(lane);
-                stream.skip_2d(); // the footprint, already in `directions`
-                let ray = CameraRay {
-                    origin: camera.position(),
-                    direction: directions[lane as usize],
+                    _ => {
+                        let mut stream = batch.stream(lane);
+                        stream.skip_2d(); // the footprint, already in `directions`
+                        let mut counts = RayCounts::default();
+                        let radiance = scene.radiance(
+                            camera.position(),
+                            directions[lane as usize],
+                            &mut stream,
+                            &mut counts,
+                            &mut first_hits,
+                            s == 0,
+                        );
+                        stats.traced_rays += counts.traced;
+                        stats.shadow_rays += counts.shadow;
+                        radiance
+                    }
                 };
-                let mut counts = RayCounts::default();
-                let radiance = scene.radiance(
-                    ray.origin,
-                    ray.direction,
-                    &mut stream,
-                    &mut counts,
-                    &mut first_hits,
-                    s == 0,
-                );
-                stats.traced_rays += counts.traced;
-                stats.shadow_rays += counts.shadow;
                 if radiance.is_finite() && radiance.min_element() >= 0.0 {
                     sum += radiance;
                 } else {
@@ -364,26 +344,7 @@ pub fn render_cancellable(
     cancel: &AtomicBool,
 ) -> Option<Film> {
     let ground_paths = GroundPaths::for_scene(scene);
-    render_film(
-        scene,
-        ground_paths.as_ref(),
-        camera,
-        settings,
-        progress,
-        cancel,
-    )
-}
-
-/// [`render_cancellable`] with the ground path kernel given (None: every
-/// sample through the general loop).
-fn render_film(
-    scene: &RenderScene,
-    ground_paths: Option<&GroundPaths>,
-    camera: &PinholeCamera,
-    settings: &FilmSettings,
-    progress: &(dyn Fn(u64) + Sync),
-    cancel: &AtomicBool,
-) -> Option<Film> {
+    let ground_paths = ground_paths.as_ref();
     let pixels = settings.width as usize * settings.height as usize;
     let w = settings.width as usize;
     let mut film = Film {

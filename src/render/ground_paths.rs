@@ -39,7 +39,7 @@ use crate::brdf::Rgb;
 #[cfg(target_arch = "x86_64")]
 use crate::render::code_path::{code_path, CodePath};
 use crate::render::environment::Environment;
-use crate::render::integrator::RenderScene;
+use crate::render::integrator::{power_heuristic, FirstHit, RenderScene, MATERIAL_ID_GROUND};
 use crate::render::lights::{cone_pdf, sample_cone, sphere_entry_or_infinity, Light};
 use crate::render::sampler::{SampleBatch, SAMPLE_BATCH, SOBOL_PAIRS};
 use crate::render::world::{LoneStone, RAY_OFFSET};
@@ -99,6 +99,26 @@ pub struct GroundLanes {
     pub albedo: [Rgb; LANES],
     /// Shadow rays cast (lights that passed `direct`'s tests).
     pub shadow_rays: [u32; LANES],
+}
+
+/// Camera ray and bounce: the rays of every path the kernel traces.
+pub const TRACED_RAYS_PER_PATH: u64 = 2;
+
+impl GroundLanes {
+    /// Lane `lane`'s first hit, as [`RenderScene::radiance`] records a
+    /// ground hit (no AO ray in the kernel's class).
+    #[inline(always)]
+    pub fn first_hit(&self, lane: usize) -> FirstHit {
+        FirstHit {
+            depth: self.depth[lane],
+            normal: DVec3::Z,
+            albedo: self.albedo[lane],
+            unoccluded: 1.0,
+            surface_cell: 0,
+            glitter: false,
+            material_id: MATERIAL_ID_GROUND,
+        }
+    }
 }
 
 /// Per-lane arrays of one quantity.
@@ -371,18 +391,5 @@ impl GroundPaths {
             albedo,
             shadow_rays,
         }
-    }
-}
-
-/// [`crate::render::integrator::power_heuristic`] as selects.
-#[inline(always)]
-fn power_heuristic(pdf_a: f64, pdf_b: f64) -> f64 {
-    let a = pdf_a * pdf_a;
-    let b = pdf_b * pdf_b;
-    let w = a / (a + b);
-    if a + b <= 0.0 {
-        0.0
-    } else {
-        w
     }
 }

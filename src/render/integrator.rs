@@ -140,7 +140,9 @@ pub struct RayCounts {
 }
 
 /// The power heuristic with exponent 2 for a strategy of density `pdf_a`
-/// against one of density `pdf_b` (Veach 1997, eq. 9.13).
+/// against one of density `pdf_b` (Veach 1997, eq. 9.13). Inlined: the
+/// lane loops of [`crate::render::ground_paths`] compile it to a blend.
+#[inline(always)]
 pub fn power_heuristic(pdf_a: f64, pdf_b: f64) -> f64 {
     let a = pdf_a * pdf_a;
     let b = pdf_b * pdf_b;
