@@ -177,6 +177,27 @@ fn cached_resolve_equals_uncached_for_every_builtin_gem() {
 }
 
 #[test]
+fn a_plain_stone_answers_inline_as_the_uncached_tree() {
+    // One material, no map, no glitter: `resolve` answers without the
+    // tree walk; the answer must be the walk's, and name the surface's
+    // material.
+    let text = r#"Gem(
+        name: "plain",
+        materials: {
+            "a": Material(layers: [], base: Diffuse(colour: (0.5, 0.5, 0.5))),
+            "b": Material(layers: [Layer(ior: 1.5, roughness_deg: 0.0)], base: Diffuse(colour: (0.1, 0.5, 0.2))),
+        },
+        surface: "b",
+    )"#;
+    let gem = parse_gem("plain.ron", text).unwrap_or_else(|e| panic!("{e}"));
+    let mut rng = TestRng(0x9a1e);
+    let points = uniform_points(&mut rng, 1000);
+    assert_cached_equals_uncached(&gem.pattern, &points, "plain");
+    let material = gem.pattern.resolve(points[0]).material;
+    assert_eq!(gem.materials[material as usize].0, "b");
+}
+
+#[test]
 fn cached_resolve_equals_uncached_when_two_patterns_alternate() {
     let a = builtin("lavender-lepidolite");
     let b = builtin("patterned-sunstone");

@@ -246,6 +246,9 @@ fn render_row_portable(
 ) -> RenderStats {
     let mut stats = RenderStats::default();
     let spp = settings.samples_per_pixel;
+    // The pairs every sample draws (the kernel's are a subset), made for
+    // the batch at once; deeper ones when a path draws them.
+    let eager_pairs = scene.first_vertex_pairs();
     for x in 0..settings.width {
         let pixel_index = u64::from(y) * u64::from(settings.width) + u64::from(x);
         let pixel = PixelSampler::new(settings.seed, pixel_index);
@@ -255,7 +258,7 @@ fn render_row_portable(
         let mut batch = SampleBatch::default();
         for first_sample in (0..spp).step_by(SAMPLE_BATCH as usize) {
             let lanes = (spp - first_sample).min(SAMPLE_BATCH);
-            pixel.refill(&mut batch, first_sample, lanes);
+            pixel.refill(&mut batch, first_sample, lanes, eager_pairs);
             let directions = camera_directions(camera, x, y, &batch, lanes);
             // No closures here: a closure is compiled without the
             // x86-64-v3 features of the function it is written in.

@@ -163,6 +163,9 @@ impl GroundPaths {
             })
             .collect::<Option<Vec<_>>>()?;
         let stone = scene.world.lone_stone_for_lanes()?;
+        // The batch's pairs the kernel reads (footprint, lights, bounce)
+        // are among those the film makes for every lane.
+        debug_assert!(2 + lights.len() as u32 <= scene.first_vertex_pairs());
         Some(Self {
             ground_height,
             ground_value,

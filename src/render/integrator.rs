@@ -14,7 +14,7 @@ use glam::DVec3;
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
 use crate::render::environment::Environment;
 use crate::render::lights::Light;
-use crate::render::sampler::SampleStream;
+use crate::render::sampler::{SampleStream, SOBOL_PAIRS};
 use crate::render::world::{Surface, SurfaceHit, World, RAY_OFFSET};
 use crate::sampling::cosine_hemisphere;
 use crate::texture::pattern::Pattern;
@@ -446,6 +446,21 @@ impl RenderScene {
     /// directions half of which point below the surface.
     fn samples_environment(&self) -> bool {
         !matches!(self.environment, Environment::Constant(_))
+    }
+
+    /// How many 2-D pairs of its stream a path draws at its first vertex
+    /// (in [`RenderScene::radiance`]'s order: the footprint, one per light,
+    /// the environment's sample if it takes one, the BRDF sample), at most
+    /// [`SOBOL_PAIRS`]: the pairs worth making for every sample of a batch
+    /// ahead of time (see [`PixelSampler::refill`]).
+    ///
+    /// [`PixelSampler::refill`]: crate::render::sampler::PixelSampler::refill
+    pub fn first_vertex_pairs(&self) -> u32 {
+        let lights = u32::try_from(self.lights.len()).unwrap_or(u32::MAX);
+        let environment = u32::from(self.samples_environment());
+        2u32.saturating_add(lights)
+            .saturating_add(environment)
+            .min(SOBOL_PAIRS)
     }
 
     /// One ambient-occlusion ray of length `distance` around the geometric

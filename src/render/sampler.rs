@@ -53,29 +53,35 @@ impl PixelSampler {
     /// `first_sample + SAMPLE_BATCH − 1` (wrapping), every pair of each:
     /// one vectorised pass instead of one scalar pass per point drawn.
     pub fn batch(&self, first_sample: u32) -> SampleBatch {
-        let mut batch = SampleBatch {
-            pixel_seed: self.pixel_seed,
-            first_sample,
-            points: [[[0.0; 2]; SOBOL_PAIRS as usize]; SAMPLE_BATCH as usize],
-        };
-        self.refill(&mut batch, first_sample, SAMPLE_BATCH);
+        let mut batch = SampleBatch::default();
+        self.refill(&mut batch, first_sample, SAMPLE_BATCH, SOBOL_PAIRS);
         batch
     }
 
-    /// Makes the first `lanes` lanes of `batch` hold those of
-    /// [`PixelSampler::batch`]`(first_sample)`, in place (a batch is 1.5 KB:
-    /// the render loop reuses one rather than copy a new one in). A full
-    /// batch is made in vector code; fewer lanes (a pixel's last samples, or
-    /// a preview's one sample) one point at a time, so that 1 spp does not
-    /// pay for 16 samples' points.
+    /// Makes `batch` the batch of the pixel's samples `first_sample` to
+    /// `first_sample + lanes − 1`, in place (a batch is 1.5 KB: the render
+    /// loop reuses one rather than copy a new one in), with the first
+    /// `eager_pairs` Sobol pairs of every lane made now and the others
+    /// left to [`SampleStream::next_2d`], which makes a later pair when a
+    /// path draws it: most paths end before they need them (issue 6: on
+    /// the peer scene three of the six pairs are drawn by 12 % of the
+    /// stone's samples and by none of the ground kernel's). A full batch is
+    /// made in vector code; fewer lanes (a pixel's last samples, or a
+    /// preview's one sample) one point at a time, so that 1 spp does not
+    /// pay for 16 samples' points. Either way every number drawn is the
+    /// same.
     #[inline(always)]
-    pub fn refill(&self, batch: &mut SampleBatch, first_sample: u32, lanes: u32) {
+    pub fn refill(&self, batch: &mut SampleBatch, first_sample: u32, lanes: u32, eager_pairs: u32) {
+        let eager_pairs = eager_pairs.min(SOBOL_PAIRS);
         batch.pixel_seed = self.pixel_seed;
         batch.first_sample = first_sample;
+        batch.pair_seeds = self.pair_seeds;
+        batch.eager_pairs = eager_pairs;
+        let seeds = &self.pair_seeds[..eager_pairs as usize];
         if lanes >= SAMPLE_BATCH {
-            fill_batch(&self.pair_seeds, first_sample, &mut batch.points);
+            fill_batch(seeds, first_sample, &mut batch.points);
         } else {
-            fill_lanes_one_by_one(&self.pair_seeds, first_sample, lanes, &mut batch.points);
+            fill_lanes_one_by_one(seeds, first_sample, lanes, &mut batch.points);
         }
     }
 }
@@ -92,7 +98,13 @@ pub const SAMPLE_BATCH: u32 = 16;
 pub struct SampleBatch {
     pixel_seed: u64,
     first_sample: u32,
-    /// `points[lane][pair]`: pair `pair` of sample `first_sample + lane`.
+    /// The pixel's scrambling seeds of each pair (for the pairs made when
+    /// drawn).
+    pair_seeds: [[u32; 3]; SOBOL_PAIRS as usize],
+    /// How many pairs `points` holds for every lane.
+    eager_pairs: u32,
+    /// `points[lane][pair]`: pair `pair` (< `eager_pairs`) of sample
+    /// `first_sample + lane`.
     points: [[[f64; 2]; SOBOL_PAIRS as usize]; SAMPLE_BATCH as usize],
 }
 
@@ -102,11 +114,14 @@ impl SampleBatch {
         self.points.map(|pairs| pairs[0])
     }
 
-    /// Sobol pair `pair` (< [`SOBOL_PAIRS`]) of sample `first_sample +
-    /// lane`: what that sample's stream returns from its `pair`-th
-    /// [`SampleStream::next_2d`], for kernels that read the lanes directly.
+    /// Sobol pair `pair` of sample `first_sample + lane`, one of the pairs
+    /// made for every lane (`pair` < the `eager_pairs` of
+    /// [`PixelSampler::refill`]): what that sample's stream returns from
+    /// its `pair`-th [`SampleStream::next_2d`], for kernels that read the
+    /// lanes directly.
     #[inline(always)]
     pub fn pair(&self, lane: usize, pair: usize) -> [f64; 2] {
+        debug_assert!(pair < self.eager_pairs as usize, "pair {pair} was not made");
         self.points[lane][pair]
     }
 
@@ -128,6 +143,8 @@ impl SampleBatch {
             pixel_seed: self.pixel_seed,
             sample_index,
             points: &self.points[lane as usize],
+            eager_pairs: self.eager_pairs,
+            pair_seeds: &self.pair_seeds,
             next_pair: 0,
             tail: Rng::new(self.pixel_seed, u64::from(sample_index)),
         }
@@ -139,8 +156,12 @@ impl SampleBatch {
 pub struct SampleStream<'a> {
     pixel_seed: u64,
     sample_index: u32,
-    /// This sample's Sobol pairs, from its [`SampleBatch`].
+    /// This sample's Sobol pairs, from its [`SampleBatch`] (the first
+    /// `eager_pairs` of them).
     points: &'a [[f64; 2]; SOBOL_PAIRS as usize],
+    eager_pairs: u32,
+    /// The pixel's scrambling seeds, for the pairs made when drawn.
+    pair_seeds: &'a [[u32; 3]; SOBOL_PAIRS as usize],
     next_pair: u32,
     tail: Rng,
 }
@@ -152,11 +173,24 @@ impl SampleStream<'_> {
     pub fn next_2d(&mut self) -> [f64; 2] {
         let pair = self.next_pair;
         self.next_pair += 1;
-        if pair < SOBOL_PAIRS {
+        if pair < self.eager_pairs {
             self.points[pair as usize]
+        } else if pair < SOBOL_PAIRS {
+            self.later_pair(pair)
         } else {
             [self.tail.next_f64(), self.tail.next_f64()]
         }
+    }
+
+    /// Sobol pair `pair` of this sample made now, one point of the batch's
+    /// fill (the same bits): out of line, as few paths get this deep.
+    #[inline(never)]
+    fn later_pair(&self, pair: u32) -> [f64; 2] {
+        let (x, y) = owen_sobol_point(
+            self.sample_index.reverse_bits(),
+            self.pair_seeds[pair as usize],
+        );
+        [to_unit(x), to_unit(y)]
     }
 
     /// Passes over the next two numbers (those the caller already took
@@ -201,18 +235,14 @@ fn scramble_seeds(seed: u64) -> [u32; 3] {
     [h as u32, (h >> 32) as u32, mix64(h) as u32]
 }
 
-/// Fills `points[lane][pair]` with pair `pair` of sample
-/// `first_sample + lane` of the pixel whose pairs are scrambled by
+/// Fills `points[lane][pair]` with pair `pair` (< `pair_seeds.len()`) of
+/// sample `first_sample + lane` of the pixel whose pairs are scrambled by
 /// `pair_seeds`. In the x86-64-v3 code path ([`crate::render::code_path`])
 /// the same code is compiled for eight 32-bit lanes per instruction (AVX2,
 /// two registers per step; an AVX-512 copy of sixteen lanes was no faster
 /// on the benchmark machine); integer arithmetic, so both versions give the
 /// same bits.
-fn fill_batch(
-    pair_seeds: &[[u32; 3]; SOBOL_PAIRS as usize],
-    first_sample: u32,
-    points: &mut BatchPoints,
-) {
+fn fill_batch(pair_seeds: &[[u32; 3]], first_sample: u32, points: &mut BatchPoints) {
     #[cfg(target_arch = "x86_64")]
     if code_path() == CodePath::X86_64V3 {
         // SAFETY: `fill_batch_avx2` only needs AVX2, which `code_path`
@@ -229,11 +259,7 @@ type BatchPoints = [[[f64; 2]; SOBOL_PAIRS as usize]; SAMPLE_BATCH as usize];
 /// [`fill_batch_lanes`] compiled with AVX2 enabled.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn fill_batch_avx2(
-    pair_seeds: &[[u32; 3]; SOBOL_PAIRS as usize],
-    first_sample: u32,
-    points: &mut BatchPoints,
-) {
+fn fill_batch_avx2(pair_seeds: &[[u32; 3]], first_sample: u32, points: &mut BatchPoints) {
     fill_batch_lanes(pair_seeds, first_sample, points);
 }
 
@@ -241,11 +267,7 @@ fn fill_batch_avx2(
 /// vectorises: every step of [`owen_sobol_point`] is one operation on all
 /// lanes (`reverse_bits` becomes byte shuffles).
 #[inline(always)]
-fn fill_batch_lanes(
-    pair_seeds: &[[u32; 3]; SOBOL_PAIRS as usize],
-    first_sample: u32,
-    points: &mut BatchPoints,
-) {
+fn fill_batch_lanes(pair_seeds: &[[u32; 3]], first_sample: u32, points: &mut BatchPoints) {
     const LANES: usize = SAMPLE_BATCH as usize;
     let mut reversed_index = [0u32; LANES];
     for (lane, r) in (0u32..).zip(reversed_index.iter_mut()) {
@@ -267,7 +289,7 @@ fn fill_batch_lanes(
 /// only).
 #[inline(never)]
 fn fill_lanes_one_by_one(
-    pair_seeds: &[[u32; 3]; SOBOL_PAIRS as usize],
+    pair_seeds: &[[u32; 3]],
     first_sample: u32,
     lanes: u32,
     points: &mut BatchPoints,
@@ -475,6 +497,35 @@ mod tests {
     }
 
     #[test]
+    fn pairs_made_when_drawn_equal_those_made_with_the_batch() {
+        // A batch that makes only its first pairs ahead draws, in every
+        // lane, the numbers of the batch that made them all: the later
+        // pairs made on demand, then the same tail. Full and partial
+        // batches, every eager count.
+        for (seed, pixel_index, first) in [(0u64, 0u64, 0u32), (5, 99, 64), (7, 3, u32::MAX - 2)] {
+            let pixel = PixelSampler::new(seed, pixel_index);
+            let complete = pixel.batch(first);
+            for lanes in [SAMPLE_BATCH, 5] {
+                for eager_pairs in 0..=SOBOL_PAIRS + 1 {
+                    let mut lazy = SampleBatch::default();
+                    pixel.refill(&mut lazy, first, lanes, eager_pairs);
+                    for lane in 0..lanes {
+                        let (mut expected, mut drawn) = (complete.stream(lane), lazy.stream(lane));
+                        for draw in 0..SOBOL_PAIRS + 2 {
+                            assert_eq!(
+                                drawn.next_2d(),
+                                expected.next_2d(),
+                                "eager {eager_pairs}, lane {lane}, draw {draw}"
+                            );
+                        }
+                        assert_eq!(drawn.next_1d(), expected.next_1d());
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
     fn the_vectorised_batch_equals_the_portable_one() {
         // `fill_batch` takes the AVX2 build where the CPU has it; the
         // plain loops are the other build. Integer arithmetic: same bits.
@@ -486,7 +537,7 @@ mod tests {
             // A partial batch (a pixel's last samples) one lane at a time.
             for lanes in [1, 3, SAMPLE_BATCH - 1] {
                 let mut partial = SampleBatch::default();
-                pixel.refill(&mut partial, first, lanes);
+                pixel.refill(&mut partial, first, lanes, SOBOL_PAIRS);
                 let n = lanes as usize;
                 assert_eq!(partial.points[..n], portable[..n], "{lanes} lanes");
             }

@@ -942,9 +942,24 @@ impl Pattern {
     /// cell's feature point, a map's entry, a glitter cell's fill). Results
     /// never depend on what the cache holds, so images do not depend on the
     /// thread count or schedule (only the work done does).
-    #[inline(never)] // one call per hit; keeps callers' inlining stable
+    ///
+    /// A plain stone (one material, no maps, no glitter) is answered
+    /// inline without a call: what `resolve_surface` returns for a bare
+    /// root, the material with cell 0 and no map (issue 6: a call and the
+    /// 64-byte answer through memory cost the peer scene's render loop
+    /// 69 instructions per stone hit).
+    #[inline(always)]
     pub fn resolve(&self, p: DVec3) -> Resolved {
-        // A plain stone (one material, no glitter) has nothing to cache.
+        match (self.root, self.glitter.is_none()) {
+            (Entry::Material(material), true) => Resolved::new((material, 0, u32::MAX), None),
+            _ => self.resolve_textured(p),
+        }
+    }
+
+    /// [`Pattern::resolve`] of a pattern with a map or glitter.
+    #[inline(never)] // one call per hit; keeps callers' inlining stable
+    fn resolve_textured(&self, p: DVec3) -> Resolved {
+        // A glitter-free pattern without nodes has nothing to cache.
         if self.nodes.is_empty() && self.glitter.is_none() {
             return self.resolve_uncached(p);
         }
