@@ -28,6 +28,13 @@ pub struct HalfEllipsoidTest {
 }
 
 impl HalfEllipsoidTest {
+    /// The largest semi-axis: every point the test can report lies on or
+    /// inside the ellipsoid, so within this distance of the object origin.
+    pub fn longest_semi_axis(&self) -> f64 {
+        let axes = self.inv_axes.recip();
+        axes.max_element()
+    }
+
     /// Whether the object-space ray (`origin`, `dir`) crosses the stone's
     /// surface in (`t_min`, `t_max`): exactly
     /// [`Cabochon::half_ellipsoid_crosses`], and so also whether

@@ -237,8 +237,10 @@ impl GroundPaths {
             py[lane] = (origin.y + d.y * t) + 0.0 * RAY_OFFSET;
         }
         if let Some(stone) = &self.stone {
+            let origins = [origin; LANES];
+            let blocked = stone_blocks(stone, &origins, directions, &depth);
             for lane in 0..LANES {
-                traced[lane] &= !stone.crosses(origin, directions[lane], 0.0, depth[lane]);
+                traced[lane] &= !blocked[lane];
             }
         }
         for light in &self.lights {
@@ -261,7 +263,10 @@ impl GroundPaths {
             };
         }
         let pz = h + 1.0 * RAY_OFFSET;
-        let point = |lane: usize| DVec3::new(px[lane], py[lane], pz);
+        let mut points = [DVec3::ZERO; LANES];
+        for lane in 0..LANES {
+            points[lane] = DVec3::new(px[lane], py[lane], pz);
+        }
 
         // The random numbers, in each stream's order: Sobol pair 0 is the
         // footprint (already in `directions`), pair 1 + i light i's sample,
@@ -285,7 +290,7 @@ impl GroundPaths {
             let mut cast = [false; LANES];
             for lane in 0..LANES {
                 // `sample_sphere`.
-                let to = light.centre - point(lane);
+                let to = light.centre - points[lane];
                 let d2 = to.length_squared();
                 // A point inside the light gets no sample (general loop).
                 traced[lane] &= d2 > r2;
@@ -304,8 +309,9 @@ impl GroundPaths {
             }
             let mut lit = cast;
             if let Some(stone) = &self.stone {
+                let blocked = stone_blocks(stone, &points, &direction, &reach);
                 for lane in 0..LANES {
-                    lit[lane] &= !stone.crosses(point(lane), direction[lane], 0.0, reach[lane]);
+                    lit[lane] &= !blocked[lane];
                 }
             }
             for lane in 0..LANES {
@@ -341,8 +347,9 @@ impl GroundPaths {
             albedo[lane] = weight;
         }
         if let Some(stone) = &self.stone {
+            let blocked = stone_blocks(stone, &points, &wi, &[f64::INFINITY; LANES]);
             for lane in 0..LANES {
-                traced[lane] &= !stone.crosses(point(lane), wi[lane], 0.0, f64::INFINITY);
+                traced[lane] &= !blocked[lane];
             }
         }
         // `nearest_light`, keeping each lane's nearest light's radiance and
@@ -352,7 +359,8 @@ impl GroundPaths {
         let mut nearest_pdf = zero;
         for (index, light) in self.lights.iter().enumerate() {
             for lane in 0..LANES {
-                let t = sphere_entry_or_infinity(point(lane), wi[lane], light.centre, light.radius);
+                let t =
+                    sphere_entry_or_infinity(points[lane], wi[lane], light.centre, light.radius);
                 let nearer = t < nearest[lane];
                 nearest[lane] = if nearer { t } else { nearest[lane] };
                 emitted[lane] = if nearer {
@@ -395,4 +403,29 @@ impl GroundPaths {
             shadow_rays,
         }
     }
+}
+
+/// Whether the stone blocks each lane's ray from `origins` along
+/// `directions` in (0, `t_max`): [`LoneStone::crosses`] of every lane when
+/// any lane's ray [`LoneStone::may_cross`], else false for all (the exact
+/// answer then: no ray comes near the stone). Most batches of a frame are
+/// far from the stone, and their shadow rays and bounces with it.
+#[inline(always)]
+fn stone_blocks(
+    stone: &LoneStone,
+    origins: &[DVec3; LANES],
+    directions: &[DVec3; LANES],
+    t_max: &Lanes,
+) -> [bool; LANES] {
+    let mut near = [false; LANES];
+    for lane in 0..LANES {
+        near[lane] = stone.may_cross(origins[lane], directions[lane]);
+    }
+    let mut blocked = [false; LANES];
+    if near.contains(&true) {
+        for lane in 0..LANES {
+            blocked[lane] = stone.crosses(origins[lane], directions[lane], 0.0, t_max[lane]);
+        }
+    }
+    blocked
 }

@@ -177,6 +177,9 @@ pub(crate) struct LoneStone {
     /// None when the stone is not rotated (as [`Placement::unrotated`]).
     world_to_object: Option<DMat3>,
     shape: HalfEllipsoidTest,
+    /// The square of a radius about `position` that holds the whole stone
+    /// with room to spare (see [`LoneStone::may_cross`]).
+    bound_radius2: f64,
 }
 
 impl LoneStone {
@@ -191,6 +194,29 @@ impl LoneStone {
             Some(m) => (m * (origin - self.position), m * direction),
         };
         self.shape.crosses(o, d, t_min, t_max)
+    }
+
+    /// False only where the ray (`origin`, `direction`) at t ≥ 0 provably
+    /// stays out of the stone's bounding sphere, so that
+    /// [`LoneStone::crosses`] is false for every t_min ≥ 0 (true also for
+    /// NaN input): a few products instead of the object-space quadric,
+    /// which lets a batch whose rays all pass far from the stone skip its
+    /// exact test. With oc = c − o, the ray misses the sphere of radius R
+    /// about the centre c when its line passes farther than R from c,
+    /// `|oc|²·|d|² − (oc·d)² > R²·|d|²`, or when c lies behind the origin
+    /// (oc·d < 0) and the origin is outside the sphere (`|oc|² > R²`):
+    /// every t > 0 then moves away from c. R² carries a margin of
+    /// 10⁻¹² |oc|², far above the rounding of either side at any distance.
+    #[inline(always)]
+    pub(crate) fn may_cross(&self, origin: DVec3, direction: DVec3) -> bool {
+        let oc = self.position - origin;
+        let along = oc.dot(direction);
+        let direction2 = direction.dot(direction);
+        let distance2 = oc.dot(oc);
+        let radius2 = self.bound_radius2 + 1e-12 * distance2;
+        let line_misses = distance2 * direction2 - along * along > radius2 * direction2;
+        let behind = (along < 0.0) & (distance2 > radius2);
+        !(line_misses | behind)
     }
 }
 
@@ -347,11 +373,19 @@ impl World {
     pub(crate) fn lone_stone_for_lanes(&self) -> Option<Option<LoneStone>> {
         match (&self.lone_half_ellipsoid, self.stones.len()) {
             (_, 0) => Some(None),
-            (Some((stone, placement)), _) => Some(Some(LoneStone {
-                position: stone.position,
-                world_to_object: (!placement.unrotated).then_some(placement.world_to_object),
-                shape: stone.cabochon.half_ellipsoid_test(),
-            })),
+            (Some((stone, placement)), _) => {
+                let shape = stone.cabochon.half_ellipsoid_test();
+                // The stone lies inside its full ellipsoid, and that
+                // inside the sphere of its longest semi-axis about the
+                // object origin (`position`); the rotation keeps lengths.
+                let radius = shape.longest_semi_axis() * (1.0 + 1e-6);
+                Some(Some(LoneStone {
+                    position: stone.position,
+                    world_to_object: (!placement.unrotated).then_some(placement.world_to_object),
+                    shape,
+                    bound_radius2: radius * radius,
+                }))
+            }
             (None, _) => None,
         }
     }
@@ -926,6 +960,86 @@ mod tests {
             assert!(
                 stone_hits > 1000 && ground_hits > 500 && blocked > 1000,
                 "{stone_hits} {ground_hits} {blocked}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_bounding_sphere_never_rules_out_a_crossing() {
+        // `may_cross` lets the kernel skip the exact test: wherever the
+        // exact test finds a crossing at t ≥ 0, `may_cross` must say so.
+        // Rays from near and very far, aimed at points on the surface
+        // (grazing it within rounding) and anywhere, for a flat and a
+        // tall stone (its longest semi-axis vertical), turned or not.
+        let mut rng = Rng::new(17, 2);
+        for (rotation, dome_height) in [
+            (DQuat::IDENTITY, 0.45),
+            (
+                DQuat::from_rotation_z(0.7) * DQuat::from_rotation_x(0.3),
+                0.45,
+            ),
+            (DQuat::from_rotation_y(1.1), 1.6),
+        ] {
+            let position = DVec3::new(0.3, -0.2, 0.5);
+            let mut instance = peer_half_ellipsoid(rotation, position);
+            instance.cabochon = Cabochon::new(CabochonParams {
+                dome_height,
+                ..*instance.cabochon.params()
+            })
+            .unwrap();
+            let world = World::new(vec![instance], Some(0.0));
+            let stone = world
+                .lone_stone_for_lanes()
+                .flatten()
+                .expect("a lone half ellipsoid");
+            let axes = DVec3::new(1.0, 0.7, dome_height);
+            let (mut crossing, mut ruled_out) = (0, 0);
+            for i in 0..100_000 {
+                let [a, b, c] = rng.next_3();
+                let on_dome = DVec3::new(2.0 * a - 1.0, 2.0 * b - 1.0, c).normalize() * axes;
+                let target = position + rotation * (on_dome * (1.0 + (c - 0.5) * 1e-9));
+                let [u, v, w] = rng.next_3();
+                let distance = 10f64.powf(3.0 * u - 0.3);
+                let away = DVec3::new(v - 0.5, w - 0.5, c - 0.3).normalize();
+                let origin = target + distance * away;
+                let mut direction = match i % 3 {
+                    0 => (target - origin).normalize(),
+                    1 => (target - origin) * 3.0,
+                    _ => DVec3::new(a - 0.5, u - 0.5, w - 0.5).normalize(),
+                };
+                // Every fifth ray grazes the tip of the longest semi-axis,
+                // the point the bounding sphere touches, across the axis.
+                let origin = if i % 5 == 4 {
+                    let (tip, across) = if dome_height > 1.0 {
+                        (
+                            DVec3::new(0.0, 0.0, dome_height),
+                            DVec3::new(v - 0.5, w - 0.5, 0.0),
+                        )
+                    } else {
+                        (DVec3::X, DVec3::new(0.0, v - 0.5, 1e-3))
+                    };
+                    direction = rotation * across.normalize();
+                    position + rotation * (tip * (1.0 - 1e-9)) - distance * direction
+                } else {
+                    origin
+                };
+                let t_max = if i % 2 == 0 {
+                    f64::INFINITY
+                } else {
+                    2.0 * distance * v
+                };
+                let crosses = stone.crosses(origin, direction, 0.0, t_max);
+                let may = stone.may_cross(origin, direction);
+                assert!(
+                    may || !crosses,
+                    "origin {origin}, direction {direction}, t_max {t_max}"
+                );
+                crossing += usize::from(crosses);
+                ruled_out += usize::from(!may);
+            }
+            assert!(
+                crossing > 20_000 && ruled_out > 20_000,
+                "{crossing} {ruled_out}"
             );
         }
     }
