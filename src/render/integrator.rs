@@ -456,11 +456,8 @@ impl RenderScene {
     ///
     /// [`PixelSampler::refill`]: crate::render::sampler::PixelSampler::refill
     pub fn first_vertex_pairs(&self) -> u32 {
-        let lights = u32::try_from(self.lights.len()).unwrap_or(u32::MAX);
-        let environment = u32::from(self.samples_environment());
-        2u32.saturating_add(lights)
-            .saturating_add(environment)
-            .min(SOBOL_PAIRS)
+        let pairs = 2 + self.lights.len() + usize::from(self.samples_environment());
+        pairs.min(SOBOL_PAIRS as usize) as u32
     }
 
     /// One ambient-occlusion ray of length `distance` around the geometric

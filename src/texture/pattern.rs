@@ -959,10 +959,6 @@ impl Pattern {
     /// [`Pattern::resolve`] of a pattern with a map or glitter.
     #[inline(never)] // one call per hit; keeps callers' inlining stable
     fn resolve_textured(&self, p: DVec3) -> Resolved {
-        // A glitter-free pattern without nodes has nothing to cache.
-        if self.nodes.is_empty() && self.glitter.is_none() {
-            return self.resolve_uncached(p);
-        }
         RESOLVE_CACHE.with_borrow_mut(|cache| {
             if cache.pattern.pattern_id != self.id {
                 cache.pattern = PatternMemos::EMPTY;
