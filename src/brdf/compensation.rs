@@ -680,6 +680,37 @@ impl Compensation {
     }
 }
 
+/// The compensation lobe prepared for one outgoing direction:
+/// f_ms(ωᵢ) = P(μᵢ)·`positive_o` − X(μᵢ)·`negative_o` with the outgoing
+/// factors P(μₒ)/(πP̄) and X(μₒ)/(πX̄) divided out once per path vertex,
+/// so that an evaluation is two products (see `brdf::coat`). Equal to
+/// [`Compensation::eval_from_albedos`] up to rounding.
+#[derive(Clone, Copy, Debug)]
+pub struct CompensationAt {
+    /// P(μₒ)/(πP̄) per channel (0 where P̄ vanishes, as `safe_div`).
+    positive_o: Rgb,
+    /// X(μₒ)/(πX̄) per channel.
+    negative_o: Rgb,
+}
+
+impl Compensation {
+    /// The lobe for an outgoing direction whose table value is D(μₒ) = `d_o`.
+    pub fn at_outgoing(&self, d_o: Rgb) -> CompensationAt {
+        CompensationAt {
+            positive_o: per_channel_div(d_o.max(Rgb::ZERO), self.positive_average) * FRAC_1_PI,
+            negative_o: per_channel_div((-d_o).max(Rgb::ZERO), self.negative_average) * FRAC_1_PI,
+        }
+    }
+}
+
+impl CompensationAt {
+    /// f_ms at an incident direction whose table value is D(μᵢ) = `di` (signed).
+    #[inline]
+    pub fn eval(&self, di: Rgb) -> Rgb {
+        di.max(Rgb::ZERO) * self.positive_o - (-di).max(Rgb::ZERO) * self.negative_o
+    }
+}
+
 fn per_channel_div(a: Rgb, b: Rgb) -> Rgb {
     Rgb::new(safe_div(a.x, b.x), safe_div(a.y, b.y), safe_div(a.z, b.z))
 }

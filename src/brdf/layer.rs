@@ -46,12 +46,19 @@ impl Interface {
     /// exp(−α d (1/cosθ'ᵢ + 1/cosθ'ₒ)), the cosines clamped at 0.001 as there.
     #[inline]
     pub fn round_trip_transmittance(&self, wi_inside: DVec3, wo_inside: DVec3) -> Rgb {
+        self.round_trip_transmittance_of_cosines(wi_inside.z, wo_inside.z)
+    }
+
+    /// [`Interface::round_trip_transmittance`] of two directions inside
+    /// the layer given by their cosines to the normal.
+    #[inline]
+    pub fn round_trip_transmittance_of_cosines(&self, cos_i_inside: f64, cos_o_inside: f64) -> Rgb {
         if self.thickness == 0.0 || self.absorption_rgb == Rgb::ZERO {
             return Rgb::ONE;
         }
         // α·d first, as in `crossing_transmittance`: no 0 · ∞ for a huge d.
         let depth = self.absorption_rgb * self.thickness;
-        let secants = 1.0 / wi_inside.z.clamp(1e-3, 1.0) + 1.0 / wo_inside.z.clamp(1e-3, 1.0);
+        let secants = 1.0 / cos_i_inside.clamp(1e-3, 1.0) + 1.0 / cos_o_inside.clamp(1e-3, 1.0);
         (-depth * secants).exp()
     }
 }

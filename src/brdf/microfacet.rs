@@ -116,7 +116,13 @@ impl Microfacet {
 
     /// Smith's monodirectional shadowing 1/(1 + Λ(w)).
     fn smith_g1(&self, w: DVec3) -> f64 {
-        let c2 = w.z * w.z;
+        self.smith_g1_of_cosine(w.z)
+    }
+
+    /// [`Microfacet::smith_g1`] of a direction with cosine `cos_theta` to
+    /// the normal (Λ depends on nothing else).
+    pub(crate) fn smith_g1_of_cosine(&self, cos_theta: f64) -> f64 {
+        let c2 = cos_theta * cos_theta;
         if c2 >= 1.0 {
             return 1.0;
         }

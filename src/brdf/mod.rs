@@ -8,6 +8,8 @@
 //! * [`layer`]: compiled interfaces (with Beer absorption) and bases;
 //! * [`stack`]: the layered BRDF with eval, sample and pdf, and its form
 //!   prepared for one outgoing direction ([`BrdfAt`], one per path vertex);
+//! * `coat`: the same model in closed form for one interface over a
+//!   Lambert base, the commonest stack (what the renderer evaluates there);
 //! * [`compensation`]: the multiple-scattering lobe restoring lost energy;
 //! * [`reference`](mod@reference): the Monte Carlo random walk the model is measured against;
 //! * [`albedo`]: directional albedo estimators.
@@ -15,6 +17,7 @@
 pub mod albedo;
 pub mod cache;
 pub mod classify;
+pub(crate) mod coat;
 pub mod compensation;
 pub mod diffuse;
 pub mod fresnel;

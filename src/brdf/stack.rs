@@ -20,6 +20,7 @@
 //! * an energy-compensation lobe (see [`crate::brdf::compensation`]) restores
 //!   the light that the single crossing of the model loses.
 
+use crate::brdf::coat::CoatAt;
 use crate::brdf::compensation::Compensation;
 use crate::brdf::diffuse::lambert;
 use crate::brdf::fresnel;
@@ -307,7 +308,8 @@ impl LayeredBrdf {
     /// top interface's micro-facet distribution D(h) (one `exp` and one
     /// `ln_1p` per call for the seed's Blinn lobes), its mixture weights and
     /// the compensation lookups: what the renderer needs at every light
-    /// sample and every BRDF sample. Equal to the two separate calls.
+    /// sample and every BRDF sample. Equal to the two separate calls (up to
+    /// rounding for one interface over a Lambert base, see [`LayeredBrdf::at`]).
     /// Same as `self.at(wo).eval_and_pdf(wi)`.
     #[inline]
     pub fn eval_and_pdf(&self, wi: DVec3, wo: DVec3) -> (Rgb, f64) {
@@ -320,16 +322,20 @@ impl LayeredBrdf {
     /// refracted wo) is computed here once, and shared by the
     /// [`BrdfAt::eval_and_pdf`] and [`BrdfAt::sample`] calls made at that
     /// vertex. A bare Lambert material (no layers, σ = 0, no compensation)
-    /// takes a shortcut: f = colour/π with cosine-weighted sampling.
+    /// takes a shortcut: f = colour/π with cosine-weighted sampling; one
+    /// interface over a Lambert base takes the closed form of the `coat`
+    /// module (equal up to rounding).
     ///
-    /// The shortcut is recognised here, from the public fields, rather than
-    /// cached in [`LayeredBrdf::new`], so that it can never go stale.
+    /// The shortcuts are recognised here, from the public fields, rather
+    /// than cached in [`LayeredBrdf::new`], so that they can never go stale.
     #[inline]
     pub fn at(&self, wo: DVec3) -> BrdfAt<'_> {
         let form = if wo.z <= 0.0 {
             Form::Below
         } else if let Some(value) = self.bare_lambert() {
             Form::Lambert { value }
+        } else if let Some(coat) = self.coat_at(wo) {
+            Form::Coat(coat)
         } else {
             Form::General(self.prepare(wo))
         };
@@ -354,6 +360,28 @@ impl LayeredBrdf {
                     oren_nayar_sigma_rad,
                 },
             ) if *oren_nayar_sigma_rad <= 0.0 => Some(lambert(*colour)),
+            _ => None,
+        }
+    }
+
+    /// The closed form of one interface over a Lambert base (σ ≤ 0),
+    /// prepared for `wo` (wo.z > 0); None for every other stack.
+    #[inline]
+    pub(crate) fn coat_at(&self, wo: DVec3) -> Option<CoatAt<'_>> {
+        match (self.interfaces.as_slice(), &self.base) {
+            (
+                [interface],
+                Base::Diffuse {
+                    colour,
+                    oren_nayar_sigma_rad,
+                },
+            ) if *oren_nayar_sigma_rad <= 0.0 => Some(CoatAt::new(
+                interface,
+                *colour,
+                self.compensation.as_ref(),
+                wo,
+                |fresnel_out| self.level_weights_from_fresnel(0, fresnel_out),
+            )),
             _ => None,
         }
     }
@@ -421,21 +449,24 @@ impl LayeredBrdf {
 /// [`LayeredBrdf::at`]): evaluate and sample at one path vertex without
 /// recomputing what depends on wo alone. Results are bit-identical to the
 /// general [`LayeredBrdf::eval`], [`LayeredBrdf::pdf`] (same operations in
-/// the same order).
+/// the same order), except for one interface over a Lambert base, whose
+/// closed form (the `coat` module) equals them up to rounding.
 #[derive(Clone, Copy, Debug)]
 pub struct BrdfAt<'a> {
     brdf: &'a LayeredBrdf,
     wo: DVec3,
-    form: Form,
+    form: Form<'a>,
 }
 
 /// Which evaluation a [`BrdfAt`] uses.
 #[derive(Clone, Copy, Debug)]
-enum Form {
+enum Form<'a> {
     /// wo at or below the horizon: nothing is reflected.
     Below,
     /// No layers, Lambert base, no compensation: f = `value` = colour/π.
     Lambert { value: Rgb },
+    /// One interface over a Lambert base, in closed form.
+    Coat(CoatAt<'a>),
     /// Everything else: the layered model with its wo-dependent parts.
     General(Prepared),
 }
@@ -464,7 +495,8 @@ struct TopAt {
 
 impl BrdfAt<'_> {
     /// f(wi, wo) and the density of [`BrdfAt::sample`] at `wi`; equal to
-    /// [`LayeredBrdf::eval`] and [`LayeredBrdf::pdf`].
+    /// [`LayeredBrdf::eval`] and [`LayeredBrdf::pdf`] (up to rounding for
+    /// the closed form of a coat, see [`LayeredBrdf::at`]).
     #[inline]
     pub fn eval_and_pdf(&self, wi: DVec3) -> (Rgb, f64) {
         if wi.z <= 0.0 {
@@ -474,6 +506,7 @@ impl BrdfAt<'_> {
             Form::Below => (Rgb::ZERO, 0.0),
             // The mixture with no compensation lobe is (1 − 0)·pdf = pdf.
             Form::Lambert { value } => (*value, cosine_hemisphere_pdf(wi)),
+            Form::Coat(coat) => coat.eval_and_pdf(wi),
             Form::General(prepared) => self.eval_and_pdf_general(prepared, wi),
         }
     }
@@ -590,6 +623,7 @@ impl BrdfAt<'_> {
         match &self.form {
             Form::Below => None,
             Form::Lambert { value } => lambert_sample(*value, u),
+            Form::Coat(coat) => coat.sample(u),
             Form::General(prepared) => self.sample_general(prepared, u),
         }
     }
@@ -652,7 +686,7 @@ fn plus_compensation_lobe(single: Rgb, lobe: Rgb) -> Rgb {
 /// the mixture with the compensation lobe's cosine sampling, chosen with
 /// probability `p_comp`.
 #[inline(always)]
-fn mixture_pdf(p_comp: f64, stack_pdf: f64, wi: DVec3) -> f64 {
+pub(crate) fn mixture_pdf(p_comp: f64, stack_pdf: f64, wi: DVec3) -> f64 {
     let mut pdf = (1.0 - p_comp) * stack_pdf;
     if p_comp > 0.0 {
         pdf += p_comp * cosine_hemisphere_pdf(wi);
@@ -743,7 +777,7 @@ fn all_finite(value: Rgb) -> bool {
 /// The sample (wi, f, pdf) unless it carries no usable energy: the density
 /// must be positive and finite and the value finite.
 #[inline]
-fn accept(wi: DVec3, value: Rgb, pdf: f64) -> Option<BrdfSample> {
+pub(crate) fn accept(wi: DVec3, value: Rgb, pdf: f64) -> Option<BrdfSample> {
     if pdf > 0.0 && pdf < f64::INFINITY && all_finite(value) {
         Some(BrdfSample { wi, value, pdf })
     } else {
@@ -809,10 +843,54 @@ mod tests {
         s.map(|s| (s.wi, s.value, s.pdf))
     }
 
+    /// Whether `brdf` takes the closed form of `coat` (equal to the general
+    /// path up to rounding, not bit for bit).
+    fn is_coat(brdf: &LayeredBrdf) -> bool {
+        matches!(brdf.at(DVec3::Z).form, Form::Coat(_))
+    }
+
+    /// `a` and `b` equal to `relative` of their size (or 10⁻³⁰⁰ absolute).
+    fn close(a: f64, b: f64, relative: f64) -> bool {
+        (a - b).abs() <= relative * a.abs().max(b.abs()) + 1e-300
+    }
+
+    /// Two samples equal (bit for bit when `exact`), else equal to
+    /// rounding: the same outcome, wi to 10⁻¹², f and pdf to 10⁻¹⁰.
+    fn assert_same_sample(
+        fast: Option<(DVec3, Rgb, f64)>,
+        reference: Option<(DVec3, Rgb, f64)>,
+        exact: bool,
+        name: &str,
+    ) {
+        if exact {
+            assert_eq!(fast, reference, "{name}");
+            return;
+        }
+        match (fast, reference) {
+            (None, None) => {}
+            (Some((wi, f, pdf)), Some((wi_ref, f_ref, pdf_ref))) => {
+                assert!(
+                    (wi - wi_ref).abs().max_element() < 1e-12,
+                    "{name}: {wi} {wi_ref}"
+                );
+                for (a, b) in f.to_array().into_iter().zip(f_ref.to_array()) {
+                    assert!(close(a, b, 1e-10), "{name}: f {f} {f_ref}");
+                }
+                assert!(close(pdf, pdf_ref, 1e-10), "{name}: pdf {pdf} {pdf_ref}");
+            }
+            _ => panic!("{name}: {fast:?} against {reference:?}"),
+        }
+    }
+
     #[test]
-    fn prepared_sampling_equals_the_general_path_bit_for_bit() {
+    fn prepared_sampling_equals_the_general_path() {
+        // Bit for bit for every form but the coat's closed form, which
+        // equals it to rounding.
         let mut rng = Rng::new(7, 8);
+        let mut coats = 0;
         for brdf in materials() {
+            let exact = !is_coat(&brdf);
+            coats += !exact as usize;
             let mut accepted = 0;
             for _ in 0..200 {
                 let [a, b, c] = rng.next_3();
@@ -822,13 +900,18 @@ mod tests {
                 for _ in 0..5 {
                     let u = rng.next_3();
                     let fast = parts(at.sample(u));
-                    assert_eq!(fast, parts(reference_sample(&brdf, wo, u)), "{}", brdf.name);
+                    let reference = parts(reference_sample(&brdf, wo, u));
+                    assert_same_sample(fast, reference, exact, &brdf.name);
                     assert_eq!(fast, parts(brdf.sample(wo, u)), "{}", brdf.name);
                     accepted += fast.is_some() as usize;
                 }
             }
             assert!(accepted > 100, "{}: only {accepted} samples", brdf.name);
         }
+        assert!(
+            coats >= 3,
+            "only {coats} library coats exercise the closed form"
+        );
     }
 
     #[test]
@@ -892,36 +975,43 @@ mod tests {
 
     #[test]
     fn fused_eval_and_pdf_equal_the_separate_calls_for_every_library_material() {
+        // Bit for bit (signed zeros and NaN payloads included), except the
+        // coat's closed form: equal to 10⁻¹² of the value.
         let mut rng = Rng::new(5, 6);
         for name in builtin_material_names() {
             let brdf = load_material(name).unwrap();
+            let exact = !is_coat(&brdf);
+            let bits = |v: Rgb| v.to_array().map(f64::to_bits);
+            let check = |wi: DVec3, wo: DVec3| {
+                let (value, pdf) = brdf.eval_and_pdf(wi, wo);
+                let (value_ref, pdf_ref) = (brdf.eval(wi, wo), brdf.pdf(wi, wo));
+                if exact {
+                    assert_eq!(bits(value), bits(value_ref), "{name}: value at {wi} {wo}");
+                    assert_eq!(pdf.to_bits(), pdf_ref.to_bits(), "{name}: pdf at {wi} {wo}");
+                } else {
+                    for (a, b) in value.to_array().into_iter().zip(value_ref.to_array()) {
+                        assert!(
+                            close(a, b, 1e-12),
+                            "{name}: {value} {value_ref} at {wi} {wo}"
+                        );
+                    }
+                    assert!(
+                        close(pdf, pdf_ref, 1e-12),
+                        "{name}: {pdf} {pdf_ref} at {wi} {wo}"
+                    );
+                }
+            };
             for _ in 0..3000 {
                 let mut direction = || {
                     let [a, b, c] = rng.next_3();
                     DVec3::new(a - 0.5, b - 0.5, c - 0.2).normalize()
                 };
                 let (wi, wo) = (direction(), direction());
-                let (value, pdf) = brdf.eval_and_pdf(wi, wo);
-                // Bit for bit (signed zeros and NaN payloads included).
-                let bits = |v: Rgb| v.to_array().map(f64::to_bits);
-                assert_eq!(
-                    bits(value),
-                    bits(brdf.eval(wi, wo)),
-                    "{name}: value at {wi} {wo}"
-                );
-                assert_eq!(
-                    pdf.to_bits(),
-                    brdf.pdf(wi, wo).to_bits(),
-                    "{name}: pdf at {wi} {wo}"
-                );
+                check(wi, wo);
             }
             // …and at the lobe's peak, where D dominates (a mirror pair).
             let wo = DVec3::new(0.3, -0.2, 0.9).normalize();
-            let wi = DVec3::new(-wo.x, -wo.y, wo.z);
-            assert_eq!(
-                brdf.eval_and_pdf(wi, wo),
-                (brdf.eval(wi, wo), brdf.pdf(wi, wo))
-            );
+            check(DVec3::new(-wo.x, -wo.y, wo.z), wo);
         }
     }
 }
