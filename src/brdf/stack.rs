@@ -430,7 +430,10 @@ impl LayeredBrdf {
         mixture_pdf(self.compensation_weight(wo), self.pdf_from(0, wi, wo), wi)
     }
 
-    /// Sample of the single-crossing model alone (used to tabulate its albedo).
+    /// Sample of the single-crossing model alone through the general
+    /// recursion: the reference the tabulated albedo's sampler (and the
+    /// closed form of a coat) is tested against.
+    #[cfg(test)]
     pub(crate) fn sample_single_crossing(&self, wo: DVec3, u: [f64; 3]) -> Option<(DVec3, Rgb)> {
         let wi = self.sample_from(0, wo, u)?;
         if wi.z <= 0.0 {
