@@ -68,7 +68,7 @@ impl<'a> CoatAt<'a> {
     /// outgoing direction `wo` (wo.z > 0); `weights_from_fresnel` gives the
     /// stack's mixture probabilities for F(cosθₒ) (`LayeredBrdf`'s
     /// albedo guesses).
-    #[inline(never)]
+    #[inline]
     pub(crate) fn new(
         interface: &'a Interface,
         colour: Rgb,
