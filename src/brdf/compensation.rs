@@ -140,22 +140,29 @@ pub fn single_crossing_albedo_sampled(brdf: &LayeredBrdf, mu: f64, seed: u64, si
         brdf
     };
     let at = brdf.at(wo);
-    let mut rng = crate::sampling::Rng::new(seed, mu.to_bits());
     let n = side.max(1);
     let mut sum = Rgb::ZERO;
+    for_each_jittered_uniform(seed, mu, n, |u| {
+        if let Some(sample) = at.sample(u) {
+            sum += sample.weight();
+        }
+    });
+    sum / (n * n) as f64
+}
+
+/// The uniforms E_single at cosine `mu` draws from, in order: u₀ free and
+/// (u₁, u₂) one point in each cell of an `n` × `n` grid.
+fn for_each_jittered_uniform(seed: u64, mu: f64, n: usize, mut draw: impl FnMut([f64; 3])) {
+    let mut rng = crate::sampling::Rng::new(seed, mu.to_bits());
     for a in 0..n {
         for b in 0..n {
-            let u = [
+            draw([
                 rng.next_f64(),
                 (a as f64 + rng.next_f64()) / n as f64,
                 (b as f64 + rng.next_f64()) / n as f64,
-            ];
-            if let Some(sample) = at.sample(u) {
-                sum += sample.weight();
-            }
+            ]);
         }
     }
-    sum / (n * n) as f64
 }
 
 /// E_stack(μ) by random walks in batches of s² = 64, stopping once the
@@ -763,20 +770,12 @@ mod tests {
             brdf.compensation = None;
             for mu in [0.05, 0.5, 0.97] {
                 let wo = direction_at_cosine(mu);
-                let mut rng = crate::sampling::Rng::new(3, mu.to_bits());
                 let mut sum = Rgb::ZERO;
-                for a in 0..side {
-                    for b in 0..side {
-                        let u = [
-                            rng.next_f64(),
-                            (a as f64 + rng.next_f64()) / side as f64,
-                            (b as f64 + rng.next_f64()) / side as f64,
-                        ];
-                        if let Some((_, weight)) = brdf.sample_single_crossing(wo, u) {
-                            sum += weight;
-                        }
+                for_each_jittered_uniform(3, mu, side, |u| {
+                    if let Some((_, weight)) = brdf.sample_single_crossing(wo, u) {
+                        sum += weight;
                     }
-                }
+                });
                 let expected = sum / (side * side) as f64;
                 let albedo = single_crossing_albedo_sampled(&brdf, mu, 3, side);
                 assert!(
