@@ -583,7 +583,7 @@ impl BrdfAt<'_> {
                 break 'single f_top;
             }
             let below = if single_interface {
-                base_eval_above(&brdf.base, wi_in, wo_in)
+                brdf.base.eval(wi_in, wo_in)
             } else {
                 brdf.eval_from(1, wi_in, wo_in)
             };
@@ -711,20 +711,6 @@ pub(crate) fn mixture_pdf(p_comp: f64, stack_pdf: f64, wi: DVec3) -> f64 {
         pdf += p_comp * cosine_hemisphere_pdf(wi);
     }
     pdf
-}
-
-/// [`Base::eval`] for directions already known to be above the base
-/// (wi.z > 0, wo.z > 0): a Lambertian base (σ ≤ 0) is colour/π inline,
-/// every other base goes through [`Base::eval`].
-#[inline(always)]
-fn base_eval_above(base: &Base, wi: DVec3, wo: DVec3) -> Rgb {
-    match base {
-        Base::Diffuse {
-            colour,
-            oren_nayar_sigma_rad,
-        } if *oren_nayar_sigma_rad <= 0.0 => lambert(*colour),
-        _ => base.eval(wi, wo),
-    }
 }
 
 /// The z component of −`refract(wi, z, eta)` (the cosine of wi refracted
