@@ -205,10 +205,11 @@ impl<'a> CoatAt<'a> {
             cosine_hemisphere(u[1], u[2])
         } else {
             let u0 = ((u[0] - p_comp) / (1.0 - p_comp)).min(1.0 - f64::EPSILON);
-            let (p_top, p_below) = self.weights;
+            let (p_top, _) = self.weights;
             if u0 < p_top {
                 self.interface.lobe.sample_reflection(self.wo, u[1], u[2])?
-            } else if p_below > 0.0 && self.layer_density_per_cosine > 0.0 {
+            } else if self.layer_density_per_cosine > 0.0 {
+                // (p_below > 0 and ωₒ leaves the layer, see the field.)
                 self.sample_out_of_layer(u[1], u[2])?
             } else {
                 return None;

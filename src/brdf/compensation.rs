@@ -695,50 +695,43 @@ impl Compensation {
 
     /// f_ms(ωᵢ, ωₒ) = P(μᵢ)P(μₒ)/(πP̄) − X(μᵢ)X(μₒ)/(πX̄) per channel (signed).
     pub fn eval(&self, wi: DVec3, wo: DVec3) -> Rgb {
-        self.eval_from_albedos(self.albedo(wi.z), self.albedo(wo.z))
+        self.at_outgoing(self.albedo(wo.z)).eval(self.albedo(wi.z))
     }
 
-    /// [`Self::eval`] from the two table values D(μᵢ) = `di` and D(μₒ) =
-    /// `d_o`, so that a path vertex looks D(μₒ) up once for all its
-    /// evaluations (see `BrdfAt`).
-    pub fn eval_from_albedos(&self, di: Rgb, d_o: Rgb) -> Rgb {
-        let positive = di.max(Rgb::ZERO) * d_o.max(Rgb::ZERO);
-        let negative = (-di).max(Rgb::ZERO) * (-d_o).max(Rgb::ZERO);
-        (per_channel_div(positive, self.positive_average)
-            - per_channel_div(negative, self.negative_average))
-            * FRAC_1_PI
+    /// The lobe for an outgoing direction whose table value is D(μₒ) =
+    /// `d_o`, so that a path vertex looks D(μₒ) up and scales it once for
+    /// all its evaluations (see `BrdfAt`).
+    pub fn at_outgoing(&self, d_o: Rgb) -> CompensationAt {
+        CompensationAt {
+            positive_o: d_o.max(Rgb::ZERO),
+            negative_o: (-d_o).max(Rgb::ZERO),
+            inverse_pi_averages: self.inverse_pi_averages,
+        }
     }
 }
 
 /// The compensation lobe prepared for one outgoing direction:
-/// f_ms(ωᵢ) = P(μᵢ)·`positive_o` − X(μᵢ)·`negative_o` with the outgoing
-/// factors P(μₒ)/(πP̄) and X(μₒ)/(πX̄) divided out once per path vertex,
-/// so that an evaluation is two products (see `brdf::coat`). Equal to
-/// [`Compensation::eval_from_albedos`] up to rounding.
+/// f_ms(ωᵢ) = (P(μᵢ)P(μₒ))/(πP̄) − (X(μᵢ)X(μₒ))/(πX̄) with P(μₒ), X(μₒ)
+/// looked up once per path vertex and the normalisations as products.
+/// The two table values are multiplied first, so the lobe stays exactly
+/// reciprocal.
 #[derive(Clone, Copy, Debug)]
 pub struct CompensationAt {
-    /// P(μₒ)/(πP̄) per channel (0 where P̄ vanishes, as `safe_div`).
+    /// P(μₒ) per channel.
     positive_o: Rgb,
-    /// X(μₒ)/(πX̄) per channel.
+    /// X(μₒ) per channel.
     negative_o: Rgb,
-}
-
-impl Compensation {
-    /// The lobe for an outgoing direction whose table value is D(μₒ) = `d_o`.
-    pub fn at_outgoing(&self, d_o: Rgb) -> CompensationAt {
-        let (positive, negative) = self.inverse_pi_averages;
-        CompensationAt {
-            positive_o: d_o.max(Rgb::ZERO) * positive,
-            negative_o: (-d_o).max(Rgb::ZERO) * negative,
-        }
-    }
+    /// 1/(πP̄) and 1/(πX̄) of the table.
+    inverse_pi_averages: (Rgb, Rgb),
 }
 
 impl CompensationAt {
     /// f_ms at an incident direction whose table value is D(μᵢ) = `di` (signed).
     #[inline]
     pub fn eval(&self, di: Rgb) -> Rgb {
-        di.max(Rgb::ZERO) * self.positive_o - (-di).max(Rgb::ZERO) * self.negative_o
+        let (positive, negative) = self.inverse_pi_averages;
+        (di.max(Rgb::ZERO) * self.positive_o) * positive
+            - ((-di).max(Rgb::ZERO) * self.negative_o) * negative
     }
 }
 

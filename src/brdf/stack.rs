@@ -21,7 +21,7 @@
 //!   the light that the single crossing of the model loses.
 
 use crate::brdf::coat::CoatAt;
-use crate::brdf::compensation::Compensation;
+use crate::brdf::compensation::{Compensation, CompensationAt};
 use crate::brdf::diffuse::lambert;
 use crate::brdf::fresnel;
 use crate::brdf::layer::{Base, Interface};
@@ -407,12 +407,15 @@ impl LayeredBrdf {
     /// The wo-dependent quantities of the general form (wo.z > 0).
     #[inline]
     fn prepare(&self, wo: DVec3) -> Prepared {
-        let (p_comp, compensation_albedo_o) = match &self.compensation {
+        let (p_comp, compensation_o) = match &self.compensation {
             Some(c) => {
                 let albedo_o = c.albedo(wo.z);
-                (Compensation::sampling_probability(albedo_o), albedo_o)
+                (
+                    Compensation::sampling_probability(albedo_o),
+                    Some(c.at_outgoing(albedo_o)),
+                )
             }
-            None => (0.0, Rgb::ZERO),
+            None => (0.0, None),
         };
         let top = self.interfaces.first().map(|itf| {
             // Snell once for F(cosθₒ) and the refracted wo.
@@ -433,7 +436,7 @@ impl LayeredBrdf {
         });
         Prepared {
             p_comp,
-            compensation_albedo_o,
+            compensation_o,
             top,
         }
     }
@@ -495,8 +498,8 @@ enum Form<'a> {
 struct Prepared {
     /// Probability of sampling the compensation lobe (0 without one).
     p_comp: f64,
-    /// D(μₒ) of the compensation table (zero without one).
-    compensation_albedo_o: Rgb,
+    /// The compensation lobe prepared for wo (None without one).
+    compensation_o: Option<CompensationAt>,
     /// The top interface's quantities; None for a bare base.
     top: Option<TopAt>,
 }
@@ -538,14 +541,11 @@ impl BrdfAt<'_> {
             (Some(itf), Some(top)) => self.top_eval_and_pdf(itf, top, wi),
             _ => (brdf.base.eval(wi, wo), brdf.base.pdf(wi, wo)),
         };
-        // As `LayeredBrdf::eval` and `pdf`, with D(μₒ) and the lobe
-        // probability from `prepare`.
-        let value = match &brdf.compensation {
-            Some(c) => plus_compensation_lobe(
-                single,
-                c.eval_from_albedos(c.albedo(wi.z), prepared.compensation_albedo_o),
-            ),
-            None => single,
+        // As `LayeredBrdf::eval` and `pdf`, with the lobe prepared for wo
+        // and its probability from `prepare`.
+        let value = match (&brdf.compensation, &prepared.compensation_o) {
+            (Some(c), Some(lobe)) => plus_compensation_lobe(single, lobe.eval(c.albedo(wi.z))),
+            _ => single,
         };
         (value, mixture_pdf(prepared.p_comp, stack_pdf, wi))
     }
