@@ -36,6 +36,7 @@ use crate::brdf::fresnel;
 use crate::brdf::layer::Base;
 use crate::brdf::microfacet::MIN_ROUGHNESS_DEG;
 use crate::brdf::reference::{trace_path_with, PresetUniforms, WalkTables};
+use crate::brdf::smooth_coat::SmoothCoatChain;
 use crate::brdf::stack::LayeredBrdf;
 use crate::brdf::Rgb;
 use glam::DVec3;
@@ -379,15 +380,21 @@ pub fn needs_no_table(brdf: &LayeredBrdf) -> bool {
 enum StackMethod {
     /// Exactly, for one smooth coat over a Lambertian or black base.
     ClosedForm(SmoothCoatOverLambert),
+    /// By the solved chain of light trapped under one smooth coat.
+    Chain(SmoothCoatChain),
     /// By random walks through the stack.
     Walk(WalkTables),
 }
 
 impl StackMethod {
-    /// The closed form where there is one, else the walk's tables.
-    fn of(brdf: &LayeredBrdf) -> Self {
-        match SmoothCoatOverLambert::of(brdf) {
-            Some(c) => StackMethod::ClosedForm(c),
+    /// The closed form where there is one, else the chain under a smooth
+    /// coat, else the walk's tables (`seed`: the chain's base samples).
+    fn of(brdf: &LayeredBrdf, seed: u64) -> Self {
+        if let Some(c) = SmoothCoatOverLambert::of(brdf) {
+            return StackMethod::ClosedForm(c);
+        }
+        match SmoothCoatChain::of(brdf, seed) {
+            Some(chain) => StackMethod::Chain(chain),
             None => StackMethod::Walk(WalkTables::new(brdf)),
         }
     }
@@ -397,6 +404,7 @@ impl StackMethod {
         let mu = node_cosine(k);
         let stack = match self {
             StackMethod::ClosedForm(c) => c.albedo(mu),
+            StackMethod::Chain(chain) => chain.albedo(mu, k as u64),
             StackMethod::Walk(tables) => adaptive_walk_albedo(brdf, tables, mu, seed ^ k as u64),
         };
         stack.min(Rgb::ONE)
@@ -456,7 +464,7 @@ impl<'a> TablePlan<'a> {
     fn new(requests: &[(&'a LayeredBrdf, u64)]) -> Self {
         let methods: Vec<Option<StackMethod>> = requests
             .par_iter()
-            .map(|(brdf, _)| (!needs_no_table(brdf)).then(|| StackMethod::of(brdf)))
+            .map(|&(brdf, seed)| (!needs_no_table(brdf)).then(|| StackMethod::of(brdf, seed)))
             .collect();
         let mut pairs = Vec::new();
         let mut pair_keys: Vec<String> = Vec::new();

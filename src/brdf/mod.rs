@@ -12,6 +12,8 @@
 //!   Lambert base, the commonest stack (what the renderer evaluates there);
 //! * [`compensation`]: the multiple-scattering lobe restoring lost energy;
 //! * [`reference`](mod@reference): the Monte Carlo random walk the model is measured against;
+//! * [`smooth_coat`]: the walk's answer under one smooth coat, from a
+//!   Markov chain in the cosine instead of random paths;
 //! * [`albedo`]: directional albedo estimators.
 
 pub mod albedo;
@@ -24,6 +26,7 @@ pub mod fresnel;
 pub mod layer;
 pub mod microfacet;
 pub mod reference;
+pub mod smooth_coat;
 pub mod stack;
 
 /// Linear RGB, one value per channel (R, G, B at 680, 525, 450 nm for the

@@ -139,7 +139,17 @@ impl WalkTables {
             .iter()
             .map(|i| tabulate(dielectric_weight(i.own_lobe, 1.0 / i.eta)))
             .collect();
-        let base = match &brdf.base {
+        WalkTables {
+            from_above,
+            from_below,
+            ..Self::of_base(&brdf.base)
+        }
+    }
+
+    /// Only the tables of `base` (what [`scatter_base`] reads), the
+    /// interfaces' left empty (E = 1).
+    pub(crate) fn of_base(base: &Base) -> Self {
+        let base_albedo = match base {
             Base::Conductor { own_lobe, .. } => tabulate(|w, u| {
                 let h = own_lobe.sample_normal(u[0], u[1]);
                 let wh = w.dot(h);
@@ -152,7 +162,7 @@ impl WalkTables {
             }),
             _ => Vec::new(),
         };
-        let base_fresnel = match &brdf.base {
+        let base_fresnel = match base {
             Base::Conductor {
                 n_relative,
                 k_relative,
@@ -166,9 +176,9 @@ impl WalkTables {
             _ => Vec::new(),
         };
         WalkTables {
-            from_above,
-            from_below,
-            base,
+            from_above: Vec::new(),
+            from_below: Vec::new(),
+            base: base_albedo,
             base_fresnel,
         }
     }
@@ -264,7 +274,7 @@ fn scatter_dielectric(
 
 /// Scatter at the base: light arrives from `w_away` (z > 0, in the frame of
 /// the last layer) and leaves upward. Returns the new direction and weight.
-fn scatter_base(
+pub(crate) fn scatter_base(
     base: &Base,
     tables: &WalkTables,
     w_away: DVec3,
