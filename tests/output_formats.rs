@@ -498,3 +498,85 @@ fn read_exr_of_a_missing_or_foreign_file_is_an_error() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The file the `exr` crate's own writer makes of `channels` (ZIP of one
+/// scan line, at its zlib level 4): the reference for ours.
+fn write_with_the_exr_crate(path: &std::path::Path, width: usize, channels: &[ExrChannel]) {
+    use exr::prelude::*;
+    let height = channels[0].data.len() / width;
+    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels
+        .iter()
+        .map(|c| {
+            let samples = match &c.data {
+                ChannelData::F32(v) => FlatSamples::F32(v.clone()),
+                ChannelData::U32(v) => FlatSamples::U32(v.clone()),
+            };
+            AnyChannel::new(c.name.as_str(), samples)
+        })
+        .collect();
+    let encoding = Encoding {
+        compression: Compression::ZIP1,
+        blocks: Blocks::ScanLines,
+        line_order: LineOrder::Increasing,
+    };
+    let layer = Layer::new(
+        (width, height),
+        LayerAttributes::default(),
+        encoding,
+        AnyChannels::sort(list),
+    );
+    Image::from_layer(layer).write().to_file(path).unwrap();
+}
+
+/// Everything the `exr` crate reads from `path`: attributes, encoding,
+/// channel descriptions and samples, as text.
+fn decoded(path: &std::path::Path) -> String {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_file(path)
+        .unwrap();
+    format!("{image:?}")
+}
+
+#[test]
+fn exr_files_match_the_exr_crates_own_writer_on_any_thread_count() {
+    let dir = scratch_dir("reference-writer");
+    // The AOV-like channels, and one channel of random bits alone (every
+    // line incompressible: stored raw).
+    let noise: Vec<u32> = (0..64 * 40u64)
+        .map(|i| (lapidary::sampling::mix64(i) >> 32) as u32)
+        .collect();
+    let cases = [
+        sample_channels(64, 40),
+        vec![ExrChannel {
+            name: "noise".into(),
+            data: ChannelData::U32(noise),
+        }],
+    ];
+    for (case, channels) in cases.iter().enumerate() {
+        let reference = dir.join(format!("reference-{case}.exr"));
+        write_with_the_exr_crate(&reference, 64, channels);
+        let mut files = Vec::new();
+        for threads in [1, 4] {
+            let ours = dir.join(format!("ours-{case}-{threads}.exr"));
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| write_exr(&ours, 64, 40, channels).unwrap());
+            // The same header, encoding and samples as the crate's file.
+            assert_eq!(decoded(&ours), decoded(&reference), "case {case}");
+            files.push(std::fs::read(&ours).unwrap());
+        }
+        assert_eq!(
+            files[0], files[1],
+            "case {case}: bytes depend on the thread count"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

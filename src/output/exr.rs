@@ -4,8 +4,9 @@
 //! `B`, `A`, `albedo.R`, `normal.X`, `depth.Z`, `surface_cell` as U32): the
 //! most portable layout, which Nuke, Blender, `exrheader` and the `exr`
 //! crate all read as layers named by the prefix. Samples are stored exactly
-//! (32-bit float or unsigned int) with ZIP compression over blocks of 16
-//! scan lines (`Encoding::SMALL_LOSSLESS`), so a round trip is bit-exact.
+//! (32-bit float or unsigned int) with ZIP compression of each scan line
+//! (OpenEXR's `ZIPS`, at zlib level 1: [`super::exr_zip`]), so a round
+//! trip is bit-exact.
 //!
 //! The file is encoded in memory and written with
 //! [`write_atomically`](super::write_atomically): a crash or a full disk
@@ -15,10 +16,17 @@ use std::collections::HashSet;
 use std::io::Write;
 use std::path::Path;
 
+use ::exr::block::chunk::{Chunk, CompressedBlock, CompressedScanLineBlock};
+use ::exr::block::writer::ChunksWriter;
+use ::exr::meta::attribute::{ChannelDescription, SampleType, Text};
+use ::exr::meta::header::Header;
+use ::exr::meta::BlockDescription;
 use ::exr::prelude::{
-    read, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes,
-    ReadChannels, ReadLayers, SmallVec, WritableImage,
+    read, Compression, FlatSamples, LayerAttributes, LineOrder, ReadChannels, ReadLayers, SmallVec,
 };
+use rayon::prelude::*;
+
+use super::exr_zip;
 
 use super::{check_writable, write_atomically_with, OutputError};
 
@@ -108,30 +116,87 @@ pub fn write_exr_owned(
     debug_assert!(channels.iter().all(|c| c.data.len() == pixel_count));
     check_writable(path)?;
 
-    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels
-        .into_iter()
+    let mut channels = channels;
+    channels.sort_by(|a, b| a.name.as_bytes().cmp(b.name.as_bytes()));
+    let descriptions: SmallVec<[ChannelDescription; 5]> = channels
+        .iter()
         .map(|channel| {
-            let samples = match channel.data {
-                ChannelData::F32(v) => FlatSamples::F32(v),
-                ChannelData::U32(v) => FlatSamples::U32(v),
+            let name = Text::from(channel.name.as_str());
+            let linear = ChannelDescription::guess_quantization_linearity(&name);
+            let sample_type = match channel.data {
+                ChannelData::F32(_) => SampleType::F32,
+                ChannelData::U32(_) => SampleType::U32,
             };
-            AnyChannel::new(channel.name.as_str(), samples)
+            ChannelDescription::new(name, sample_type, linear)
         })
         .collect();
-    let layer = Layer::new(
+    let header = Header::new(
+        Text::from(""),
         (width as usize, height as usize),
-        LayerAttributes::default(),
-        Encoding::SMALL_LOSSLESS,
-        AnyChannels::sort(list),
-    );
+        descriptions,
+    )
+    .with_encoding(
+        Compression::ZIP1,
+        BlockDescription::ScanLines,
+        LineOrder::Increasing,
+    )
+    .with_attributes(LayerAttributes::default());
+    let width = width as usize;
     write_atomically_with(path, |file| {
         let mut buffered = std::io::BufWriter::new(file);
-        Image::from_layer(layer)
-            .write()
-            .to_buffered(&mut buffered)
-            .map_err(|e| format!("cannot encode EXR: {e}"))?;
+        ::exr::block::write(
+            &mut buffered,
+            SmallVec::from_elem(header, 1),
+            true,
+            |_, writer| {
+                // Lines in groups, each group compressed in parallel and written
+                // in order: the same bytes on any number of threads, and only a
+                // group's compressed lines held at once.
+                let lines: Vec<usize> = (0..height as usize).collect();
+                for group in lines.chunks(LINES_PER_GROUP) {
+                    let blocks: Vec<Vec<u8>> = group
+                        .par_iter()
+                        .map(|&y| exr_zip::encode_block(&line_bytes(&channels, width, y)))
+                        .collect();
+                    for (&y, compressed_pixels_le) in group.iter().zip(blocks) {
+                        let chunk = Chunk {
+                            layer_index: 0,
+                            compressed_block: CompressedBlock::ScanLine(CompressedScanLineBlock {
+                                y_coordinate: y as i32,
+                                compressed_pixels_le,
+                            }),
+                        };
+                        writer.write_chunk(y, chunk)?;
+                    }
+                }
+                Ok(())
+            },
+        )
+        .map_err(|e| format!("cannot encode EXR: {e}"))?;
         buffered.flush().map_err(|e| format!("cannot write: {e}"))
     })
+}
+
+/// Scan lines compressed together (in parallel) before they are written.
+const LINES_PER_GROUP: usize = 64;
+
+/// The raw bytes of scan line `y`: each channel's samples of that line in
+/// turn, little-endian (the channels sorted by name, as the header lists
+/// them).
+fn line_bytes(channels: &[ExrChannel], width: usize, y: usize) -> Vec<u8> {
+    let mut bytes = Vec::with_capacity(channels.len() * width * 4);
+    let line = y * width..(y + 1) * width;
+    for channel in channels {
+        match &channel.data {
+            ChannelData::F32(v) => v[line.clone()]
+                .iter()
+                .for_each(|x| bytes.extend_from_slice(&x.to_le_bytes())),
+            ChannelData::U32(v) => v[line.clone()]
+                .iter()
+                .for_each(|x| bytes.extend_from_slice(&x.to_le_bytes())),
+        }
+    }
+    bytes
 }
 
 fn validate(width: u32, height: u32, channels: &[ExrChannel]) -> Result<usize, String> {

@@ -2,6 +2,7 @@
 //! goes to a temporary file beside the target, which is then renamed over it.
 
 pub mod exr;
+pub mod exr_zip;
 pub mod tonemap;
 
 use std::io::Write;
