@@ -25,7 +25,9 @@
 //!
 //! Cost (issue 6: compiling must not dominate a render): a smooth coat over
 //! a Lambertian or black base needs no walk, its series sums in closed form
-//! ([`SmoothCoatOverLambert`]); other stacks trace stratified batches of
+//! ([`SmoothCoatOverLambert`]); a smooth coat over any other base (metal
+//! flakes) is the walk's Markov chain in the cosine, solved
+//! ([`crate::brdf::smooth_coat`]); other stacks trace stratified batches of
 //! walks only until the node's standard error is below 10⁻³
 //! ([`adaptive_walk_albedo`]); E_single of a Lambertian base is mixed from
 //! a black- and a white-base table shared by every colour under the same
