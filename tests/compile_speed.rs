@@ -75,10 +75,9 @@ fn closed_form_is_exact_where_the_answer_is_known() {
     assert!(SmoothCoatOverLambert::of(&load_material("gold-metallic-paint").unwrap()).is_none());
 }
 
-#[test]
-fn closed_form_matches_the_random_walk() {
-    // The peer stone's coat and a pink absorbing coat over a pale base.
-    let stacks = [
+/// The peer stone's coat and a pink absorbing coat over a pale base.
+fn smooth_coats_over_lambert() -> [LayeredBrdf; 2] {
+    [
         coated(1.5, 0.0, Rgb::ZERO, lambert(Rgb::new(0.1, 0.5, 0.2))),
         coated(
             1.56,
@@ -86,20 +85,26 @@ fn closed_form_matches_the_random_walk() {
             Rgb::new(0.15, 0.70, 0.35),
             lambert(Rgb::new(0.9, 0.88, 0.92)),
         ),
-    ];
-    for brdf in &stacks {
+    ]
+}
+
+/// `value` within 4 of the walk's standard errors `err` of `walk`, plus
+/// 5·10⁻⁴ for the 0.01° minimum roughness of the walk's "smooth" coat.
+fn assert_within_walk_noise(what: &str, value: Rgb, walk: Rgb, err: Rgb) {
+    let bound = err * 4.0 + Rgb::splat(5e-4);
+    assert!(
+        (value - walk).abs().cmple(bound).all(),
+        "{what}: {value}, walk {walk} ± {err}"
+    );
+}
+
+#[test]
+fn closed_form_matches_the_random_walk() {
+    for brdf in &smooth_coats_over_lambert() {
         let c = SmoothCoatOverLambert::of(brdf).unwrap();
         for mu in [0.05, 0.3, 0.6, 0.95] {
             let (walk, err) = reference_albedo(brdf, in_plane(mu), 40_000, 11);
-            let closed = c.albedo(mu);
-            // 4 standard errors, plus 5·10⁻⁴ for the 0.01° minimum roughness
-            // of the walk's "smooth" coat.
-            let bound = err * 4.0 + Rgb::splat(5e-4);
-            let diff = (closed - walk).abs();
-            assert!(
-                diff.cmple(bound).all(),
-                "μ {mu}: closed {closed}, walk {walk} ± {err}"
-            );
+            assert_within_walk_noise(&format!("closed form, μ {mu}"), c.albedo(mu), walk, err);
         }
     }
 }
@@ -574,17 +579,9 @@ fn smooth_coat_chain_equals_the_closed_form_over_lambert() {
     // Where the exact answer is known, the chain (built for a Lambertian
     // base only here; the tables use the closed form) must find it: its
     // only errors are the interpolation of U and its stratified samples.
-    let stacks = [
-        coated(1.5, 0.0, Rgb::ZERO, lambert(Rgb::ONE)),
-        coated(1.5, 0.0, Rgb::ZERO, lambert(Rgb::new(0.1, 0.5, 0.2))),
-        coated(
-            1.56,
-            0.0,
-            Rgb::new(0.15, 0.70, 0.35),
-            lambert(Rgb::new(0.9, 0.88, 0.92)),
-        ),
-    ];
-    for brdf in &stacks {
+    let white = coated(1.5, 0.0, Rgb::ZERO, lambert(Rgb::ONE));
+    let [peer, pink] = smooth_coats_over_lambert();
+    for brdf in &[white, peer, pink] {
         let closed = SmoothCoatOverLambert::of(brdf).unwrap();
         let chain = SmoothCoatChain::of_any_base(brdf, 5).unwrap();
         assert!(
@@ -606,41 +603,20 @@ fn smooth_coat_chain_equals_the_closed_form_over_lambert() {
 #[test]
 fn smooth_coat_chain_matches_the_random_walk() {
     use lapidary::brdf::smooth_coat::SmoothCoatChain;
+    let clear = Rgb::ZERO;
+    let pink = Rgb::new(0.15, 0.70, 0.35);
+    let oren_nayar = Base::Diffuse {
+        colour: Rgb::new(0.9, 0.6, 0.3),
+        oren_nayar_sigma_rad: 0.5,
+    };
     let stacks = [
-        (
-            "silver 1°",
-            coated(1.56, 0.0, Rgb::ZERO, silver_under(1.56, 1.0)),
-        ),
-        (
-            "silver 4°",
-            coated(1.56, 0.0, Rgb::ZERO, silver_under(1.56, 4.0)),
-        ),
-        (
-            "pink silver",
-            coated(
-                1.56,
-                0.0,
-                Rgb::new(0.15, 0.70, 0.35),
-                silver_under(1.56, 1.0),
-            ),
-        ),
-        (
-            "silver 30°",
-            coated(1.5, 0.0, Rgb::ZERO, silver_under(1.5, 30.0)),
-        ),
-        (
-            "Oren-Nayar",
-            coated(
-                1.5,
-                0.0,
-                Rgb::new(0.02, 0.1, 0.05),
-                Base::Diffuse {
-                    colour: Rgb::new(0.9, 0.6, 0.3),
-                    oren_nayar_sigma_rad: 0.5,
-                },
-            ),
-        ),
-    ];
+        ("silver 1°", 1.56, clear, silver_under(1.56, 1.0)),
+        ("silver 4°", 1.56, clear, silver_under(1.56, 4.0)),
+        ("pink silver", 1.56, pink, silver_under(1.56, 1.0)),
+        ("silver 30°", 1.5, clear, silver_under(1.5, 30.0)),
+        ("Oren-Nayar", 1.5, Rgb::new(0.02, 0.1, 0.05), oren_nayar),
+    ]
+    .map(|(name, ior, absorption, base)| (name, coated(ior, 0.0, absorption, base)));
     for (name, brdf) in &stacks {
         let chain = SmoothCoatChain::of(brdf, 5).expect("smooth coat over a non-Lambert base");
         let nodes = [4, 14, 18, 21, 23];
@@ -655,14 +631,8 @@ fn smooth_coat_chain_matches_the_random_walk() {
         for (mu, solved, walk, err) in rows {
             let z = (solved - walk) / err.max(Rgb::splat(1e-6));
             println!("{name} μ {mu:.4}: chain {solved:.5}, walk {walk:.5} ± {err:.5}, z {z:.2}");
-            // 4 standard errors of the walk, plus 5·10⁻⁴ for the 0.01°
-            // minimum roughness of the walk's "smooth" coat (as for the
-            // closed form above). Measured: |z| ≤ 1.7 for all five.
-            let bound = err * 4.0 + Rgb::splat(5e-4);
-            assert!(
-                (solved - walk).abs().cmple(bound).all(),
-                "{name} μ {mu}: chain {solved}, walk {walk} ± {err}"
-            );
+            // Measured: |z| ≤ 1.7 for all five.
+            assert_within_walk_noise(&format!("{name} μ {mu}"), solved, walk, err);
         }
     }
 }
