@@ -36,9 +36,8 @@
 
 use crate::brdf::fresnel;
 use crate::brdf::layer::Base;
-use crate::brdf::microfacet::MIN_ROUGHNESS_DEG;
 use crate::brdf::reference::{trace_path_with, PresetUniforms, WalkTables};
-use crate::brdf::smooth_coat::SmoothCoatChain;
+use crate::brdf::smooth_coat::{base_is_lambert_or_black, the_smooth_coat, SmoothCoatChain};
 use crate::brdf::stack::LayeredBrdf;
 use crate::brdf::Rgb;
 use glam::DVec3;
@@ -229,8 +228,9 @@ pub fn adaptive_walk_albedo(brdf: &LayeredBrdf, tables: &WalkTables, mu: f64, se
 }
 
 /// The closed form of E_stack for one smooth dielectric coat (roughness 0,
-/// i.e. the clamp [`MIN_ROUGHNESS_DEG`]) over a Lambertian (σ = 0) or black
-/// base, the only stack where the random walk's series sums exactly:
+/// i.e. the clamp [`crate::brdf::microfacet::MIN_ROUGHNESS_DEG`]) over a
+/// Lambertian (σ = 0) or black base, the only stack where the random
+/// walk's series sums exactly:
 ///
 /// E_stack(μ) = F(μ) + (1 − F(μ))·T(μ′)·ρ·a_esc / (1 − ρ·a_ref),
 ///
@@ -262,20 +262,11 @@ impl SmoothCoatOverLambert {
     /// The closed form for `brdf` when it is one smooth coat over a
     /// Lambertian or black base; None for every other stack.
     pub fn of(brdf: &LayeredBrdf) -> Option<Self> {
-        let [coat] = brdf.interfaces.as_slice() else {
-            return None;
-        };
-        if coat.own_lobe.roughness_deg > MIN_ROUGHNESS_DEG {
+        let coat = the_smooth_coat(brdf)?;
+        if !base_is_lambert_or_black(&brdf.base) {
             return None;
         }
-        let colour = match brdf.base {
-            Base::Diffuse {
-                colour,
-                oren_nayar_sigma_rad,
-            } if oren_nayar_sigma_rad <= 0.0 => colour,
-            Base::Black => Rgb::ZERO,
-            _ => return None,
-        };
+        let colour = base_colour(brdf);
         let (mut escape, mut reflect) = (Rgb::ZERO, Rgb::ZERO);
         let step = 1.0 / CLOSED_FORM_STEPS as f64;
         for i in 0..CLOSED_FORM_STEPS {

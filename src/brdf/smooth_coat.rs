@@ -75,6 +75,29 @@ pub struct SmoothCoatChain {
     seed: u64,
 }
 
+/// The one interface of `brdf` when it is its only one and smooth
+/// (roughness at the clamp [`MIN_ROUGHNESS_DEG`]); None otherwise.
+pub(crate) fn the_smooth_coat(brdf: &LayeredBrdf) -> Option<&Interface> {
+    match brdf.interfaces.as_slice() {
+        [coat] if coat.own_lobe.roughness_deg <= MIN_ROUGHNESS_DEG => Some(coat),
+        _ => None,
+    }
+}
+
+/// Whether light leaving `base` forgets its direction or never leaves:
+/// a Lambertian (σ ≤ 0) or black base, under a smooth coat the case of the
+/// closed form.
+pub(crate) fn base_is_lambert_or_black(base: &Base) -> bool {
+    match base {
+        Base::Diffuse {
+            oren_nayar_sigma_rad,
+            ..
+        } => *oren_nayar_sigma_rad <= 0.0,
+        Base::Black => true,
+        Base::Conductor { .. } => false,
+    }
+}
+
 /// Rng stream of the base samples at chain node `j` (evaluation rows use
 /// streams after the nodes').
 fn node_stream(j: usize) -> u64 {
@@ -87,15 +110,7 @@ impl SmoothCoatChain {
     /// [`crate::brdf::compensation::SmoothCoatOverLambert`]); None for
     /// every other stack.
     pub fn of(brdf: &LayeredBrdf, seed: u64) -> Option<Self> {
-        let lambert_or_black = match brdf.base {
-            Base::Diffuse {
-                oren_nayar_sigma_rad,
-                ..
-            } => oren_nayar_sigma_rad <= 0.0,
-            Base::Black => true,
-            Base::Conductor { .. } => false,
-        };
-        if lambert_or_black {
+        if base_is_lambert_or_black(&brdf.base) {
             return None;
         }
         Self::of_any_base(brdf, seed)
@@ -104,12 +119,7 @@ impl SmoothCoatChain {
     /// The chain for one smooth coat over any base, Lambertian included
     /// (where the tests compare it with the closed form).
     pub fn of_any_base(brdf: &LayeredBrdf, seed: u64) -> Option<Self> {
-        let [coat] = brdf.interfaces.as_slice() else {
-            return None;
-        };
-        if coat.own_lobe.roughness_deg > MIN_ROUGHNESS_DEG {
-            return None;
-        }
+        let coat = the_smooth_coat(brdf)?;
         let mut chain = SmoothCoatChain {
             coat: coat.clone(),
             base: brdf.base.clone(),

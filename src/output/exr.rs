@@ -152,13 +152,15 @@ pub fn write_exr_owned(
                 // Lines in groups, each group compressed in parallel and written
                 // in order: the same bytes on any number of threads, and only a
                 // group's compressed lines held at once.
-                let lines: Vec<usize> = (0..height as usize).collect();
-                for group in lines.chunks(LINES_PER_GROUP) {
+                let height = height as usize;
+                for first in (0..height).step_by(LINES_PER_GROUP) {
+                    let group = first..(first + LINES_PER_GROUP).min(height);
                     let blocks: Vec<Vec<u8>> = group
-                        .par_iter()
-                        .map(|&y| exr_zip::encode_block(&line_bytes(&channels, width, y)))
+                        .clone()
+                        .into_par_iter()
+                        .map(|y| exr_zip::encode_block(&line_bytes(&channels, width, y)))
                         .collect();
-                    for (&y, compressed_pixels_le) in group.iter().zip(blocks) {
+                    for (y, compressed_pixels_le) in group.zip(blocks) {
                         let chunk = Chunk {
                             layer_index: 0,
                             compressed_block: CompressedBlock::ScanLine(CompressedScanLineBlock {

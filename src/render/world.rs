@@ -790,22 +790,20 @@ mod tests {
             .map(|i| {
                 let [a, b, _] = rng.next_3();
                 let tilt = if i % 17 == 0 { 0.4 } else { 0.0 };
-                let mut stone = peer_half_ellipsoid(
+                stone_of(
+                    CabochonParams {
+                        length: 2.0 / side as f64,
+                        width: 1.4 / side as f64,
+                        dome_height: 0.45 / side as f64,
+                        ..peer_params()
+                    },
                     DQuat::from_rotation_z(0.4 * (a - 0.5)) * DQuat::from_rotation_x(tilt),
                     DVec3::new(
                         -1.2 + (i % side) as f64 * pitch + 0.5 * pitch,
                         -1.2 + (i / side) as f64 * pitch + 0.5 * pitch,
                         0.002 * b,
                     ),
-                );
-                stone.cabochon = Cabochon::new(CabochonParams {
-                    length: 2.0 / side as f64,
-                    width: 1.4 / side as f64,
-                    dome_height: 0.45 / side as f64,
-                    ..*stone.cabochon.params()
-                })
-                .unwrap();
-                stone
+                )
             })
             .collect();
         let grid = World::new(stones.clone(), Some(0.0));
@@ -855,17 +853,22 @@ mod tests {
 
     /// The peer scene's stone (bench/peer-scene.ron): an ellipsoid cap of
     /// semi-axes 1 × 0.7 × 0.45 on a flat base.
-    fn peer_half_ellipsoid(rotation: DQuat, position: DVec3) -> StoneInstance {
+    /// The peer stone's cabochon: an oval half ellipsoid 2.0 × 1.4 × 0.45.
+    fn peer_params() -> CabochonParams {
+        CabochonParams {
+            outline: Outline::Oval,
+            length: 2.0,
+            width: 1.4,
+            dome_height: 0.45,
+            girdle_height: 0.0,
+            ..CabochonParams::default()
+        }
+    }
+
+    /// A stone of cabochon `params`, turned by `rotation`, at `position`.
+    fn stone_of(params: CabochonParams, rotation: DQuat, position: DVec3) -> StoneInstance {
         StoneInstance {
-            cabochon: Cabochon::new(CabochonParams {
-                outline: Outline::Oval,
-                length: 2.0,
-                width: 1.4,
-                dome_height: 0.45,
-                girdle_height: 0.0,
-                ..CabochonParams::default()
-            })
-            .unwrap(),
+            cabochon: Cabochon::new(params).unwrap(),
             rotation,
             position,
             gem: 0,
@@ -891,12 +894,11 @@ mod tests {
             (rotations[1], 0.3),
         ] {
             let position = DVec3::new(0.3, -0.2, 0.5);
-            let mut stone = peer_half_ellipsoid(rotation, position);
-            stone.cabochon = Cabochon::new(CabochonParams {
+            let params = CabochonParams {
                 girdle_height,
-                ..*stone.cabochon.params()
-            })
-            .unwrap();
+                ..peer_params()
+            };
+            let stone = stone_of(params, rotation, position);
             let far = StoneInstance {
                 position: DVec3::new(1e3, 0.0, 0.5),
                 ..stone.clone()
@@ -981,12 +983,11 @@ mod tests {
             (DQuat::from_rotation_y(1.1), 1.6),
         ] {
             let position = DVec3::new(0.3, -0.2, 0.5);
-            let mut instance = peer_half_ellipsoid(rotation, position);
-            instance.cabochon = Cabochon::new(CabochonParams {
+            let params = CabochonParams {
                 dome_height,
-                ..*instance.cabochon.params()
-            })
-            .unwrap();
+                ..peer_params()
+            };
+            let instance = stone_of(params, rotation, position);
             let world = World::new(vec![instance], Some(0.0));
             let stone = world
                 .lone_stone_for_lanes()
