@@ -168,8 +168,9 @@ fn for_each_jittered_uniform(seed: u64, mu: f64, n: usize, mut draw: impl FnMut(
 }
 
 /// E_stack(μ) by random walks in batches of s² = 64, stopping once the
-/// standard error of every channel is below [`TARGET_STANDARD_ERROR`] or
-/// after [`MAX_WALKS_PER_NODE`] walks (at least [`MIN_WALKS_PER_NODE`]).
+/// standard error of every channel is below `TARGET_STANDARD_ERROR` (10⁻³)
+/// or after `MAX_WALKS_PER_NODE` (8192) walks, at least
+/// `MIN_WALKS_PER_NODE` (1024).
 ///
 /// In each batch the walks' first two uniforms (the top interface's
 /// micro-facet normal, or a bare base's sample) lie on a jittered s × s grid

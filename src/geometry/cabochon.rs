@@ -466,7 +466,7 @@ impl Cabochon {
 
     /// This stone's constants for
     /// [`HalfEllipsoidTest::crosses`](crate::geometry::half_ellipsoid::HalfEllipsoidTest::crosses),
-    /// the select form of [`Self::half_ellipsoid_crosses`]; only meaningful
+    /// the select form of `Cabochon::half_ellipsoid_crosses`; only meaningful
     /// when [`Self::is_half_ellipsoid`].
     pub fn half_ellipsoid_test(&self) -> crate::geometry::half_ellipsoid::HalfEllipsoidTest {
         crate::geometry::half_ellipsoid::HalfEllipsoidTest {

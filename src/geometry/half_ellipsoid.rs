@@ -1,7 +1,7 @@
 //! The half ellipsoid's crossing test written without branches, for the
 //! lane loops of the ground path kernel
 //! ([`crate::render::ground_paths`]): the same IEEE operations in the same
-//! order as [`Cabochon::half_ellipsoid_crosses`] (the chord of the dome
+//! order as `Cabochon::half_ellipsoid_crosses` (the chord of the dome
 //! ellipsoid, clipped by the buff top and the base, long enough, with an
 //! end inside the ray's range), with every `if` a select, so that sixteen
 //! rays compile to vector arithmetic and each gets the scalar test's answer.
@@ -37,7 +37,7 @@ impl HalfEllipsoidTest {
 
     /// Whether the object-space ray (`origin`, `dir`) crosses the stone's
     /// surface in (`t_min`, `t_max`): exactly
-    /// [`Cabochon::half_ellipsoid_crosses`], and so also whether
+    /// `Cabochon::half_ellipsoid_crosses`, and so also whether
     /// `intersect_half_ellipsoid` finds a hit.
     #[inline(always)]
     pub fn crosses(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> bool {

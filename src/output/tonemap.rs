@@ -198,7 +198,7 @@ const SRGB_TABLE_INTERVALS: usize = 4096;
 const SRGB_TABLE_MARGIN: f64 = 1e-9;
 
 /// 255·[`srgb_encode`] + 1.5 at display values i/4096, i = 0…4096: the
-/// quantisation sum `255·encoded + 0.5 + offset` of [`quantize_u8`] at the
+/// quantisation sum `255·encoded + 0.5 + offset` of `quantize_u8` at the
 /// interval ends, plus 1 so that every bracket is positive (see
 /// [`SrgbCodeTable::code`]).
 pub struct SrgbCodeTable {

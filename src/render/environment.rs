@@ -700,11 +700,11 @@ const STUDIO_BOXES: [SoftBox; 3] = [
 ];
 
 /// Radiance of the unrotated studio in direction `d` (unit, z up): a grey
-/// dome from [`STUDIO_HORIZON`] at the horizon to [`STUDIO_ZENITH`] at the
-/// zenith (linear in `cosθ`), a [`STUDIO_FLOOR`] floor below the horizon,
-/// and the soft boxes of `STUDIO_BOXES` (key front-left, strip right, fill
-/// behind; positions, sizes and radiances are documented there) replacing
-/// the dome where they are.
+/// dome from `STUDIO_HORIZON` (0.10) at the horizon to `STUDIO_ZENITH`
+/// (0.25) at the zenith (linear in `cosθ`), a `STUDIO_FLOOR` (0.03) floor
+/// below the horizon, and the soft boxes of `STUDIO_BOXES` (key front-left,
+/// strip right, fill behind; positions, sizes and radiances are documented
+/// there) replacing the dome where they are.
 pub fn studio_radiance(d: DVec3) -> Rgb {
     studio_radiance_masked(&STUDIO_BOXES.map(|b| b.frame()), ALL_BOXES, d)
 }

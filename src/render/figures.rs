@@ -231,7 +231,7 @@ fn film_settings(side_px: u32, settings: &GallerySettings) -> FilmSettings {
 }
 
 /// Compiles gem recipe `text` read from `path` as
-/// [`compile_gem_source`] does (material ids from
+/// [`compile_gem_source`](crate::render::prepare::compile_gem_source) does (material ids from
 /// [`MATERIAL_ID_FIRST_STONE`], the recipe's seed), or with `draft` every
 /// material without its compensation table.
 pub fn compile_gem_text(path: &str, text: &str, draft: bool) -> Result<GemShading, FigureError> {

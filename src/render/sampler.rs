@@ -326,7 +326,7 @@ pub fn sobol_dimension_0(index: u32) -> u32 {
 /// The second Sobol dimension: direction numbers `v₀ = 2³¹`,
 /// `vᵢ = vᵢ₋₁ ⊕ (vᵢ₋₁ >> 1)` (the primitive polynomial x + 1), i.e.
 /// rev(vᵢ) = (1 + x)ⁱ over GF(2) with bit k the coefficient of xᵏ. So
-/// rev(sobol₁(i)) = Σ iₖ (1 + x)ᵏ = [`pascal`](i): the binary Pascal
+/// rev(sobol₁(i)) = Σ iₖ (1 + x)ᵏ = `pascal(i)`: the binary Pascal
 /// matrix, five shift-and-XOR steps instead of a loop over 32 bits.
 pub fn sobol_dimension_1(index: u32) -> u32 {
     pascal(index).reverse_bits()
