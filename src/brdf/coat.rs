@@ -35,6 +35,7 @@ use crate::brdf::layer::Interface;
 use crate::brdf::microfacet::MicrofacetModel;
 use crate::brdf::stack::{accept, mixture_pdf, BrdfSample};
 use crate::brdf::Rgb;
+use crate::render::code_path::code_path_copies;
 use crate::sampling::{cosine_hemisphere, sin_cos_turns};
 use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
@@ -111,9 +112,15 @@ impl<'a> CoatAt<'a> {
         }
     }
 
-    /// f(ωᵢ, ωₒ) and the sampling density at ωᵢ (wi.z > 0).
-    #[inline(never)]
-    pub(crate) fn eval_and_pdf(&self, wi: DVec3) -> (Rgb, f64) {
+    code_path_copies! {
+        /// f(ωᵢ, ωₒ) and the sampling density at ωᵢ (wi.z > 0).
+        pub(crate) fn eval_and_pdf(&self, wi: DVec3) -> (Rgb, f64);
+        body eval_and_pdf_inline, portable eval_and_pdf_portable, v3 eval_and_pdf_x86_64_v3
+    }
+
+    /// The body of [`CoatAt::eval_and_pdf`].
+    #[inline(always)]
+    fn eval_and_pdf_inline(&self, wi: DVec3) -> (Rgb, f64) {
         let itf = self.interface;
         let (lobe_value, lobe_pdf, h, cos_h) = self.interface_lobe(wi);
         // f₁, the interface's Torrance-Sparrow lobe with its Fresnel factor
@@ -194,12 +201,18 @@ impl<'a> CoatAt<'a> {
         absorption * self.base_value * (transmission_in * tir * self.inv_eta_squared)
     }
 
-    /// Importance-sample ωᵢ from three uniform numbers, as `stack`'s
-    /// sampler: the compensation lobe's cosine, else the interface's lobe
-    /// or the base's cosine refracted out of the layer, by the mixture
-    /// weights. None when the sample carries no energy.
-    #[inline(never)]
-    pub(crate) fn sample(&self, u: [f64; 3]) -> Option<BrdfSample> {
+    code_path_copies! {
+        /// Importance-sample ωᵢ from three uniform numbers, as `stack`'s
+        /// sampler: the compensation lobe's cosine, else the interface's
+        /// lobe or the base's cosine refracted out of the layer, by the
+        /// mixture weights. None when the sample carries no energy.
+        pub(crate) fn sample(&self, u: [f64; 3]) -> Option<BrdfSample>;
+        body sample_inline, portable sample_portable, v3 sample_x86_64_v3
+    }
+
+    /// The body of [`CoatAt::sample`] (with the evaluation inlined).
+    #[inline(always)]
+    fn sample_inline(&self, u: [f64; 3]) -> Option<BrdfSample> {
         let p_comp = self.p_comp;
         let wi = if u[0] < p_comp {
             cosine_hemisphere(u[1], u[2])
@@ -218,7 +231,7 @@ impl<'a> CoatAt<'a> {
         if wi.z <= 0.0 {
             return None;
         }
-        let (value, pdf) = self.eval_and_pdf(wi);
+        let (value, pdf) = self.eval_and_pdf_inline(wi);
         accept(wi, value, pdf)
     }
 

@@ -27,6 +27,7 @@ use crate::brdf::fresnel;
 use crate::brdf::layer::{Base, Interface};
 use crate::brdf::microfacet::{refract, v_cavity_g, MicrofacetModel};
 use crate::brdf::Rgb;
+use crate::render::code_path::code_path_copies;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use glam::DVec3;
 
@@ -533,9 +534,17 @@ impl BrdfAt<'_> {
         }
     }
 
-    /// The general form of [`BrdfAt::eval_and_pdf`] (wi.z > 0).
-    #[inline(never)]
-    fn eval_and_pdf_general(&self, prepared: &Prepared, wi: DVec3) -> (Rgb, f64) {
+    code_path_copies! {
+        /// The general form of [`BrdfAt::eval_and_pdf`] (wi.z > 0).
+        fn eval_and_pdf_general(&self, prepared: &Prepared, wi: DVec3) -> (Rgb, f64);
+        body eval_and_pdf_general_inline,
+        portable eval_and_pdf_general_portable,
+        v3 eval_and_pdf_general_x86_64_v3
+    }
+
+    /// The body of [`BrdfAt::eval_and_pdf_general`].
+    #[inline(always)]
+    fn eval_and_pdf_general_inline(&self, prepared: &Prepared, wi: DVec3) -> (Rgb, f64) {
         let (brdf, wo) = (self.brdf, self.wo);
         let (single, stack_pdf) = match (brdf.interfaces.first(), &prepared.top) {
             (Some(itf), Some(top)) => self.top_eval_and_pdf(itf, top, wi),
@@ -647,10 +656,16 @@ impl BrdfAt<'_> {
         }
     }
 
-    /// The general form of [`BrdfAt::sample`]: the compensation lobe's
-    /// cosine sampling or the stack's, then f and the mixture density.
-    #[inline(never)]
-    fn sample_general(&self, prepared: &Prepared, u: [f64; 3]) -> Option<BrdfSample> {
+    code_path_copies! {
+        /// The general form of [`BrdfAt::sample`]: the compensation lobe's
+        /// cosine sampling or the stack's, then f and the mixture density.
+        fn sample_general(&self, prepared: &Prepared, u: [f64; 3]) -> Option<BrdfSample>;
+        body sample_general_inline, portable sample_general_portable, v3 sample_general_x86_64_v3
+    }
+
+    /// The body of [`BrdfAt::sample_general`] (with the evaluation inlined).
+    #[inline(always)]
+    fn sample_general_inline(&self, prepared: &Prepared, u: [f64; 3]) -> Option<BrdfSample> {
         let p_comp = prepared.p_comp;
         let wi = if u[0] < p_comp {
             cosine_hemisphere(u[1], u[2])
@@ -661,7 +676,7 @@ impl BrdfAt<'_> {
         if wi.z <= 0.0 {
             return None;
         }
-        let (value, pdf) = self.eval_and_pdf_general(prepared, wi);
+        let (value, pdf) = self.eval_and_pdf_general_inline(prepared, wi);
         accept(wi, value, pdf)
     }
 

@@ -3,6 +3,10 @@
 //! x86-64-v3 features (AVX2, FMA, BMI1/2, LZCNT: Haswell, every Zen and
 //! later), chosen once per process from the CPU.
 //!
+//! The copies are the row loop (with the ground path kernel, the Sobol
+//! and camera lanes) and, through `code_path_copies!`, the layered BRDF's
+//! out-of-line evaluation and sampling that the loop calls.
+//!
 //! The copies do the same IEEE operations in the same order (Rust never
 //! fuses a multiply and an add unless asked), so they write the same bytes;
 //! `LAPIDARY_SIMD=off` selects the portable code, to check exactly that or
@@ -56,3 +60,45 @@ fn cpu_has_x86_64_v3() -> bool {
         false
     }
 }
+
+/// Defines a method `$name` that runs one of two out-of-line copies of the
+/// `#[inline(always)]` method `$body`: `$portable`, compiled for the
+/// baseline target, or `$v3`, compiled for x86-64-v3 (chosen by
+/// [`code_path`]). For functions that stay out of line (too large to
+/// inline into every caller) but sit in the path tracer's loop, whose own
+/// x86-64-v3 copy would otherwise call their baseline code: the VEX
+/// encoding drops register copies there too (issue 6, round 12).
+macro_rules! code_path_copies {
+    (
+        $(#[$meta:meta])*
+        $vis:vis fn $name:ident(&$this:ident $(, $arg:ident: $arg_ty:ty)*) -> $ret:ty;
+        body $body:ident, portable $portable:ident, v3 $v3:ident
+    ) => {
+        $(#[$meta])*
+        #[inline(always)]
+        $vis fn $name(&$this $(, $arg: $arg_ty)*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            if $crate::render::code_path::code_path()
+                == $crate::render::code_path::CodePath::X86_64V3
+            {
+                // SAFETY: the copy needs only the features that
+                // `code_path` found on this CPU.
+                return unsafe { $this.$v3($($arg),*) };
+            }
+            $this.$portable($($arg),*)
+        }
+
+        #[inline(never)]
+        fn $portable(&$this $(, $arg: $arg_ty)*) -> $ret {
+            $this.$body($($arg),*)
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt")]
+        #[inline(never)]
+        fn $v3(&$this $(, $arg: $arg_ty)*) -> $ret {
+            $this.$body($($arg),*)
+        }
+    };
+}
+pub(crate) use code_path_copies;
