@@ -131,11 +131,15 @@ impl Microfacet {
             MicrofacetModel::Ggx => 0.5 * (-1.0 + (1.0 + (self.alpha * tan).powi(2)).sqrt()),
             _ => {
                 // Beckmann Λ, Walter et al. 2007 eq. 27 rational approximation.
+                // Its numerator dips below 0 for 1.5497 < a < 1.6 (roots
+                // of 1 − 1.259a + 0.396a²), where G1 would exceed 1 by up to
+                // 6·10⁻⁵ and a coat's exit term 1 − F·G under total internal
+                // reflection turn negative: Λ is a mean slope excess, ≥ 0.
                 let a = 1.0 / (self.alpha * tan);
                 if a >= 1.6 {
                     0.0
                 } else {
-                    (1.0 - 1.259 * a + 0.396 * a * a) / (3.535 * a + 2.181 * a * a)
+                    ((1.0 - 1.259 * a + 0.396 * a * a) / (3.535 * a + 2.181 * a * a)).max(0.0)
                 }
             }
         };
@@ -300,6 +304,34 @@ pub fn refract(w: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn smith_shadowing_never_exceeds_one() {
+        // G1 = 1/(1 + Λ) ≤ 1 needs Λ ≥ 0. Beckmann's rational Λ dips below
+        // 0 for a = 1/(α tanθ) in (1.5497, 1.6); sweep a across it (and
+        // every cosine for GGX): before the clamp G1 reached 1.00006 there.
+        for model in [MicrofacetModel::Beckmann, MicrofacetModel::Ggx] {
+            for roughness_deg in [1.0, 14.4, 40.0] {
+                let lobe = Microfacet::new(model, roughness_deg);
+                let mut dipped = 0;
+                for k in 0..=20_000 {
+                    let a = 1.5 + 0.11 * f64::from(k) / 20_000.0;
+                    let tan = 1.0 / (a * lobe.alpha);
+                    let cos_theta = 1.0 / (1.0 + tan * tan).sqrt();
+                    let g1 = lobe.smith_g1_of_cosine(cos_theta);
+                    assert!(
+                        (0.0..=1.0).contains(&g1),
+                        "{model:?} {roughness_deg}° a = {a}: {g1}"
+                    );
+                    dipped += usize::from(g1 == 1.0 && a < 1.6);
+                }
+                if model == MicrofacetModel::Beckmann {
+                    // Where Λ dipped it is now 0: G1 = 1 exactly.
+                    assert!(dipped > 1000, "{dipped}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn blinn_sampling_cosine_is_u_to_the_power_one_over_beta_plus_two() {
