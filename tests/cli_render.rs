@@ -453,8 +453,9 @@ fn the_ground_path_kernel_writes_the_same_bytes_as_the_general_loop() {
     // kernel's class: the peer benchmark's (one unrotated half ellipsoid,
     // one light) and a tilted, turned, raised aventurine under two lights,
     // one of them low over the ground (long shadows, bounces that meet
-    // it). 24 spp: one full batch (the kernel) and a partial one (general
-    // loop only).
+    // it); three trays of small stones, whose rays the kernel tests with
+    // the world's box, grid and BVH searches. 24 spp: one full batch (the
+    // kernel) and a partial one (general loop only).
     let dir = scratch("kernel");
     let bench = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("bench");
     std::fs::copy(bench.join("peer-ground.ron"), dir.join("peer-ground.ron")).unwrap();
@@ -478,9 +479,52 @@ fn the_ground_path_kernel_writes_the_same_bytes_as_the_general_loop() {
                         width: 1.4, dome_height: 0.45, profile_exponent: 2.0, girdle_height: 0.0,
                         base: Flat), position: (0.2, 0.1, 0.3), rotation_deg: (10.0, -20.0, 35.0))";
     std::fs::write(dir.join("tilted.ron"), scene(tilted)).unwrap();
+    // Several stones, tested by the world's own search in each lane: three
+    // (box tests), a 5 × 5 tray (the grid) and a leaning stack (the BVH).
+    let small_stone = |x: f64, y: f64, z: f64, turn_deg: f64| {
+        format!(
+            "Stone(recipe: Some(\"green-aventurine\"), shape: Cabochon(outline: Oval,
+                   length: 0.5, width: 0.35, dome_height: 0.12, profile_exponent: 2.0,
+                   girdle_height: 0.0, base: Flat), position: ({x}, {y}, {z}),
+                   rotation_deg: (0.0, {tilt}, {turn_deg}))",
+            tilt = if z > 0.0 { 15.0 } else { 0.0 }
+        )
+    };
+    let three: Vec<String> = (0..3)
+        .map(|i| {
+            small_stone(
+                f64::from(i) * 0.7 - 0.7,
+                0.1 * f64::from(i),
+                0.0,
+                20.0 * f64::from(i),
+            )
+        })
+        .collect();
+    let tray: Vec<String> = (0..25)
+        .map(|i| {
+            let (col, row) = (f64::from(i % 5), f64::from(i / 5));
+            small_stone(col * 0.55 - 1.1, row * 0.55 - 1.1, 0.0, 7.0 * f64::from(i))
+        })
+        .collect();
+    let stack: Vec<String> = (0..6)
+        .map(|i| {
+            small_stone(
+                0.1 * f64::from(i),
+                0.05 * f64::from(i),
+                0.3 * f64::from(i),
+                30.0 * f64::from(i),
+            )
+        })
+        .collect();
+    for (name, stones) in [("three", three), ("tray", tray), ("stack", stack)] {
+        std::fs::write(dir.join(format!("{name}.ron")), scene(&stones.join(",\n"))).unwrap();
+    }
     for (name, scene_path) in [
         ("peer", bench.join("peer-scene.ron")),
         ("tilted", dir.join("tilted.ron")),
+        ("three", dir.join("three.ron")),
+        ("tray", dir.join("tray.ron")),
+        ("stack", dir.join("stack.ron")),
     ] {
         let mut images = Vec::new();
         let mut shares = Vec::new();

@@ -264,7 +264,7 @@ fn render_row_portable(
             // x86-64-v3 features of the function it is written in.
             let kernel = match ground_paths {
                 Some(kernel) if lanes == SAMPLE_BATCH => {
-                    Some(kernel.trace(camera.position(), &directions, &batch))
+                    Some(kernel.trace(&scene.world, camera.position(), &directions, &batch))
                 }
                 _ => None,
             };
