@@ -450,8 +450,15 @@ impl GroundPaths {
             StoneTest::None => [false; LANES],
             StoneTest::Lone(stone) => stone_blocks(stone, origins, directions, t_max),
             StoneTest::World => {
+                // The box around all the stones first, in the lanes: most
+                // rays of a frame pass far from a tray.
+                let mut near = [false; LANES];
+                for lane in 0..LANES {
+                    near[lane] = asked[lane]
+                        & world.may_meet_stones(origins[lane], directions[lane], t_max[lane]);
+                }
                 let mut blocked = [false; LANES];
-                for lane in (0..LANES).filter(|&lane| asked[lane]) {
+                for lane in (0..LANES).filter(|&lane| near[lane]) {
                     blocked[lane] =
                         world.occluded_leaving(origins[lane], directions[lane], t_max[lane], None);
                 }
