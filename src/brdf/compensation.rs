@@ -287,12 +287,12 @@ impl SmoothCoatOverLambert {
 
     /// E_stack(μ) for light arriving at cosine `mu`.
     pub fn albedo(&self, mu: f64) -> Rgb {
-        let f = fresnel::dielectric(mu, self.eta);
-        let sin2_inside = (1.0 - mu * mu) / (self.eta * self.eta);
-        if sin2_inside >= 1.0 || self.colour == Rgb::ZERO {
+        // Snell once for F(μ) and the refracted cosine μ′.
+        let snell = fresnel::Snell::at(mu, self.eta);
+        let f = fresnel::dielectric_from_snell(mu, snell, self.eta);
+        let Some(mu_inside) = snell.cos_t.filter(|_| self.colour != Rgb::ZERO) else {
             return Rgb::splat(f);
-        }
-        let mu_inside = (1.0 - sin2_inside).sqrt();
+        };
         Rgb::splat(f) + self.coat.crossing_transmittance(mu_inside) * self.bounce_series * (1.0 - f)
     }
 }

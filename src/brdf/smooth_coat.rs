@@ -199,12 +199,12 @@ impl SmoothCoatChain {
     /// so that each node has its own).
     pub fn albedo(&self, mu: f64, stream: u64) -> Rgb {
         let eta = self.coat.eta;
-        let f = fresnel::dielectric(mu, eta);
-        let sin2_inside = (1.0 - mu * mu) / (eta * eta);
-        if sin2_inside >= 1.0 {
+        // Snell once for F(μ) and the refracted cosine μ′.
+        let snell = fresnel::Snell::at(mu, eta);
+        let f = fresnel::dielectric_from_snell(mu, snell, eta);
+        let Some(mu_inside) = snell.cos_t else {
             return Rgb::splat(f);
-        }
-        let mu_inside = (1.0 - sin2_inside).sqrt();
+        };
         // The first bounce sampled afresh at the refracted cosine itself,
         // its escaping part exact, U interpolated only for what returns.
         let mut returned = Rgb::ZERO;

@@ -30,9 +30,10 @@
 //! else, a constant environment, no ambient-occlusion AOV, and any stones.
 //! One half-ellipsoid cabochon (any placement) is tested in the lanes;
 //! several (a tray) through the world's own search, lane by lane, as the
-//! general loop asks it (round 12: the 1000-stone tray went from 2.35 to
-//! 1.58 times one stone's time once the lone stone had the kernel and the
-//! tray did not). Everything else renders with the general loop alone.
+//! general loop asks it (round 12: with the lone stone in the kernel and
+//! trays outside it, the 1000-stone tray had reached 2.13 times one stone's
+//! time, alternately; 1.79 with trays in it). Everything else renders with
+//! the general loop alone.
 
 use std::f64::consts::PI;
 
@@ -429,9 +430,7 @@ impl GroundPaths {
             shadow_rays,
         }
     }
-}
 
-impl GroundPaths {
     /// Whether a stone blocks each lane's ray from `origins` along
     /// `directions` in (0, `t_max`), for the lanes marked in `asked` (the
     /// others' answers are not used: their paths are retraced, or their

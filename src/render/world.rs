@@ -872,9 +872,8 @@ mod tests {
         );
     }
 
-    /// The peer scene's stone (bench/peer-scene.ron): an ellipsoid cap of
-    /// semi-axes 1 × 0.7 × 0.45 on a flat base.
-    /// The peer stone's cabochon: an oval half ellipsoid 2.0 × 1.4 × 0.45.
+    /// The peer scene's stone's cabochon (bench/peer-scene.ron): an
+    /// ellipsoid cap of semi-axes 1 × 0.7 × 0.45 on a flat base.
     fn peer_params() -> CabochonParams {
         CabochonParams {
             outline: Outline::Oval,
