@@ -577,18 +577,25 @@ impl World {
             }
             StoneSearch::Grid(grid) => {
                 let mut blocked = false;
-                grid.walk(origin, direction, near, far, |stones, _| {
-                    blocked = stones.iter().any(|&index| {
-                        let index = index as usize;
-                        ray_hits_box(
-                            origin,
-                            inverse_direction,
-                            distance,
-                            self.placements[index].bounds,
-                        ) && blocks(index)
-                    });
-                    blocked
-                });
+                grid.walk(
+                    origin,
+                    direction,
+                    inverse_direction,
+                    near,
+                    far,
+                    |stones, _| {
+                        blocked = stones.iter().any(|&index| {
+                            let index = index as usize;
+                            ray_hits_box(
+                                origin,
+                                inverse_direction,
+                                distance,
+                                self.placements[index].bounds,
+                            ) && blocks(index)
+                        });
+                        blocked
+                    },
+                );
                 blocked
             }
             StoneSearch::Bvh(bvh) => {
@@ -623,67 +630,89 @@ impl World {
         let inverse_direction = direction.recip();
         let (near, far) = ray_box_span(origin, inverse_direction, limit, self.stones_bounds)?;
         let mut best = None;
-        let mut try_stone = |index: usize, limit: &mut f64| -> bool {
-            if Some(index) == leaving {
-                return false;
-            }
-            match self.stones[index].intersect(
-                &self.placements[index],
-                origin,
-                direction,
-                t_min,
-                *limit,
-            ) {
-                Some(hit) => {
-                    *limit = hit.t;
-                    best = Some((index, hit));
-                    true
-                }
-                None => false,
-            }
-        };
         match &self.search {
             StoneSearch::Boxes => {
                 // With one stone its box is the one just tested.
                 let single = self.placements.len() == 1;
                 for (index, placement) in self.placements.iter().enumerate() {
                     if single || ray_hits_box(origin, inverse_direction, limit, placement.bounds) {
-                        try_stone(index, &mut limit);
+                        if let Some(hit) =
+                            self.one_stone_hit(index, origin, direction, t_min, limit, leaving)
+                        {
+                            limit = hit.t;
+                            best = Some((index, hit));
+                        }
                     }
                 }
             }
             StoneSearch::Grid(grid) => {
                 // A hit before the ray leaves the cell is nearer than any
                 // stone of a later cell can be.
-                grid.walk(origin, direction, near, far, |stones, t_exit| {
-                    for &index in stones {
-                        let index = index as usize;
-                        if ray_hits_box(
-                            origin,
-                            inverse_direction,
-                            limit,
-                            self.placements[index].bounds,
-                        ) {
-                            try_stone(index, &mut limit);
+                grid.walk(
+                    origin,
+                    direction,
+                    inverse_direction,
+                    near,
+                    far,
+                    |stones, t_exit| {
+                        for &index in stones {
+                            let index = index as usize;
+                            if ray_hits_box(
+                                origin,
+                                inverse_direction,
+                                limit,
+                                self.placements[index].bounds,
+                            ) {
+                                if let Some(hit) = self
+                                    .one_stone_hit(index, origin, direction, t_min, limit, leaving)
+                                {
+                                    limit = hit.t;
+                                    best = Some((index, hit));
+                                }
+                            }
                         }
-                    }
-                    limit <= t_exit
-                });
+                        limit <= t_exit
+                    },
+                );
             }
             StoneSearch::Bvh(bvh) => {
                 let ray = Ray::new(to_f32(origin), to_f32(direction), 0.0, f32_up(limit));
                 let mut ray_hit = RayHit::none();
                 bvh.ray_traverse(ray, &mut ray_hit, |_, id| {
                     let index = bvh.primitive_indices[id] as usize;
-                    if try_stone(index, &mut limit) {
-                        f32_up(limit)
-                    } else {
-                        f32::INFINITY
+                    match self.one_stone_hit(index, origin, direction, t_min, limit, leaving) {
+                        Some(hit) => {
+                            limit = hit.t;
+                            best = Some((index, hit));
+                            f32_up(limit)
+                        }
+                        None => f32::INFINITY,
                     }
                 });
             }
         }
         best
+    }
+
+    /// Stone number `index`'s nearest crossing in (`t_min`, `limit`),
+    /// unless it is the one the ray leaves. Always inlined, as
+    /// [`World::one_stone_blocks`]: as a closure that
+    /// [`World::nearest_stone`]'s three searches shared it was compiled as
+    /// a function of its own, called once per stone box a ray meets.
+    #[inline(always)]
+    fn one_stone_hit(
+        &self,
+        index: usize,
+        origin: DVec3,
+        direction: DVec3,
+        t_min: f64,
+        limit: f64,
+        leaving: Option<usize>,
+    ) -> Option<Hit> {
+        if Some(index) == leaving {
+            return None;
+        }
+        self.stones[index].intersect(&self.placements[index], origin, direction, t_min, limit)
     }
 
     /// True when no stone can be met: there are none, or the only one is
