@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use crate::brdf::Rgb;
 use crate::render::camera::PinholeCamera;
 #[cfg(target_arch = "x86_64")]
-use crate::render::code_path::{code_path, CodePath};
+use crate::render::code_path::code_path;
 use crate::render::ground_paths::{GroundPaths, TRACED_RAYS_PER_PATH};
 use crate::render::integrator::{FirstHitSums, RayCounts, RenderScene};
 use crate::render::sampler::{PixelSampler, SampleBatch, SAMPLE_BATCH};
@@ -135,7 +135,7 @@ fn camera_directions(
         return directions;
     }
     #[cfg(target_arch = "x86_64")]
-    if code_path() == CodePath::X86_64V3 {
+    if code_path().has_v3() {
         // SAFETY: `camera_directions_avx2` only needs AVX2, which
         // `code_path` found on this CPU.
         return unsafe { camera_directions_avx2(camera, x, y, batch) };
@@ -208,7 +208,7 @@ fn render_row(
     row: RowOut<'_>,
 ) -> RenderStats {
     #[cfg(target_arch = "x86_64")]
-    if code_path() == CodePath::X86_64V3 {
+    if code_path().has_v3() {
         // SAFETY: `render_row_x86_64_v3` needs only the features that
         // `code_path` found on this CPU.
         return unsafe { render_row_x86_64_v3(scene, ground_paths, camera, settings, y, row) };

@@ -17,7 +17,7 @@
 //! time on x86-64), the same bits as one point at a time.
 
 #[cfg(target_arch = "x86_64")]
-use crate::render::code_path::{code_path, CodePath};
+use crate::render::code_path::code_path;
 use crate::sampling::{mix64, Rng};
 
 /// How many 2-D dimension pairs come from the scrambled Sobol sequence.
@@ -244,7 +244,7 @@ fn scramble_seeds(seed: u64) -> [u32; 3] {
 /// same bits.
 fn fill_batch(pair_seeds: &[[u32; 3]], first_sample: u32, points: &mut BatchPoints) {
     #[cfg(target_arch = "x86_64")]
-    if code_path() == CodePath::X86_64V3 {
+    if code_path().has_v3() {
         // SAFETY: `fill_batch_avx2` only needs AVX2, which `code_path`
         // found on this CPU.
         unsafe { fill_batch_avx2(pair_seeds, first_sample, points) };
