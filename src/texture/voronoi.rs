@@ -193,6 +193,13 @@ pub struct CertifiedNearest {
     site_lattice: DVec3,
     /// Lower bound of `F₂ − m` (lattice units); −∞ for an empty region.
     reach_lattice: f64,
+    /// 1 ⊘ (`cell_size · stretch`): [`Voronoi::nearest_within`] maps a
+    /// point to lattice space by this product instead of three divisions
+    /// (a quarter of a lepidolite pattern's own time). The product differs
+    /// from the quotient by at most two roundings, far inside the
+    /// `10⁻¹²·|q₀|∞` term of the margin, so a region test near its border
+    /// may answer either way, and either answer gives the same site.
+    inverse_scale: DVec3,
 }
 
 impl CertifiedNearest {
@@ -206,6 +213,7 @@ impl CertifiedNearest {
         query_lattice: DVec3::ZERO,
         site_lattice: DVec3::ZERO,
         reach_lattice: f64::NEG_INFINITY,
+        inverse_scale: DVec3::ZERO,
     };
 }
 
@@ -795,6 +803,7 @@ impl Voronoi {
             query_lattice,
             site_lattice: cell.as_dvec3() + site_in_cell(first.hash, lat.jitter),
             reach_lattice: certified_reach(two.second.distance_sq, query_lattice),
+            inverse_scale: lat.scale.recip(),
         };
         // The query itself must be inside (a strict nearest, by the margin);
         // otherwise the plain search decides and the region is empty.
@@ -813,7 +822,7 @@ impl Voronoi {
     /// instructions instead of a search; false for a non-finite `p`.
     #[inline]
     pub fn nearest_within(&self, certified: &CertifiedNearest, p: DVec3) -> bool {
-        let q = p / (self.stretch * self.cell_size);
+        let q = p * certified.inverse_scale;
         (q - certified.site_lattice).length() + (q - certified.query_lattice).length()
             < certified.reach_lattice
     }
