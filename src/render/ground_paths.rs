@@ -95,9 +95,11 @@ enum StoneTest {
     None,
     /// One half ellipsoid, tested in the lanes ([`stone_blocks`]).
     Lone(LoneStone),
-    /// Any other set of stones (a tray): each lane asks the world's own
+    /// Any other set of stones (a tray): the lanes ask the world's own
     /// search, [`World::occluded_leaving`], as the general loop does for its
-    /// shadow rays. For the camera segment and the bounce it answers what
+    /// shadow rays; on a tray's grid through [`World::occluded_lanes`],
+    /// which gathers the stones near all sixteen rays once (1000-stone tray
+    /// −11 % of the time, alternately). For the camera segment and the bounce it answers what
     /// the general loop's [`World::intersect_leaving`] decides: whether a
     /// stone is crossed before the ground point (or at all), which is the
     /// same test of each stone (`Cabochon::crosses` and `intersect` agree
@@ -483,12 +485,7 @@ impl GroundPaths {
                     near[lane] = asked[lane]
                         & world.may_meet_stones(origins[lane], directions[lane], t_max[lane]);
                 }
-                let mut blocked = [false; LANES];
-                for lane in (0..LANES).filter(|&lane| near[lane]) {
-                    blocked[lane] =
-                        world.occluded_leaving(origins[lane], directions[lane], t_max[lane], None);
-                }
-                blocked
+                world.occluded_lanes(origins, directions, t_max, &near)
             }
         }
     }

@@ -224,6 +224,14 @@ impl LoneStone {
 /// a slab test is cheaper than descending a BVH of a handful of boxes.
 const MAX_STONES_WITHOUT_BVH: usize = 4;
 
+/// Most grid cells [`World::occluded_lanes`] gathers stones from for one
+/// batch of rays (more: the rays are far apart, and each walks the grid).
+const MAX_GATHERED_CELLS: usize = 9;
+
+/// Most distinct stones [`World::occluded_lanes`] tests a batch of rays
+/// against (more: each ray walks the grid).
+const MAX_GATHERED_STONES: usize = 16;
+
 /// Stones in a BVH plus the ground.
 pub struct World {
     stones: Vec<StoneInstance>,
@@ -513,6 +521,127 @@ impl World {
             return false;
         }
         self.any_stone_blocks(origin, direction, distance, leaving)
+    }
+
+    /// [`World::occluded_leaving`] with no stone left, for the `asked`
+    /// lanes of a batch of rays that lie close together (the sixteen camera
+    /// rays of a pixel up to their ground points, those points' shadow rays
+    /// to one light). On a tray's grid the stones near all of them are
+    /// gathered once, from the cells under the box around the rays' parts
+    /// inside the stones' slab, and each ray tests those stones as the
+    /// walk would have (its box, then the stone), where `occluded_leaving`
+    /// walks the grid for every ray: the same answers, since a stone a ray
+    /// crosses lies in a cell under that part of the ray. Rays that spread
+    /// over more than [`MAX_GATHERED_CELLS`] cells or near more than
+    /// [`MAX_GATHERED_STONES`] stones, and other searches, ask
+    /// `occluded_leaving` ray by ray. Always inlined, so that the lane
+    /// loops compile into the kernel's vector copies.
+    #[inline(always)]
+    pub(crate) fn occluded_lanes<const N: usize>(
+        &self,
+        origins: &[DVec3; N],
+        directions: &[DVec3; N],
+        distances: &[f64; N],
+        asked: &[bool; N],
+    ) -> [bool; N] {
+        let mut blocked = [false; N];
+        let one_by_one = |blocked: &mut [bool; N], which: &[bool; N]| {
+            for lane in (0..N).filter(|&lane| which[lane]) {
+                blocked[lane] =
+                    self.occluded_leaving(origins[lane], directions[lane], distances[lane], None);
+            }
+        };
+        let StoneSearch::Grid(grid) = &self.search else {
+            one_by_one(&mut blocked, asked);
+            return blocked;
+        };
+        // `occluded_leaving`'s ground test, then the part of each ray
+        // inside the stones' box (its first test), boxed in x and y.
+        let mut inside = [false; N];
+        let mut lo = [f64::INFINITY; 2];
+        let mut hi = [f64::NEG_INFINITY; 2];
+        for lane in (0..N).filter(|&lane| asked[lane]) {
+            let (origin, direction, distance) = (origins[lane], directions[lane], distances[lane]);
+            if let Some(h) = self.ground_height {
+                if direction.z < 0.0 && origin.z > h && (h - origin.z) / direction.z < distance {
+                    blocked[lane] = true;
+                    continue;
+                }
+            }
+            let Some((near, far)) =
+                ray_box_span(origin, direction.recip(), distance, self.stones_bounds)
+            else {
+                continue;
+            };
+            inside[lane] = true;
+            for t in [near, far] {
+                let p = origin + direction * t;
+                lo = [lo[0].min(p.x), lo[1].min(p.y)];
+                hi = [hi[0].max(p.x), hi[1].max(p.y)];
+            }
+        }
+        if !inside.contains(&true) {
+            return blocked;
+        }
+        // Widened far beyond the rounding of the end points.
+        let pad = 1e-9 * (1.0 + lo.iter().chain(&hi).fold(0.0, |m: f64, v| m.max(v.abs())));
+        let mut near_stones = [0u32; MAX_GATHERED_STONES];
+        let mut count = 0;
+        let mut overflow = false;
+        let gathered = grid.for_each_cell_over(
+            [lo[0] - pad, lo[1] - pad],
+            [hi[0] + pad, hi[1] + pad],
+            MAX_GATHERED_CELLS,
+            |stones| {
+                for &index in stones {
+                    if near_stones[..count].contains(&index) {
+                        continue;
+                    }
+                    if count == MAX_GATHERED_STONES {
+                        overflow = true;
+                        return;
+                    }
+                    near_stones[count] = index;
+                    count += 1;
+                }
+            },
+        );
+        if !gathered || overflow {
+            one_by_one(&mut blocked, &inside);
+            return blocked;
+        }
+
+        // Stone by stone, each box tested in lane loops (vector code in the
+        // kernel's copies), the stone itself only where its box is met.
+        let mut inverse_directions = [DVec3::ZERO; N];
+        for lane in 0..N {
+            inverse_directions[lane] = directions[lane].recip();
+        }
+        for &index in &near_stones[..count] {
+            let index = index as usize;
+            let bounds = self.placements[index].bounds;
+            let mut meets_box = [false; N];
+            for lane in 0..N {
+                meets_box[lane] = inside[lane]
+                    & !blocked[lane]
+                    & ray_hits_box(
+                        origins[lane],
+                        inverse_directions[lane],
+                        distances[lane],
+                        bounds,
+                    );
+            }
+            for lane in (0..N).filter(|&lane| meets_box[lane]) {
+                blocked[lane] = self.one_stone_blocks(
+                    index,
+                    origins[lane],
+                    directions[lane],
+                    distances[lane],
+                    None,
+                );
+            }
+        }
+        blocked
     }
 
     /// False where a ray that leaves no stone provably meets none in
@@ -833,29 +962,8 @@ mod tests {
         // way to find candidates, so every hit, skip and shadow must equal
         // the BVH's, for camera-like rays from above, rays leaving a stone
         // in any direction (grazing ones walk many cells) and shadow rays.
-        let side = 12;
-        let pitch = 2.4 / side as f64;
         let mut rng = Rng::new(21, 0);
-        let stones: Vec<StoneInstance> = (0..side * side)
-            .map(|i| {
-                let [a, b, _] = rng.next_3();
-                let tilt = if i % 17 == 0 { 0.4 } else { 0.0 };
-                stone_of(
-                    CabochonParams {
-                        length: 2.0 / side as f64,
-                        width: 1.4 / side as f64,
-                        dome_height: 0.45 / side as f64,
-                        ..peer_params()
-                    },
-                    DQuat::from_rotation_z(0.4 * (a - 0.5)) * DQuat::from_rotation_x(tilt),
-                    DVec3::new(
-                        -1.2 + (i % side) as f64 * pitch + 0.5 * pitch,
-                        -1.2 + (i / side) as f64 * pitch + 0.5 * pitch,
-                        0.002 * b,
-                    ),
-                )
-            })
-            .collect();
+        let stones = tray_of_stones(12, &mut rng);
         let grid = World::new(stones.clone(), Some(0.0));
         let bvh = World::build(stones, Some(0.0), false);
         assert!(matches!(grid.search, StoneSearch::Grid(_)));
@@ -899,6 +1007,118 @@ mod tests {
             stone_hits > 5000 && met_other > 500 && blocked > 1000,
             "{stone_hits} {met_other} {blocked}"
         );
+    }
+
+    /// bench/scaling's tray of `side` × `side` peer stones scaled down side
+    /// by side on a 2.4-unit square, each turned about z, every 17th tilted
+    /// and some raised a little.
+    fn tray_of_stones(side: usize, rng: &mut Rng) -> Vec<StoneInstance> {
+        let pitch = 2.4 / side as f64;
+        (0..side * side)
+            .map(|i| {
+                let [a, b, _] = rng.next_3();
+                let tilt = if i % 17 == 0 { 0.4 } else { 0.0 };
+                stone_of(
+                    CabochonParams {
+                        length: 2.0 / side as f64,
+                        width: 1.4 / side as f64,
+                        dome_height: 0.45 / side as f64,
+                        ..peer_params()
+                    },
+                    DQuat::from_rotation_z(0.4 * (a - 0.5)) * DQuat::from_rotation_x(tilt),
+                    DVec3::new(
+                        -1.2 + (i % side) as f64 * pitch + 0.5 * pitch,
+                        -1.2 + (i / side) as f64 * pitch + 0.5 * pitch,
+                        0.002 * b,
+                    ),
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn batched_shadow_queries_answer_as_ray_by_ray() {
+        // `occluded_lanes` gathers a tray's stones once for sixteen rays
+        // that lie close together; every lane must get `occluded_leaving`'s
+        // answer: pixel-sized bundles of camera segments down to the ground
+        // and of shadow rays from ground points to one light point, and
+        // spread bundles (bounces in all directions, which may overflow the
+        // gathering), with lanes not asked, lanes the ground blocks and a
+        // NaN lane; on a grid tray, and on the BVH and box searches, which
+        // answer ray by ray.
+        let mut rng = Rng::new(33, 0);
+        let tray = tray_of_stones(16, &mut rng);
+        let worlds = [
+            World::new(tray.clone(), Some(0.0)),
+            World::build(tray, Some(0.0), false),
+            row_of_stones(3),
+        ];
+        assert!(matches!(worlds[0].search, StoneSearch::Grid(_)));
+        assert!(matches!(worlds[1].search, StoneSearch::Bvh(_)));
+        assert!(matches!(worlds[2].search, StoneSearch::Boxes));
+        for (w, world) in worlds.iter().enumerate() {
+            let (mut lanes, mut blocked) = (0, 0);
+            for batch in 0..3000 {
+                let [a, b, c] = rng.next_3();
+                let centre = DVec3::new(2.6 * a - 1.3, 2.6 * b - 1.3, 0.0);
+                let spread = [0.002, 0.02, 1.0][batch % 3];
+                let mut origins = [DVec3::ZERO; 16];
+                let mut directions = [DVec3::ZERO; 16];
+                let mut distances = [0.0; 16];
+                let mut asked = [true; 16];
+                let light = DVec3::new(2.5, -2.0, 4.0) + DVec3::splat(0.2 * (c - 0.5));
+                let camera = DVec3::new(0.0, -4.1, 2.9);
+                for lane in 0..16 {
+                    let [u, v, k] = rng.next_3();
+                    let ground = centre + spread * DVec3::new(u - 0.5, v - 0.5, 0.0);
+                    let ground = ground + DVec3::Z * RAY_OFFSET;
+                    (origins[lane], directions[lane], distances[lane]) = match batch % 4 {
+                        // A camera segment, ending at the ground point.
+                        0 => (
+                            camera,
+                            (ground - camera).normalize(),
+                            (ground - camera).length(),
+                        ),
+                        // A shadow ray to the light.
+                        1 => (
+                            ground,
+                            (light - ground).normalize(),
+                            (light - ground).length(),
+                        ),
+                        // A bounce, any way up; now and then down (the
+                        // ground blocks it) or NaN.
+                        _ => {
+                            let [x, y, z] = rng.next_3();
+                            let d = DVec3::new(x - 0.5, y - 0.5, 0.3 * z - 0.02).normalize();
+                            let d = if k < 0.02 { DVec3::NAN } else { d };
+                            (ground, d, f64::INFINITY)
+                        }
+                    };
+                    asked[lane] = k < 0.9;
+                }
+                let answers = world.occluded_lanes(&origins, &directions, &distances, &asked);
+                for lane in 0..16 {
+                    let expected = asked[lane]
+                        && world.occluded_leaving(
+                            origins[lane],
+                            directions[lane],
+                            distances[lane],
+                            None,
+                        );
+                    assert_eq!(
+                        answers[lane], expected,
+                        "world {w}, batch {batch}, lane {lane}"
+                    );
+                    lanes += usize::from(asked[lane]);
+                    blocked += usize::from(expected);
+                }
+            }
+            // Both answers, many times each.
+            assert!(
+                blocked > lanes / 20 && lanes - blocked > lanes / 20,
+                "world {w}: {blocked} of {lanes} blocked"
+            );
+        }
     }
 
     /// The peer scene's stone's cabochon (bench/peer-scene.ron): an
