@@ -40,8 +40,7 @@ use std::f64::consts::PI;
 use glam::DVec3;
 
 use crate::brdf::Rgb;
-#[cfg(target_arch = "x86_64")]
-use crate::render::code_path::{code_path, CodePath};
+use crate::render::code_path::code_path_copies;
 use crate::render::environment::Environment;
 use crate::render::integrator::{power_heuristic, FirstHit, RenderScene, MATERIAL_ID_GROUND};
 use crate::render::lights::{cone_pdf, sample_cone, sphere_entry_or_infinity, Light};
@@ -204,65 +203,24 @@ impl GroundPaths {
         })
     }
 
-    /// Traces the sixteen samples of `batch` whose camera rays leave
-    /// `origin` along `directions`, as [`RenderScene::radiance`] would (see
-    /// the module documentation). In the x86-64-v3 code path the lane
-    /// loops are compiled with AVX2, in the v4 path with AVX-512; every
-    /// copy gives the same bits.
-    pub fn trace(
-        &self,
-        world: &World,
-        origin: DVec3,
-        directions: &[DVec3; LANES],
-        batch: &SampleBatch,
-    ) -> GroundLanes {
-        #[cfg(target_arch = "x86_64")]
-        match code_path() {
-            // SAFETY (both): the copy needs only the features that
-            // `code_path` found on this CPU.
-            CodePath::X86_64V4 => {
-                return unsafe { self.trace_x86_64_v4(world, origin, directions, batch) };
-            }
-            CodePath::X86_64V3 => {
-                return unsafe { self.trace_x86_64_v3(world, origin, directions, batch) };
-            }
-            CodePath::Portable => {}
-        }
-        self.trace_lanes(world, origin, directions, batch)
-    }
-
-    /// [`GroundPaths::trace_lanes`] compiled for x86-64-v3.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt")]
-    #[inline(never)]
-    fn trace_x86_64_v3(
-        &self,
-        world: &World,
-        origin: DVec3,
-        directions: &[DVec3; LANES],
-        batch: &SampleBatch,
-    ) -> GroundLanes {
-        self.trace_lanes(world, origin, directions, batch)
-    }
-
-    /// [`GroundPaths::trace_lanes`] compiled for x86-64-v4: a lane array
-    /// of sixteen f64 is two AVX-512 registers (four AVX2 ones), the
-    /// selects are mask operations, and 32 vector registers hold more of
-    /// the kernel's state (peer render −10 % of the time against the v3
-    /// copy, alternately, on a Zen 4 host; see [`crate::render::code_path`]).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(
-        enable = "avx2,fma,bmi1,bmi2,lzcnt,avx512f,avx512dq,avx512vl,avx512bw,avx512cd"
-    )]
-    #[inline(never)]
-    fn trace_x86_64_v4(
-        &self,
-        world: &World,
-        origin: DVec3,
-        directions: &[DVec3; LANES],
-        batch: &SampleBatch,
-    ) -> GroundLanes {
-        self.trace_lanes(world, origin, directions, batch)
+    code_path_copies! {
+        /// Traces the sixteen samples of `batch` whose camera rays leave
+        /// `origin` along `directions`, as [`RenderScene::radiance`] would
+        /// (see the module documentation). In the x86-64-v3 code path the
+        /// lane loops are compiled with AVX2; in the v4 path with AVX-512,
+        /// where a lane array of sixteen f64 is two registers (four AVX2
+        /// ones), the selects are mask operations and 32 vector registers
+        /// hold more of the kernel's state (peer render −10 % of the time
+        /// against the v3 copy, alternately, on a Zen 4 host; see
+        /// [`crate::render::code_path`]). Every copy gives the same bits.
+        pub fn trace(
+            &self,
+            world: &World,
+            origin: DVec3,
+            directions: &[DVec3; LANES],
+            batch: &SampleBatch
+        ) -> GroundLanes;
+        body trace_lanes, portable trace_portable, v3 trace_x86_64_v3, v4 trace_x86_64_v4
     }
 
     /// The kernel itself (see [`GroundPaths::trace`]).
