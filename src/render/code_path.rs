@@ -111,15 +111,13 @@ fn cpu_has_x86_64_v3() -> bool {
     }
 }
 
-/// Defines a method `$name` that runs one of the out-of-line copies of the
+/// Defines a method `$name` that runs one of two out-of-line copies of the
 /// `#[inline(always)]` method `$body`: `$portable`, compiled for the
-/// baseline target, `$v3`, compiled for x86-64-v3, and, where a `v4` copy
-/// is named, `$v4`, compiled for x86-64-v4 (chosen by [`code_path`];
-/// without a v4 copy the v4 path runs the v3 one). For functions that stay
-/// out of line (too large to inline into every caller) but sit in the path
-/// tracer's loop, whose own x86-64-v3 copy would otherwise call their
-/// baseline code: the VEX encoding drops register copies there too (issue
-/// 6, round 12).
+/// baseline target, or `$v3`, compiled for x86-64-v3 (chosen by
+/// [`code_path`]; also in the v4 path). For functions that stay out of line (too large to
+/// inline into every caller) but sit in the path tracer's loop, whose own
+/// x86-64-v3 copy would otherwise call their baseline code: the VEX
+/// encoding drops register copies there too (issue 6, round 12).
 macro_rules! code_path_copies {
     (
         $(#[$meta:meta])*
@@ -138,52 +136,6 @@ macro_rules! code_path_copies {
             $this.$portable($($arg),*)
         }
 
-        $crate::render::code_path::code_path_copies! {
-            @copies fn(&$this $(, $arg: $arg_ty)*) -> $ret;
-            body $body, portable $portable, v3 $v3
-        }
-    };
-    (
-        $(#[$meta:meta])*
-        $vis:vis fn $name:ident(&$this:ident $(, $arg:ident: $arg_ty:ty)*) -> $ret:ty;
-        body $body:ident, portable $portable:ident, v3 $v3:ident, v4 $v4:ident
-    ) => {
-        $(#[$meta])*
-        #[inline(always)]
-        $vis fn $name(&$this $(, $arg: $arg_ty)*) -> $ret {
-            #[cfg(target_arch = "x86_64")]
-            match $crate::render::code_path::code_path() {
-                // SAFETY (both): the copy needs only the features that
-                // `code_path` found on this CPU.
-                $crate::render::code_path::CodePath::X86_64V4 => {
-                    return unsafe { $this.$v4($($arg),*) };
-                }
-                $crate::render::code_path::CodePath::X86_64V3 => {
-                    return unsafe { $this.$v3($($arg),*) };
-                }
-                $crate::render::code_path::CodePath::Portable => {}
-            }
-            $this.$portable($($arg),*)
-        }
-
-        $crate::render::code_path::code_path_copies! {
-            @copies fn(&$this $(, $arg: $arg_ty)*) -> $ret;
-            body $body, portable $portable, v3 $v3
-        }
-
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(
-            enable = "avx2,fma,bmi1,bmi2,lzcnt,avx512f,avx512dq,avx512vl,avx512bw,avx512cd"
-        )]
-        #[inline(never)]
-        fn $v4(&$this $(, $arg: $arg_ty)*) -> $ret {
-            $this.$body($($arg),*)
-        }
-    };
-    (
-        @copies fn(&$this:ident $(, $arg:ident: $arg_ty:ty)*) -> $ret:ty;
-        body $body:ident, portable $portable:ident, v3 $v3:ident
-    ) => {
         #[inline(never)]
         fn $portable(&$this $(, $arg: $arg_ty)*) -> $ret {
             $this.$body($($arg),*)

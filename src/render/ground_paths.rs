@@ -29,18 +29,20 @@
 //! bare Lambert surface, one to [`MAX_LIGHTS`] sphere lights and nothing
 //! else, a constant environment, no ambient-occlusion AOV, and any stones.
 //! One half-ellipsoid cabochon (any placement) is tested in the lanes;
-//! several (a tray) through the world's own search, lane by lane, as the
-//! general loop asks it (round 12: with the lone stone in the kernel and
-//! trays outside it, the 1000-stone tray had reached 2.13 times one stone's
-//! time, alternately; 1.79 with trays in it). Everything else renders with
-//! the general loop alone.
+//! several (a tray) through the world's own search, the general loop's
+//! question asked for the sixteen rays at once (`World::occluded_lanes`).
+//! Round 12: with the lone stone in the kernel and trays outside it, the
+//! 1000-stone tray had reached 2.13 times one stone's time, alternately;
+//! 1.79 with trays in it. Everything else renders with the general loop
+//! alone.
 
 use std::f64::consts::PI;
 
 use glam::DVec3;
 
 use crate::brdf::Rgb;
-use crate::render::code_path::code_path_copies;
+#[cfg(target_arch = "x86_64")]
+use crate::render::code_path::{code_path, CodePath};
 use crate::render::environment::Environment;
 use crate::render::integrator::{power_heuristic, FirstHit, RenderScene, MATERIAL_ID_GROUND};
 use crate::render::lights::{cone_pdf, sample_cone, sphere_entry_or_infinity, Light};
@@ -203,24 +205,68 @@ impl GroundPaths {
         })
     }
 
-    code_path_copies! {
-        /// Traces the sixteen samples of `batch` whose camera rays leave
-        /// `origin` along `directions`, as [`RenderScene::radiance`] would
-        /// (see the module documentation). In the x86-64-v3 code path the
-        /// lane loops are compiled with AVX2; in the v4 path with AVX-512,
-        /// where a lane array of sixteen f64 is two registers (four AVX2
-        /// ones), the selects are mask operations and 32 vector registers
-        /// hold more of the kernel's state (peer render −10 % of the time
-        /// against the v3 copy, alternately, on a Zen 4 host; see
-        /// [`crate::render::code_path`]). Every copy gives the same bits.
-        pub fn trace(
-            &self,
-            world: &World,
-            origin: DVec3,
-            directions: &[DVec3; LANES],
-            batch: &SampleBatch
-        ) -> GroundLanes;
-        body trace_lanes, portable trace_portable, v3 trace_x86_64_v3, v4 trace_x86_64_v4
+    /// Traces the sixteen samples of `batch` whose camera rays leave
+    /// `origin` along `directions`, as [`RenderScene::radiance`] would (see
+    /// the module documentation). In the x86-64-v3 code path the lane
+    /// loops are compiled with AVX2, in the v4 path with AVX-512; every
+    /// copy gives the same bits. Written out, not through
+    /// `code_path_copies!`: that macro's always-inlined dispatcher copied
+    /// the kernel's 1 kB answer once more on its way to the film (peer
+    /// render loop +1.2 % of the instructions).
+    pub fn trace(
+        &self,
+        world: &World,
+        origin: DVec3,
+        directions: &[DVec3; LANES],
+        batch: &SampleBatch,
+    ) -> GroundLanes {
+        #[cfg(target_arch = "x86_64")]
+        match code_path() {
+            // SAFETY (both): the copy needs only the features that
+            // `code_path` found on this CPU.
+            CodePath::X86_64V4 => {
+                return unsafe { self.trace_x86_64_v4(world, origin, directions, batch) };
+            }
+            CodePath::X86_64V3 => {
+                return unsafe { self.trace_x86_64_v3(world, origin, directions, batch) };
+            }
+            CodePath::Portable => {}
+        }
+        self.trace_lanes(world, origin, directions, batch)
+    }
+
+    /// [`GroundPaths::trace_lanes`] compiled for x86-64-v3.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt")]
+    #[inline(never)]
+    fn trace_x86_64_v3(
+        &self,
+        world: &World,
+        origin: DVec3,
+        directions: &[DVec3; LANES],
+        batch: &SampleBatch,
+    ) -> GroundLanes {
+        self.trace_lanes(world, origin, directions, batch)
+    }
+
+    /// [`GroundPaths::trace_lanes`] compiled for x86-64-v4: a lane array
+    /// of sixteen f64 is two AVX-512 registers (four AVX2 ones), the
+    /// selects are mask operations, and 32 vector registers hold more of
+    /// the kernel's state (peer render −10 % of the time against the v3
+    /// copy, alternately, on a Zen 4 host; see [`crate::render::code_path`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(
+        enable = "avx2,fma,bmi1,bmi2,lzcnt,avx512f,avx512dq,avx512vl,avx512bw,avx512cd"
+    )]
+    #[inline(never)]
+    fn trace_x86_64_v4(
+        &self,
+        world: &World,
+        origin: DVec3,
+        directions: &[DVec3; LANES],
+        batch: &SampleBatch,
+    ) -> GroundLanes {
+        self.trace_lanes(world, origin, directions, batch)
     }
 
     /// The kernel itself (see [`GroundPaths::trace`]).
@@ -435,16 +481,7 @@ impl GroundPaths {
         match &self.stones {
             StoneTest::None => [false; LANES],
             StoneTest::Lone(stone) => stone_blocks(stone, origins, directions, t_max),
-            StoneTest::World => {
-                // The box around all the stones first, in the lanes: most
-                // rays of a frame pass far from a tray.
-                let mut near = [false; LANES];
-                for lane in 0..LANES {
-                    near[lane] = asked[lane]
-                        & world.may_meet_stones(origins[lane], directions[lane], t_max[lane]);
-                }
-                world.occluded_lanes(origins, directions, t_max, &near)
-            }
+            StoneTest::World => world.occluded_lanes(origins, directions, t_max, asked),
         }
     }
 }

@@ -154,13 +154,27 @@ impl StoneGrid {
             inverse_direction,
             t_start,
             t_end,
-            |c, t_exit| {
-                visit(
-                    &self.members[self.starts[c] as usize..self.starts[c + 1] as usize],
-                    t_exit,
-                )
-            },
+            |c, t_exit| visit(self.members_of(c), t_exit),
         );
+    }
+
+    /// The stones of cell number c = y·cells[0] + x.
+    #[inline(always)]
+    fn members_of(&self, c: usize) -> &[u32] {
+        &self.members[self.starts[c] as usize..self.starts[c + 1] as usize]
+    }
+
+    /// The cell along `axis` that coordinate `p` falls in, clamped into the
+    /// grid (a point on the border of the union box may round to just
+    /// outside it). A product with 1/cell size, clamped as a float and cast
+    /// through u32: a cast from f64 to usize takes a dozen instructions in
+    /// the baseline x86-64 code (with the divisions the product replaces,
+    /// 3 % of a 1000-stone tray's instructions). `max` first turns a NaN
+    /// into 0.
+    #[inline(always)]
+    fn cell_of(&self, p: f64, axis: usize) -> usize {
+        let c = (p - self.corner[axis]) * self.inverse_cell_size[axis];
+        c.max(0.0).min(self.last_cell[axis]) as u32 as usize
     }
 
     /// Calls `visit(stones of the cell)` for every cell that the rectangle
@@ -178,20 +192,14 @@ impl StoneGrid {
         if !(lo.iter().chain(&hi).all(|v| v.is_finite())) {
             return false;
         }
-        // As the walk's start cell: a product, clamped as a float.
-        let cell_of = |p: f64, axis: usize| {
-            let c = (p - self.corner[axis]) * self.inverse_cell_size[axis];
-            c.max(0.0).min(self.last_cell[axis]) as u32 as usize
-        };
-        let (x0, x1) = (cell_of(lo[0], 0), cell_of(hi[0], 0));
-        let (y0, y1) = (cell_of(lo[1], 1), cell_of(hi[1], 1));
+        let (x0, x1) = (self.cell_of(lo[0], 0), self.cell_of(hi[0], 0));
+        let (y0, y1) = (self.cell_of(lo[1], 1), self.cell_of(hi[1], 1));
         if (x1 + 1 - x0) * (y1 + 1 - y0) > max_cells {
             return false;
         }
         for y in y0..=y1 {
             for x in x0..=x1 {
-                let c = y * self.cells[0] + x;
-                visit(&self.members[self.starts[c] as usize..self.starts[c + 1] as usize]);
+                visit(self.members_of(y * self.cells[0] + x));
             }
         }
         true
@@ -212,21 +220,11 @@ impl StoneGrid {
         let o = [origin.x, origin.y];
         let d = [direction.x, direction.y];
         let inverse_d = [inverse_direction.x, inverse_direction.y];
-        // The start's cell, clamped into the grid (a start on the border of
-        // the union box may round to just outside it). Clamped as a float
-        // and cast through u32, and the cells' indices made floats through
-        // u32 below: casts between f64 and usize take a dozen instructions
-        // each in the baseline x86-64 code (with the divisions these
-        // replace, 3 % of a 1000-stone tray's instructions). `max` first
-        // turns a NaN into 0.
-        let cell_of = |p: f64, axis: usize| {
-            let c = (p - self.corner[axis]) * self.inverse_cell_size[axis];
-            c.max(0.0).min(self.last_cell[axis]) as u32 as usize
-        };
-        // (A cell index is below u32::MAX: the grid has at most
-        // MAX_CELLS_PER_STONE cells per stone.)
+        // Cell indices made floats through u32, as `cell_of` casts back (a
+        // cell index is below u32::MAX: the grid has at most
+        // MAX_CELLS_PER_STONE cells per stone).
         let float = |c: usize| f64::from(c as u32);
-        let mut cell = [cell_of(start.x, 0), cell_of(start.y, 1)];
+        let mut cell = [self.cell_of(start.x, 0), self.cell_of(start.y, 1)];
         // When the ray crosses the far border of cell c along an axis,
         // computed from the border's position (not accumulated), so that
         // rounding errors do not build up along a long walk.

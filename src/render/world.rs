@@ -504,10 +504,8 @@ impl World {
         distance: f64,
         leaving: Option<usize>,
     ) -> bool {
-        if let Some(h) = self.ground_height {
-            if direction.z < 0.0 && origin.z > h && (h - origin.z) / direction.z < distance {
-                return true;
-            }
+        if self.ground_blocks(origin, direction, distance) {
+            return true;
         }
         if let Some((stone, placement)) = &self.lone_half_ellipsoid {
             // A ray leaving the only stone cannot meet it again.
@@ -544,7 +542,27 @@ impl World {
         distances: &[f64; N],
         asked: &[bool; N],
     ) -> [bool; N] {
+        // `occluded_leaving`'s ground test and the box around all the stones
+        // (its search's first test) in lane loops: most rays of a frame
+        // pass far from a tray.
         let mut blocked = [false; N];
+        let mut inside = [false; N];
+        let mut inverse_directions = [DVec3::ZERO; N];
+        let mut spans = [(0.0, 0.0); N];
+        for lane in 0..N {
+            let (origin, direction, distance) = (origins[lane], directions[lane], distances[lane]);
+            inverse_directions[lane] = direction.recip();
+            let ground = self.ground_blocks(origin, direction, distance);
+            let span = ray_box_span(
+                origin,
+                inverse_directions[lane],
+                distance,
+                self.stones_bounds,
+            );
+            blocked[lane] = asked[lane] & ground;
+            inside[lane] = asked[lane] & !ground & span.is_some();
+            spans[lane] = span.unwrap_or((0.0, 0.0));
+        }
         let one_by_one = |blocked: &mut [bool; N], which: &[bool; N]| {
             for lane in (0..N).filter(|&lane| which[lane]) {
                 blocked[lane] =
@@ -552,30 +570,16 @@ impl World {
             }
         };
         let StoneSearch::Grid(grid) = &self.search else {
-            one_by_one(&mut blocked, asked);
+            one_by_one(&mut blocked, &inside);
             return blocked;
         };
-        // `occluded_leaving`'s ground test, then the part of each ray
-        // inside the stones' box (its first test), boxed in x and y.
-        let mut inside = [false; N];
+        // The parts of the rays inside the stones' box, boxed in x and y.
         let mut lo = [f64::INFINITY; 2];
         let mut hi = [f64::NEG_INFINITY; 2];
-        for lane in (0..N).filter(|&lane| asked[lane]) {
-            let (origin, direction, distance) = (origins[lane], directions[lane], distances[lane]);
-            if let Some(h) = self.ground_height {
-                if direction.z < 0.0 && origin.z > h && (h - origin.z) / direction.z < distance {
-                    blocked[lane] = true;
-                    continue;
-                }
-            }
-            let Some((near, far)) =
-                ray_box_span(origin, direction.recip(), distance, self.stones_bounds)
-            else {
-                continue;
-            };
-            inside[lane] = true;
+        for lane in (0..N).filter(|&lane| inside[lane]) {
+            let (near, far) = spans[lane];
             for t in [near, far] {
-                let p = origin + direction * t;
+                let p = origins[lane] + directions[lane] * t;
                 lo = [lo[0].min(p.x), lo[1].min(p.y)];
                 hi = [hi[0].max(p.x), hi[1].max(p.y)];
             }
@@ -613,10 +617,6 @@ impl World {
 
         // Stone by stone, each box tested in lane loops (vector code in the
         // kernel's copies), the stone itself only where its box is met.
-        let mut inverse_directions = [DVec3::ZERO; N];
-        for lane in 0..N {
-            inverse_directions[lane] = directions[lane].recip();
-        }
         for &index in &near_stones[..count] {
             let index = index as usize;
             let bounds = self.placements[index].bounds;
@@ -644,15 +644,14 @@ impl World {
         blocked
     }
 
-    /// False where a ray that leaves no stone provably meets none in
-    /// (0, `distance`): it misses the box around every stone. This is the
-    /// first test of [`World::occluded_leaving`]'s search among several
-    /// stones (`any_stone_blocks`), the same operations, written for the
-    /// lanes of the ground path kernel, which asks it of sixteen rays at
-    /// once before it asks the search of the few that pass.
+    /// Whether the ground plane crosses the ray in (0, `distance`): the
+    /// first test of [`World::occluded_leaving`] and of its lane form.
     #[inline(always)]
-    pub(crate) fn may_meet_stones(&self, origin: DVec3, direction: DVec3, distance: f64) -> bool {
-        ray_box_span(origin, direction.recip(), distance, self.stones_bounds).is_some()
+    fn ground_blocks(&self, origin: DVec3, direction: DVec3, distance: f64) -> bool {
+        match self.ground_height {
+            Some(h) => direction.z < 0.0 && origin.z > h && (h - origin.z) / direction.z < distance,
+            None => false,
+        }
     }
 
     /// Whether stone number `index`, unless it is the one the ray leaves,
