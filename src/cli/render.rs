@@ -312,16 +312,8 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     }
     let rays = stats.traced_rays + stats.shadow_rays;
     let samples = f64::from(width) * f64::from(height) * f64::from(args.spp);
-    let kernel = if stats.kernel_samples > 0 {
-        format!(
-            ", {:.0} % of samples by the ground path kernel",
-            stats.kernel_samples as f64 / samples * 100.0
-        )
-    } else {
-        String::new()
-    };
     report(&format!(
-        "wrote {} ({width} × {height}, {} spp) in {:.1} s: {:.2} Mrays/s, {:.2} M samples/s, {:.1} s total, {} code{kernel}",
+        "wrote {} ({width} × {height}, {} spp) in {:.1} s: {:.2} Mrays/s, {:.2} M samples/s, {:.1} s total, {} code",
         args.output.display(),
         args.spp,
         seconds,

@@ -267,13 +267,6 @@ impl Cabochon {
         self.flat_oval
     }
 
-    /// Whether the stone is a flat-backed oval without a girdle band: a half
-    /// ellipsoid (optionally buffed), whose one quadratic rejects a miss for
-    /// fewer instructions than a box test.
-    pub fn is_half_ellipsoid(&self) -> bool {
-        self.flat_oval && self.girdle == 0.0
-    }
-
     /// The stone's characteristic size (largest extent), the scale of all
     /// tolerances.
     pub fn size(&self) -> f64 {
@@ -446,52 +439,6 @@ impl Cabochon {
     ) -> Option<Hit> {
         let chord = self.flat_oval_chord(origin, dir)?;
         self.flat_oval_hit(chord, origin, dir, t_min, t_max)
-    }
-
-    /// [`Self::intersect_flat_oval`] for a stone without a girdle band (a
-    /// half ellipsoid, [`Self::is_half_ellipsoid`]), with no test of the
-    /// band: the one-stone scene's hot path. Only for such stones.
-    #[inline(always)]
-    pub(crate) fn intersect_half_ellipsoid(
-        &self,
-        origin: DVec3,
-        dir: DVec3,
-        t_min: f64,
-        t_max: f64,
-    ) -> Option<Hit> {
-        debug_assert!(self.is_half_ellipsoid());
-        let chord = self.half_ellipsoid_chord(origin, dir)?;
-        self.flat_oval_hit(chord, origin, dir, t_min, t_max)
-    }
-
-    /// This stone's constants for
-    /// [`HalfEllipsoidTest::crosses`](crate::geometry::half_ellipsoid::HalfEllipsoidTest::crosses),
-    /// the select form of `Cabochon::half_ellipsoid_crosses`; only meaningful
-    /// when [`Self::is_half_ellipsoid`].
-    pub fn half_ellipsoid_test(&self) -> crate::geometry::half_ellipsoid::HalfEllipsoidTest {
-        crate::geometry::half_ellipsoid::HalfEllipsoidTest {
-            inv_axes: self.inv_axes,
-            buffed: self.buffed,
-            z_top: self.z_top,
-            // As `half_ellipsoid_chord` clips: at −girdle (−0 here).
-            base_z: -self.girdle,
-            size: self.size,
-        }
-    }
-
-    /// [`Self::crosses`] for a half ellipsoid (see
-    /// [`Self::intersect_half_ellipsoid`]).
-    #[inline(always)]
-    pub(crate) fn half_ellipsoid_crosses(
-        &self,
-        origin: DVec3,
-        dir: DVec3,
-        t_min: f64,
-        t_max: f64,
-    ) -> bool {
-        debug_assert!(self.is_half_ellipsoid());
-        self.half_ellipsoid_chord(origin, dir)
-            .is_some_and(|c| c.span.first_end(t_min, t_max).is_some())
     }
 
     /// The hit at the first end of a flat oval's chord in (t_min, t_max).

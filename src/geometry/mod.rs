@@ -11,7 +11,6 @@
 
 pub mod cabochon;
 pub mod error;
-pub mod half_ellipsoid;
 pub mod outline;
 
 pub use cabochon::{Base, Cabochon, CabochonParams, Hit, PROFILE_EXPONENT_RANGE};

@@ -16,7 +16,6 @@ use crate::brdf::Rgb;
 use crate::render::camera::PinholeCamera;
 #[cfg(target_arch = "x86_64")]
 use crate::render::code_path::code_path;
-use crate::render::ground_paths::{GroundPaths, TRACED_RAYS_PER_PATH};
 use crate::render::integrator::{FirstHitSums, RayCounts, RenderScene};
 use crate::render::sampler::{PixelSampler, SampleBatch, SAMPLE_BATCH};
 
@@ -80,9 +79,6 @@ pub struct RenderStats {
     /// Samples whose radiance was NaN, infinite or negative, dropped from
     /// the film (counted so a user can see the integrator misbehaved).
     pub bad_samples: u64,
-    /// Samples traced by the ground path kernel
-    /// ([`crate::render::ground_paths`]) rather than the general loop.
-    pub kernel_samples: u64,
 }
 
 /// One row of the film, borrowed for writing.
@@ -201,7 +197,6 @@ fn to_f32x3(v: DVec3) -> [f32; 3] {
 /// Both copies write the same bytes (tested).
 fn render_row(
     scene: &RenderScene,
-    ground_paths: Option<&GroundPaths>,
     camera: &PinholeCamera,
     settings: &FilmSettings,
     y: u32,
@@ -211,9 +206,9 @@ fn render_row(
     if code_path().has_v3() {
         // SAFETY: `render_row_x86_64_v3` needs only the features that
         // `code_path` found on this CPU.
-        return unsafe { render_row_x86_64_v3(scene, ground_paths, camera, settings, y, row) };
+        return unsafe { render_row_x86_64_v3(scene, camera, settings, y, row) };
     }
-    render_row_portable(scene, ground_paths, camera, settings, y, row)
+    render_row_portable(scene, camera, settings, y, row)
 }
 
 /// [`render_row_portable`] compiled for x86-64-v3 (see [`render_row`]).
@@ -221,24 +216,20 @@ fn render_row(
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt")]
 fn render_row_x86_64_v3(
     scene: &RenderScene,
-    ground_paths: Option<&GroundPaths>,
     camera: &PinholeCamera,
     settings: &FilmSettings,
     y: u32,
     row: RowOut<'_>,
 ) -> RenderStats {
-    render_row_portable(scene, ground_paths, camera, settings, y, row)
+    render_row_portable(scene, camera, settings, y, row)
 }
 
 /// The row loop itself, for the baseline x86-64 (or any other) target;
-/// inlined into [`render_row_x86_64_v3`] for the other copy. With
-/// `ground_paths`, each full batch of a pixel's samples goes through the
-/// ground path kernel first, and only the samples it leaves are traced by
-/// [`RenderScene::radiance`]; the samples are summed in order either way.
+/// inlined into [`render_row_x86_64_v3`] for the other copy. Each sample
+/// is traced by [`RenderScene::radiance`] and summed in sample order.
 #[inline(always)]
 fn render_row_portable(
     scene: &RenderScene,
-    ground_paths: Option<&GroundPaths>,
     camera: &PinholeCamera,
     settings: &FilmSettings,
     y: u32,
@@ -246,7 +237,7 @@ fn render_row_portable(
 ) -> RenderStats {
     let mut stats = RenderStats::default();
     let spp = settings.samples_per_pixel;
-    // The pairs every sample draws (the kernel's are a subset), made for
+    // The pairs every sample draws, made for
     // the batch at once; deeper ones when a path draws them.
     let eager_pairs = scene.first_vertex_pairs();
     for x in 0..settings.width {
@@ -260,42 +251,21 @@ fn render_row_portable(
             let lanes = (spp - first_sample).min(SAMPLE_BATCH);
             pixel.refill(&mut batch, first_sample, lanes, eager_pairs);
             let directions = camera_directions(camera, x, y, &batch, lanes);
-            // No closures here: a closure is compiled without the
-            // x86-64-v3 features of the function it is written in.
-            let kernel = match ground_paths {
-                Some(kernel) if lanes == SAMPLE_BATCH => {
-                    Some(kernel.trace(&scene.world, camera.position(), &directions, &batch))
-                }
-                _ => None,
-            };
             for lane in 0..lanes {
                 let s = first_sample + lane;
-                let radiance = match &kernel {
-                    Some(traced) if traced.traced[lane as usize] => {
-                        let lane = lane as usize;
-                        first_hits.add(&traced.first_hit(lane), s == 0);
-                        stats.traced_rays += TRACED_RAYS_PER_PATH;
-                        stats.shadow_rays += u64::from(traced.shadow_rays[lane]);
-                        stats.kernel_samples += 1;
-                        traced.radiance[lane]
-                    }
-                    _ => {
-                        let mut stream = batch.stream(lane);
-                        stream.skip_2d(); // the footprint, already in `directions`
-                        let mut counts = RayCounts::default();
-                        let radiance = scene.radiance(
-                            camera.position(),
-                            directions[lane as usize],
-                            &mut stream,
-                            &mut counts,
-                            &mut first_hits,
-                            s == 0,
-                        );
-                        stats.traced_rays += counts.traced;
-                        stats.shadow_rays += counts.shadow;
-                        radiance
-                    }
-                };
+                let mut stream = batch.stream(lane);
+                stream.skip_2d(); // the footprint, already in `directions`
+                let mut counts = RayCounts::default();
+                let radiance = scene.radiance(
+                    camera.position(),
+                    directions[lane as usize],
+                    &mut stream,
+                    &mut counts,
+                    &mut first_hits,
+                    s == 0,
+                );
+                stats.traced_rays += counts.traced;
+                stats.shadow_rays += counts.shadow;
                 if radiance.is_finite() && radiance.min_element() >= 0.0 {
                     sum += radiance;
                 } else {
@@ -346,8 +316,6 @@ pub fn render_cancellable(
     progress: &(dyn Fn(u64) + Sync),
     cancel: &AtomicBool,
 ) -> Option<Film> {
-    let ground_paths = GroundPaths::for_scene(scene);
-    let ground_paths = ground_paths.as_ref();
     let pixels = settings.width as usize * settings.height as usize;
     let w = settings.width as usize;
     let mut film = Film {
@@ -397,7 +365,7 @@ pub fn render_cancellable(
                     material_id,
                     ao,
                 };
-                let stats = render_row(scene, ground_paths, camera, settings, y as u32, row);
+                let stats = render_row(scene, camera, settings, y as u32, row);
                 progress(u64::from(settings.width));
                 stats
             },
@@ -406,7 +374,6 @@ pub fn render_cancellable(
             traced_rays: a.traced_rays + b.traced_rays,
             shadow_rays: a.shadow_rays + b.shadow_rays,
             bad_samples: a.bad_samples + b.bad_samples,
-            kernel_samples: a.kernel_samples + b.kernel_samples,
         });
     if cancel.load(Ordering::Relaxed) {
         return None;

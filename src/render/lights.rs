@@ -353,36 +353,6 @@ fn sphere_entry(origin: DVec3, direction: DVec3, centre: DVec3, radius: f64) -> 
     }
 }
 
-/// [`sphere_entry`] as selects, for lane loops: the same distance, or
-/// infinity where that returns None.
-#[inline(always)]
-pub(crate) fn sphere_entry_or_infinity(
-    origin: DVec3,
-    direction: DVec3,
-    centre: DVec3,
-    radius: f64,
-) -> f64 {
-    let oc = origin - centre;
-    let b = oc.dot(direction);
-    let c = oc.length_squared() - radius * radius;
-    let disc = b * b - c;
-    let root = disc.sqrt();
-    let near = -b - root;
-    let far = -b + root;
-    let t = if near > 0.0 {
-        near
-    } else if (far > 0.0) & (c > 0.0) {
-        far
-    } else {
-        f64::INFINITY
-    };
-    if disc < 0.0 {
-        f64::INFINITY
-    } else {
-        t
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -558,13 +528,6 @@ mod tests {
                 })
                 .flatten()
                 .filter(|t| *t < t_max);
-            // The select form for lane loops gives the same distance, bit
-            // for bit, or infinity for no entry.
-            assert_eq!(
-                sphere_entry_or_infinity(origin, direction, centre, radius),
-                sphere_entry(origin, direction, centre, radius).unwrap_or(f64::INFINITY),
-                "ray {i}"
-            );
             match (light.hit(origin, direction, t_max), expected) {
                 (Some((t, emitted)), Some(want)) => {
                     hits += 1;

@@ -11,7 +11,6 @@ pub mod distribution;
 pub mod environment;
 pub mod figures;
 pub mod film;
-pub mod ground_paths;
 pub mod integrator;
 pub mod lights;
 pub mod prepare;

@@ -63,9 +63,7 @@ impl PixelSampler {
     /// loop reuses one rather than copy a new one in), with the first
     /// `eager_pairs` Sobol pairs of every lane made now and the others
     /// left to [`SampleStream::next_2d`], which makes a later pair when a
-    /// path draws it: most paths end before they need them (issue 6: on
-    /// the peer scene three of the six pairs are drawn by 12 % of the
-    /// stone's samples and by none of the ground kernel's). A full batch is
+    /// path draws it: most paths end before they need them. A full batch is
     /// made in vector code; fewer lanes (a pixel's last samples, or a
     /// preview's one sample) one point at a time, so that 1 spp does not
     /// pay for 16 samples' points. Either way every number drawn is the
@@ -112,27 +110,6 @@ impl SampleBatch {
     /// Pair 0 (the pixel footprint) of every lane's sample.
     pub fn footprints(&self) -> [[f64; 2]; SAMPLE_BATCH as usize] {
         self.points.map(|pairs| pairs[0])
-    }
-
-    /// Sobol pair `pair` of sample `first_sample + lane`, one of the pairs
-    /// made for every lane (`pair` < the `eager_pairs` of
-    /// [`PixelSampler::refill`]): what that sample's stream returns from
-    /// its `pair`-th [`SampleStream::next_2d`], for kernels that read the
-    /// lanes directly.
-    #[inline(always)]
-    pub fn pair(&self, lane: usize, pair: usize) -> [f64; 2] {
-        debug_assert!(pair < self.eager_pairs as usize, "pair {pair} was not made");
-        self.points[lane][pair]
-    }
-
-    /// The first number of the hashed tail of sample `first_sample + lane`:
-    /// what that sample's stream returns from its first
-    /// [`SampleStream::next_1d`] (the third number of its first
-    /// [`SampleStream::next_3d`]).
-    #[inline(always)]
-    pub fn first_tail_number(&self, lane: u32) -> f64 {
-        let sample_index = self.first_sample.wrapping_add(lane);
-        Rng::new(self.pixel_seed, u64::from(sample_index)).next_f64()
     }
 
     /// The stream of sample `first_sample + lane` (lane < [`SAMPLE_BATCH`]).

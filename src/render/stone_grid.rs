@@ -177,34 +177,6 @@ impl StoneGrid {
         c.max(0.0).min(self.last_cell[axis]) as u32 as usize
     }
 
-    /// Calls `visit(stones of the cell)` for every cell that the rectangle
-    /// `lo`..=`hi` in x and y overlaps (clamped into the grid), unless it
-    /// overlaps more than `max_cells` cells or is not finite: then false,
-    /// and nothing is visited. A stone that lies in several of the cells
-    /// comes once per cell.
-    pub fn for_each_cell_over(
-        &self,
-        lo: [f64; 2],
-        hi: [f64; 2],
-        max_cells: usize,
-        mut visit: impl FnMut(&[u32]),
-    ) -> bool {
-        if !(lo.iter().chain(&hi).all(|v| v.is_finite())) {
-            return false;
-        }
-        let (x0, x1) = (self.cell_of(lo[0], 0), self.cell_of(hi[0], 0));
-        let (y0, y1) = (self.cell_of(lo[1], 1), self.cell_of(hi[1], 1));
-        if (x1 + 1 - x0) * (y1 + 1 - y0) > max_cells {
-            return false;
-        }
-        for y in y0..=y1 {
-            for x in x0..=x1 {
-                visit(self.members_of(y * self.cells[0] + x));
-            }
-        }
-        true
-    }
-
     /// [`StoneGrid::walk`] by cell number y·cells[0] + x.
     #[inline(always)]
     fn walk_cells(
