@@ -24,12 +24,7 @@ fn renderer(c: &mut Criterion) {
     let scene = default_scene();
     let prepared = prepare_scene(&scene, DEFAULT_GEM, None, 4, &|_| {}).expect("default scene");
     let camera = camera_for(&scene, SIDE, SIDE);
-    let settings = FilmSettings {
-        width: SIDE,
-        height: SIDE,
-        samples_per_pixel: SPP,
-        seed: 0,
-    };
+    let settings = FilmSettings::new(SIDE, SIDE, SPP, 0);
 
     let mut group = c.benchmark_group("render");
     group.sample_size(10);

@@ -126,12 +126,7 @@ fn every_recipe_file_and_builtin_compiles() {
 fn assert_renders(name: &str, prepared: &mut RenderScene, gem: Option<GemShading>) {
     let scene = default_scene();
     let camera = camera_for(&scene, 32, 32);
-    let settings = FilmSettings {
-        width: 32,
-        height: 32,
-        samples_per_pixel: 1,
-        seed: 0,
-    };
+    let settings = FilmSettings::new(32, 32, 1, 0);
     if let Some(gem) = gem {
         prepared.gems[0] = gem;
     }

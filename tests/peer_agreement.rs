@@ -35,12 +35,7 @@ fn the_peer_scene_matches_mitsubas_ground_and_stone() {
     let prepared = prepare_scene(&scene, "green-aventurine", None, 4, &|_| {}).unwrap();
     let side = 128;
     let camera = camera_for(&scene, side, side);
-    let settings = FilmSettings {
-        width: side,
-        height: side,
-        samples_per_pixel: 64,
-        seed: 3,
-    };
+    let settings = FilmSettings::new(side, side, 64, 3);
     let film = render(&prepared, &camera, &settings, &|_| {});
     // bench/compare's patches and Mitsuba's means (bench/README.md).
     let checks = [

@@ -256,7 +256,7 @@ proptest! {
 
         let (scene, render_scene) = default_scene_without_ground(gem);
         let camera = camera_for(&scene, SIDE, SIDE);
-        let settings = FilmSettings { width: SIDE, height: SIDE, samples_per_pixel: 1, seed: r.seed };
+        let settings = FilmSettings::new(SIDE, SIDE, 1, r.seed);
         let film = render(&render_scene, &camera, &settings, &|_| {});
 
         prop_assert_eq!(film.rgb.len(), (SIDE * SIDE) as usize);
@@ -335,12 +335,7 @@ fn bad_samples_of(text: &str) -> u64 {
     let (scene, render_scene) = default_scene_without_ground(gem);
     let side = 16;
     let camera = camera_for(&scene, side, side);
-    let settings = FilmSettings {
-        width: side,
-        height: side,
-        samples_per_pixel: 2,
-        seed: 1,
-    };
+    let settings = FilmSettings::new(side, side, 2, 1);
     let film = render(&render_scene, &camera, &settings, &|_| {});
     assert!(film
         .rgb

@@ -39,12 +39,7 @@ fn render_single_material(material: &str, sky: f64, size: u32, spp: u32, threads
         size,
         size,
     );
-    let settings = FilmSettings {
-        width: size,
-        height: size,
-        samples_per_pixel: spp,
-        seed: 1,
-    };
+    let settings = FilmSettings::new(size, size, spp, 1);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()

@@ -56,12 +56,7 @@ fn floor_radiance(lights: Vec<Light>, stones: Vec<StoneInstance>, spp: u32) -> f
         9,
         9,
     );
-    let settings = FilmSettings {
-        width: 9,
-        height: 9,
-        samples_per_pixel: spp,
-        seed: 3,
-    };
+    let settings = FilmSettings::new(9, 9, spp, 3);
     let film = render(&scene, &camera, &settings, &|_| {});
     let mut sum = 0.0;
     for y in 3..6 {

@@ -35,7 +35,6 @@ use crate::brdf::layer::Interface;
 use crate::brdf::microfacet::MicrofacetModel;
 use crate::brdf::stack::{accept, mixture_pdf, BrdfSample};
 use crate::brdf::Rgb;
-use crate::render::code_path::code_path_copies;
 use crate::sampling::{cosine_hemisphere, sin_cos_turns};
 use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
@@ -112,10 +111,10 @@ impl<'a> CoatAt<'a> {
         }
     }
 
-    code_path_copies! {
-        /// f(ωᵢ, ωₒ) and the sampling density at ωᵢ (wi.z > 0).
-        pub(crate) fn eval_and_pdf(&self, wi: DVec3) -> (Rgb, f64);
-        body eval_and_pdf_inline, portable eval_and_pdf_portable, v3 eval_and_pdf_x86_64_v3
+    /// f(ωᵢ, ωₒ) and the sampling density at ωᵢ (wi.z > 0).
+    #[inline(never)]
+    pub(crate) fn eval_and_pdf(&self, wi: DVec3) -> (Rgb, f64) {
+        self.eval_and_pdf_inline(wi)
     }
 
     /// The body of [`CoatAt::eval_and_pdf`].
@@ -201,13 +200,13 @@ impl<'a> CoatAt<'a> {
         absorption * self.base_value * (transmission_in * tir * self.inv_eta_squared)
     }
 
-    code_path_copies! {
-        /// Importance-sample ωᵢ from three uniform numbers, as `stack`'s
-        /// sampler: the compensation lobe's cosine, else the interface's
-        /// lobe or the base's cosine refracted out of the layer, by the
-        /// mixture weights. None when the sample carries no energy.
-        pub(crate) fn sample(&self, u: [f64; 3]) -> Option<BrdfSample>;
-        body sample_inline, portable sample_portable, v3 sample_x86_64_v3
+    /// Importance-sample ωᵢ from three uniform numbers, as `stack`'s
+    /// sampler: the compensation lobe's cosine, else the interface's
+    /// lobe or the base's cosine refracted out of the layer, by the
+    /// mixture weights. None when the sample carries no energy.
+    #[inline(never)]
+    pub(crate) fn sample(&self, u: [f64; 3]) -> Option<BrdfSample> {
+        self.sample_inline(u)
     }
 
     /// The body of [`CoatAt::sample`] (with the evaluation inlined).

@@ -27,7 +27,6 @@ use crate::brdf::fresnel;
 use crate::brdf::layer::{Base, Interface};
 use crate::brdf::microfacet::{refract, v_cavity_g, MicrofacetModel};
 use crate::brdf::Rgb;
-use crate::render::code_path::code_path_copies;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use glam::DVec3;
 
@@ -534,12 +533,10 @@ impl BrdfAt<'_> {
         }
     }
 
-    code_path_copies! {
-        /// The general form of [`BrdfAt::eval_and_pdf`] (wi.z > 0).
-        fn eval_and_pdf_general(&self, prepared: &Prepared, wi: DVec3) -> (Rgb, f64);
-        body eval_and_pdf_general_inline,
-        portable eval_and_pdf_general_portable,
-        v3 eval_and_pdf_general_x86_64_v3
+    /// The general form of [`BrdfAt::eval_and_pdf`] (wi.z > 0).
+    #[inline(never)]
+    fn eval_and_pdf_general(&self, prepared: &Prepared, wi: DVec3) -> (Rgb, f64) {
+        self.eval_and_pdf_general_inline(prepared, wi)
     }
 
     /// The body of [`BrdfAt::eval_and_pdf_general`].
@@ -656,11 +653,11 @@ impl BrdfAt<'_> {
         }
     }
 
-    code_path_copies! {
-        /// The general form of [`BrdfAt::sample`]: the compensation lobe's
-        /// cosine sampling or the stack's, then f and the mixture density.
-        fn sample_general(&self, prepared: &Prepared, u: [f64; 3]) -> Option<BrdfSample>;
-        body sample_general_inline, portable sample_general_portable, v3 sample_general_x86_64_v3
+    /// The general form of [`BrdfAt::sample`]: the compensation lobe's
+    /// cosine sampling or the stack's, then f and the mixture density.
+    #[inline(never)]
+    fn sample_general(&self, prepared: &Prepared, u: [f64; 3]) -> Option<BrdfSample> {
+        self.sample_general_inline(prepared, u)
     }
 
     /// The body of [`BrdfAt::sample_general`] (with the evaluation inlined).

@@ -232,10 +232,8 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     render_scene.ambient_occlusion = args.ao;
     let camera = camera_for(&scene, width, height);
     let settings = FilmSettings {
-        width,
-        height,
-        samples_per_pixel: args.spp,
-        seed: args.seed,
+        code_path: super::code_path_from_env(),
+        ..FilmSettings::new(width, height, args.spp, args.seed)
     };
     let pool = super::worker_pool(args.threads)?;
     let bar = if !quiet && std::io::stderr().is_terminal() {
@@ -320,7 +318,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         rays as f64 / seconds / 1e6,
         samples / seconds / 1e6,
         started.elapsed().as_secs_f64(),
-        lapidary::render::code_path::code_path().name(),
+        settings.code_path.name(),
     ));
     Ok(())
 }

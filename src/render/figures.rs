@@ -222,12 +222,7 @@ fn develop(scene: &RenderScene, camera: &PinholeCamera, settings: &FilmSettings)
 }
 
 fn film_settings(side_px: u32, settings: &GallerySettings) -> FilmSettings {
-    FilmSettings {
-        width: side_px,
-        height: side_px,
-        samples_per_pixel: settings.samples_per_pixel,
-        seed: settings.seed,
-    }
+    FilmSettings::new(side_px, side_px, settings.samples_per_pixel, settings.seed)
 }
 
 /// Compiles gem recipe `text` read from `path` as

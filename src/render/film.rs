@@ -14,8 +14,7 @@ use rayon::prelude::*;
 
 use crate::brdf::Rgb;
 use crate::render::camera::PinholeCamera;
-#[cfg(target_arch = "x86_64")]
-use crate::render::code_path::code_path;
+use crate::render::cpu::CodePath;
 use crate::render::integrator::{FirstHitSums, RayCounts, RenderScene};
 use crate::render::sampler::{PixelSampler, SampleBatch, SAMPLE_BATCH};
 
@@ -30,6 +29,23 @@ pub struct FilmSettings {
     pub samples_per_pixel: u32,
     /// Seed of every random number of the render.
     pub seed: u64,
+    /// The most CPU-specific copy of the row loop to run (capped at
+    /// [`CodePath::best_available`]); every copy writes the same bytes.
+    pub code_path: CodePath,
+}
+
+impl FilmSettings {
+    /// `width` × `height` pixels, `samples_per_pixel` samples each, drawn
+    /// from `seed`, on the best copy of the row loop this CPU runs.
+    pub fn new(width: u32, height: u32, samples_per_pixel: u32, seed: u64) -> Self {
+        Self {
+            width,
+            height,
+            samples_per_pixel,
+            seed,
+            code_path: CodePath::best_available(),
+        }
+    }
 }
 
 /// Bytes of film memory per pixel (RGBA, albedo, normal, depth, cell,
@@ -109,9 +125,10 @@ fn tent(u: f64) -> f64 {
 /// The camera rays' directions for the first `lanes` samples of a batch of
 /// pixel (x, y): the footprints (pair 0) through the tent filter, then
 /// [`PinholeCamera::directions`]; the same bits as `camera.ray` per sample.
-/// In the x86-64-v3 code path ([`crate::render::code_path`]) the lanes are
-/// compiled four to a register. A partial batch (a pixel's last samples)
+/// Inlined into the row loop, whose x86-64-v3 copy compiles the lanes four
+/// to a register. A partial batch (a pixel's last samples)
 /// takes one `camera.ray` per sample instead.
+#[inline(always)]
 fn camera_directions(
     camera: &PinholeCamera,
     x: u32,
@@ -130,24 +147,6 @@ fn camera_directions(
         }
         return directions;
     }
-    #[cfg(target_arch = "x86_64")]
-    if code_path().has_v3() {
-        // SAFETY: `camera_directions_avx2` only needs AVX2, which
-        // `code_path` found on this CPU.
-        return unsafe { camera_directions_avx2(camera, x, y, batch) };
-    }
-    camera_directions_lanes(camera, x, y, batch)
-}
-
-/// [`camera_directions_lanes`] compiled with AVX2 enabled.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn camera_directions_avx2(
-    camera: &PinholeCamera,
-    x: u32,
-    y: u32,
-    batch: &SampleBatch,
-) -> [DVec3; SAMPLE_BATCH as usize] {
     camera_directions_lanes(camera, x, y, batch)
 }
 
@@ -190,11 +189,12 @@ fn to_f32x3(v: DVec3) -> [f32; 3] {
 
 /// Renders row `y` into `row`; returns its ray counts.
 ///
-/// In the x86-64-v3 code path ([`crate::render::code_path`]) the row is
-/// rendered by a copy of the same code compiled for those features: VEX
-/// encoding's three-operand instructions drop register copies and spills
-/// from the path tracer's loop (peer render loop −7 % of instructions).
-/// Both copies write the same bytes (tested).
+/// The one place where a per-CPU copy is chosen
+/// ([`crate::render::cpu`]): with [`CodePath::X86_64V3`] the row is
+/// rendered by a copy of the same code compiled for those features (VEX
+/// three-operand instructions drop register copies and spills from the
+/// path tracer's loop; the sampler's and camera's lane loops inline into
+/// it and run on AVX2). Both copies write the same bytes (tested).
 fn render_row(
     scene: &RenderScene,
     camera: &PinholeCamera,
@@ -203,9 +203,8 @@ fn render_row(
     row: RowOut<'_>,
 ) -> RenderStats {
     #[cfg(target_arch = "x86_64")]
-    if code_path().has_v3() {
-        // SAFETY: `render_row_x86_64_v3` needs only the features that
-        // `code_path` found on this CPU.
+    if settings.code_path.min(CodePath::best_available()) == CodePath::X86_64V3 {
+        // SAFETY: this CPU has every feature of the copy.
         return unsafe { render_row_x86_64_v3(scene, camera, settings, y, row) };
     }
     render_row_portable(scene, camera, settings, y, row)

@@ -6,7 +6,7 @@
 //! image is the same whatever the thread count.
 
 pub mod camera;
-pub mod code_path;
+pub mod cpu;
 pub mod distribution;
 pub mod environment;
 pub mod figures;

@@ -16,8 +16,6 @@
 //! that the compiler turns into vector instructions (AVX2, chosen at run
 //! time on x86-64), the same bits as one point at a time.
 
-#[cfg(target_arch = "x86_64")]
-use crate::render::code_path::code_path;
 use crate::sampling::{mix64, Rng};
 
 /// How many 2-D dimension pairs come from the scrambled Sobol sequence.
@@ -212,39 +210,18 @@ fn scramble_seeds(seed: u64) -> [u32; 3] {
     [h as u32, (h >> 32) as u32, mix64(h) as u32]
 }
 
-/// Fills `points[lane][pair]` with pair `pair` (< `pair_seeds.len()`) of
-/// sample `first_sample + lane` of the pixel whose pairs are scrambled by
-/// `pair_seeds`. In the x86-64-v3 code path ([`crate::render::code_path`])
-/// the same code is compiled for eight 32-bit lanes per instruction (AVX2,
-/// two registers per step; an AVX-512 copy of sixteen lanes was no faster
-/// on the benchmark machine); integer arithmetic, so both versions give the
-/// same bits.
-fn fill_batch(pair_seeds: &[[u32; 3]], first_sample: u32, points: &mut BatchPoints) {
-    #[cfg(target_arch = "x86_64")]
-    if code_path().has_v3() {
-        // SAFETY: `fill_batch_avx2` only needs AVX2, which `code_path`
-        // found on this CPU.
-        unsafe { fill_batch_avx2(pair_seeds, first_sample, points) };
-        return;
-    }
-    fill_batch_lanes(pair_seeds, first_sample, points);
-}
-
 /// `points[lane][pair]` of one [`SampleBatch`].
 type BatchPoints = [[[f64; 2]; SOBOL_PAIRS as usize]; SAMPLE_BATCH as usize];
 
-/// [`fill_batch_lanes`] compiled with AVX2 enabled.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn fill_batch_avx2(pair_seeds: &[[u32; 3]], first_sample: u32, points: &mut BatchPoints) {
-    fill_batch_lanes(pair_seeds, first_sample, points);
-}
-
-/// The batch as loops over fixed-size lane arrays, which the compiler
+/// Fills `points[lane][pair]` with pair `pair` (< `pair_seeds.len()`) of
+/// sample `first_sample + lane` of the pixel whose pairs are scrambled by
+/// `pair_seeds`, as loops over fixed-size lane arrays, which the compiler
 /// vectorises: every step of [`owen_sobol_point`] is one operation on all
-/// lanes (`reverse_bits` becomes byte shuffles).
+/// lanes (`reverse_bits` becomes byte shuffles). Inlined into the row loop,
+/// so its x86-64-v3 copy (`crate::render::cpu`) runs eight lanes per
+/// instruction; integer arithmetic, so every copy gives the same bits.
 #[inline(always)]
-fn fill_batch_lanes(pair_seeds: &[[u32; 3]], first_sample: u32, points: &mut BatchPoints) {
+fn fill_batch(pair_seeds: &[[u32; 3]], first_sample: u32, points: &mut BatchPoints) {
     const LANES: usize = SAMPLE_BATCH as usize;
     let mut reversed_index = [0u32; LANES];
     for (lane, r) in (0u32..).zip(reversed_index.iter_mut()) {
@@ -261,7 +238,7 @@ fn fill_batch_lanes(pair_seeds: &[[u32; 3]], first_sample: u32, points: &mut Bat
     }
 }
 
-/// The first `lanes` lanes of [`fill_batch_lanes`], in a loop the compiler
+/// The first `lanes` lanes of [`fill_batch`], in a loop the compiler
 /// does not unroll into vectors (kept out of line: a pixel's last batch
 /// only).
 #[inline(never)]
@@ -503,13 +480,13 @@ mod tests {
     }
 
     #[test]
-    fn the_vectorised_batch_equals_the_portable_one() {
-        // `fill_batch` takes the AVX2 build where the CPU has it; the
-        // plain loops are the other build. Integer arithmetic: same bits.
+    fn the_vectorised_batch_equals_one_lane_at_a_time() {
+        // `fill_batch`'s lane loops against the scalar loop of a partial
+        // batch, for every lane. Integer arithmetic: same bits.
         for (seed, pixel_index, first) in [(0u64, 0u64, 0u32), (5, 99, 64), (7, 3, u32::MAX - 2)] {
             let pixel = PixelSampler::new(seed, pixel_index);
             let mut portable = [[[0.0; 2]; SOBOL_PAIRS as usize]; SAMPLE_BATCH as usize];
-            fill_batch_lanes(&pixel.pair_seeds, first, &mut portable);
+            fill_lanes_one_by_one(&pixel.pair_seeds, first, SAMPLE_BATCH, &mut portable);
             assert_eq!(pixel.batch(first).points, portable, "first sample {first}");
             // A partial batch (a pixel's last samples) one lane at a time.
             for lanes in [1, 3, SAMPLE_BATCH - 1] {
