@@ -22,7 +22,10 @@ const SPP: u32 = 16;
 
 fn renderer(c: &mut Criterion) {
     let scene = default_scene();
-    let prepared = prepare_scene(&scene, DEFAULT_GEM, None, 4, &|_| {}).expect("default scene");
+    let cache = lapidary::recipe::TableCache::in_memory();
+    let tables = lapidary::recipe::gem::Tables::Computed(&cache);
+    let prepared =
+        prepare_scene(&scene, DEFAULT_GEM, None, 4, tables, &|_| {}).expect("default scene");
     let camera = camera_for(&scene, SIDE, SIDE);
     let settings = FilmSettings::new(SIDE, SIDE, SPP, 0);
 
@@ -43,7 +46,7 @@ fn renderer(c: &mut Criterion) {
             .join("bench")
             .join(file);
         let peer = load_scene(&path).expect("the peer scene");
-        let peer_prepared = prepare_scene(&peer, DEFAULT_GEM, None, 4, &|_| {}).expect("peer");
+        let peer_prepared = prepare_scene(&peer, DEFAULT_GEM, None, 4, tables, &|_| {}).expect("peer");
         let peer_camera = camera_for(&peer, SIDE, SIDE);
         group.bench_function(name, |b| {
             b.iter(|| render(&peer_prepared, &peer_camera, &settings, &|_| {}))

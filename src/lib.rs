@@ -14,9 +14,9 @@
 //! ```
 
 pub mod brdf;
+pub mod gallery;
 pub mod geometry;
 pub mod output;
-pub mod plot;
 pub mod recipe;
 pub mod render;
 pub mod sampling;

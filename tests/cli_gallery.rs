@@ -14,7 +14,7 @@ use std::process::Output;
 
 use image::RgbImage;
 use lapidary::recipe::library::builtin_gem_names;
-use lapidary::render::figures::{FIGURE_3_2_THICKNESSES, FRAME_COLOUR};
+use lapidary::gallery::figures::{FIGURE_3_2_THICKNESSES, FRAME_COLOUR};
 
 fn scratch(name: &str) -> PathBuf {
     common::cli::scratch("gallery", name)

@@ -194,17 +194,22 @@ fn walked_tables_are_identical_on_1_and_4_threads() {
 }
 
 #[test]
-fn identical_materials_are_compiled_once_per_process() {
-    use lapidary::brdf::cache::{cached, material_key};
-    // Parameters no other test uses, so the cache starts without them.
+fn identical_materials_are_compiled_once_per_cache() {
+    use lapidary::brdf::compensation::material_key;
+    use lapidary::recipe::TableCache;
+    let cache = TableCache::in_memory();
+    let cached = |brdf: &LayeredBrdf, seed| cache.cached(brdf, seed);
     let colour = Rgb::new(0.123, 0.456, 0.789);
     let brdf = coated(1.4321, 0.0, Rgb::new(0.01, 0.02, 0.03), lambert(colour));
     assert_eq!(cached(&brdf, 31), None);
+    let table = cache.compensation(&brdf, 31);
+    assert!(table.is_some(), "a coat over a bright base");
+    // Now served from the cache, and equal to a fresh computation (what
+    // `with_compensation` gives, a pure function of the parameters).
+    assert_eq!(cached(&brdf, 31), Some(table.clone()));
+    assert_eq!(table, Compensation::compute(&brdf, 31));
+    assert_eq!(brdf.clone().with_compensation(31).compensation, table);
     let compiled = brdf.clone().with_compensation(31);
-    assert!(compiled.compensation.is_some(), "a coat over a bright base");
-    // Now served from the cache, and equal to a fresh computation.
-    assert_eq!(cached(&brdf, 31), Some(compiled.compensation.clone()));
-    assert_eq!(compiled.compensation, Compensation::compute(&brdf, 31));
     // The same parameters under another name share the entry…
     let mut renamed = brdf.clone();
     renamed.name = "another name".to_string();
@@ -234,7 +239,8 @@ fn scratch_dir(name: &str) -> std::path::PathBuf {
 
 #[test]
 fn disk_cache_returns_the_computed_table_bit_for_bit() {
-    use lapidary::brdf::cache::{cache_file, load, material_key, store};
+    use lapidary::brdf::compensation::material_key;
+    use lapidary::recipe::table_cache::{cache_file, load, store};
     let dir = scratch_dir("round-trip");
     let brdf = coated(1.61, 0.0, Rgb::ZERO, lambert(Rgb::new(0.7, 0.3, 0.05)));
     let key = material_key(&brdf, 5);
@@ -256,7 +262,8 @@ fn disk_cache_returns_the_computed_table_bit_for_bit() {
 
 #[test]
 fn a_corrupt_or_foreign_cache_file_is_ignored() {
-    use lapidary::brdf::cache::{cache_file, load, material_key, store};
+    use lapidary::brdf::compensation::material_key;
+    use lapidary::recipe::table_cache::{cache_file, load, store};
     let dir = scratch_dir("corrupt");
     let brdf = coated(1.62, 0.0, Rgb::ZERO, lambert(Rgb::new(0.6, 0.6, 0.2)));
     let key = material_key(&brdf, 5);
@@ -530,18 +537,18 @@ fn a_gem_compiled_in_one_batch_has_each_material_s_own_table() {
     // its own material (the one-by-one compile reads the same process
     // cache, keyed by the material's parameters).
     use lapidary::recipe::compile::{compile_material, MaterialSource};
-    use lapidary::recipe::gem::{load_gem_source, parse_gem_with_seed};
-    use lapidary::render::prepare::compile_gem;
+    use lapidary::recipe::gem::{compile_gem, GemSource, Tables};
+    use lapidary::recipe::TableCache;
     for name in ["lavender-lepidolite", "sunstone"] {
-        let (shading, _) = compile_gem(name, Some(3), 1).unwrap();
-        let (path, text) = load_gem_source(name).unwrap();
-        let gem = parse_gem_with_seed(&path, &text, Some(3)).unwrap();
-        assert_eq!(shading.brdfs.len(), gem.materials.len());
-        for ((material_name, material), batched) in gem.materials.iter().zip(shading.brdfs.iter()) {
+        let source = GemSource::load(name).unwrap();
+        let cache = TableCache::in_memory();
+        let gem = compile_gem(&source, Some(3), Tables::Computed(&cache)).unwrap();
+        assert_eq!(gem.brdfs.len(), gem.materials.len());
+        for ((material_name, material), batched) in gem.materials.iter().zip(gem.brdfs.iter()) {
             let source = MaterialSource {
-                path: path.clone(),
+                path: source.path.clone(),
                 name: material_name.clone(),
-                text: text.clone(),
+                text: source.text.clone(),
             };
             let alone = compile_material(&source, material).unwrap();
             assert_eq!(

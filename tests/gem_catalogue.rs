@@ -4,19 +4,20 @@
 //! compiled pattern at many points (not read back from recipe parameters).
 
 use glam::DVec3;
-use lapidary::recipe::gem::{load_gem, parse_gem, CompiledGem};
+use lapidary::recipe::gem::{compile_gem, load_gem, parse_gem, Gem, GemSource, Tables};
+use lapidary::recipe::TableCache;
 use lapidary::recipe::library::{builtin_gem_names, builtin_gem_source, BUILTIN_GEMS};
 use lapidary::recipe::material::{BaseSpec, Material};
 use lapidary::render::film::{render, FilmSettings};
-use lapidary::render::integrator::{GemShading, RenderScene, MATERIAL_ID_FIRST_STONE};
-use lapidary::render::prepare::{camera_for, compile_gem_draft_or_full, prepare_scene};
+use lapidary::render::integrator::{RenderScene, MATERIAL_ID_FIRST_STONE};
+use lapidary::render::prepare::{camera_for, prepare_scene};
 use lapidary::sampling::Rng;
 use lapidary::scene::default_scene;
 use lapidary::texture::pattern::Entry;
 
 const RECIPE_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/gem-recipes");
 
-fn builtin(name: &str) -> CompiledGem {
+fn builtin(name: &str) -> Gem {
     let text = builtin_gem_source(name).unwrap_or_else(|| panic!("no built-in gem {name}"));
     parse_gem(&format!("builtin:{name}"), text).unwrap_or_else(|e| panic!("{e}"))
 }
@@ -36,7 +37,7 @@ fn stone_box() -> (DVec3, DVec3) {
 }
 
 /// Measured fraction of points that land in a filled glitter cell.
-fn glitter_fraction(gem: &CompiledGem, points: &[DVec3]) -> f64 {
+fn glitter_fraction(gem: &Gem, points: &[DVec3]) -> f64 {
     let filled = points
         .iter()
         .filter(|p| gem.pattern.resolve(**p).glitter_cell.is_some())
@@ -46,7 +47,7 @@ fn glitter_fraction(gem: &CompiledGem, points: &[DVec3]) -> f64 {
 
 /// Flake normals at the glitter points, for a stone whose surface normal
 /// at every point is `surface_normal`.
-fn flake_normals(gem: &CompiledGem, points: &[DVec3], surface_normal: DVec3) -> Vec<DVec3> {
+fn flake_normals(gem: &Gem, points: &[DVec3], surface_normal: DVec3) -> Vec<DVec3> {
     points
         .iter()
         .filter_map(|p| gem.pattern.resolve(*p).flake_normal)
@@ -64,7 +65,7 @@ fn rms_spread_deg(normals: &[DVec3]) -> f64 {
     (sum_sq / normals.len() as f64).sqrt()
 }
 
-fn glitter_materials(gem: &CompiledGem) -> Vec<&Material> {
+fn glitter_materials(gem: &Gem) -> Vec<&Material> {
     let glitter = gem.pattern.glitter().expect("a glitter map");
     glitter
         .entries
@@ -123,7 +124,7 @@ fn every_recipe_file_and_builtin_compiles() {
 /// Renders an 8 × 8, 1 spp studio image of `prepared` with its first gem
 /// replaced by `gem` (if given) and checks every pixel is finite and that
 /// the stone shows.
-fn assert_renders(name: &str, prepared: &mut RenderScene, gem: Option<GemShading>) {
+fn assert_renders(name: &str, prepared: &mut RenderScene, gem: Option<Gem>) {
     let scene = default_scene();
     let camera = camera_for(&scene, 32, 32);
     let settings = FilmSettings::new(32, 32, 1, 0);
@@ -161,18 +162,14 @@ fn assert_renders(name: &str, prepared: &mut RenderScene, gem: Option<GemShading
 fn every_builtin_renders_finite_pixels() {
     let scene = default_scene();
     let mut prepared =
-        prepare_scene(&scene, "sunstone", None, 2, &|_| {}).unwrap_or_else(|e| panic!("{e}"));
+        prepare_scene(&scene, "sunstone", None, 2, Tables::Computed(&TableCache::in_memory()), &|_| {})
+            .unwrap_or_else(|e| panic!("{e}"));
     assert_renders("sunstone", &mut prepared, None);
     for name in builtin_gem_names() {
         let text = builtin_gem_source(name).unwrap();
-        let (shading, _) = compile_gem_draft_or_full(
-            &format!("builtin:{name}"),
-            text,
-            None,
-            MATERIAL_ID_FIRST_STONE,
-            true,
-        )
-        .unwrap_or_else(|e| panic!("{e}"));
+        let source = GemSource::new(&format!("builtin:{name}"), text);
+        let shading =
+            compile_gem(&source, None, Tables::Skipped).unwrap_or_else(|e| panic!("{e}"));
         assert_renders(name, &mut prepared, Some(shading));
     }
 }
@@ -199,7 +196,7 @@ fn pink_sunstone_glitters_much_more_and_patterned_less_than_sunstone() {
 /// differ only by sampling noise.
 #[test]
 fn patterned_sunstone_glitter_is_patchy() {
-    let variation = |gem: &CompiledGem| {
+    let variation = |gem: &Gem| {
         let mut fractions = Vec::new();
         for i in 0..8 {
             for j in 0..8 {

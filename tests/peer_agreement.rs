@@ -32,7 +32,9 @@ fn patch_mean(rgb: &[[f32; 3]], side: u32, patch: [f64; 4]) -> Rgb {
 fn the_peer_scene_matches_mitsubas_ground_and_stone() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("bench/peer-scene.ron");
     let scene = load_scene(&path).unwrap();
-    let prepared = prepare_scene(&scene, "green-aventurine", None, 4, &|_| {}).unwrap();
+    let cache = lapidary::recipe::TableCache::in_memory();
+    let tables = lapidary::recipe::gem::Tables::Computed(&cache);
+    let prepared = prepare_scene(&scene, "green-aventurine", None, 4, tables, &|_| {}).unwrap();
     let side = 128;
     let camera = camera_for(&scene, side, side);
     let settings = FilmSettings::new(side, side, 64, 3);

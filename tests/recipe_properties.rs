@@ -16,8 +16,10 @@ use std::sync::OnceLock;
 
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, FilmSettings};
-use lapidary::render::integrator::{GemShading, RenderScene, MATERIAL_ID_FIRST_STONE};
-use lapidary::render::prepare::{camera_for, compile_gem_source, stone_instances};
+use lapidary::recipe::gem::{compile_gem, Gem, GemSource, Tables};
+use lapidary::recipe::TableCache;
+use lapidary::render::integrator::RenderScene;
+use lapidary::render::prepare::{camera_for, stone_instances};
 use lapidary::render::world::World;
 use lapidary::scene::{default_scene, EnvironmentSpec, Scene};
 use proptest::prelude::*;
@@ -250,7 +252,7 @@ proptest! {
     #[test]
     fn valid_recipes_compile_and_render_finite(r in recipe()) {
         let text = recipe_text(&r);
-        let (gem, _) = compile_gem_source("generated.ron", &text, None, MATERIAL_ID_FIRST_STONE)
+        let gem = compile_text("generated.ron", &text)
             .map_err(|e| TestCaseError::fail(format!("{e}\n{text}")))?;
         prop_assert_eq!(gem.brdfs.len(), r.materials.len(), "{}", text);
 
@@ -309,14 +311,22 @@ fn the_generator_writes_what_it_was_asked_for() {
     );
 }
 
+/// Compiles gem recipe `text` (`path` for messages) with its compensation
+/// tables, computed afresh.
+fn compile_text(path: &str, text: &str) -> Result<Gem, lapidary::recipe::RecipeError> {
+    let cache = TableCache::in_memory();
+    compile_gem(&GemSource::new(path, text), None, Tables::Computed(&cache))
+}
+
 /// The default scene without its ground (its BRDF would tabulate the
 /// compensation every case): the stone shaded by `gem`, the lights, the
 /// studio.
-fn default_scene_without_ground(gem: GemShading) -> (Scene, RenderScene) {
+fn default_scene_without_ground(gem: Gem) -> (Scene, RenderScene) {
     let scene = default_scene();
     let stones = stone_instances(&scene).expect("the built-in stones are valid");
     let render_scene = RenderScene {
         world: World::new(stones, None),
+        material_id_bases: RenderScene::material_id_bases(std::slice::from_ref(&gem)),
         gems: vec![gem],
         ground_brdf: None,
         lights: scene.lights.clone(),
@@ -330,7 +340,7 @@ fn default_scene_without_ground(gem: GemShading) -> (Scene, RenderScene) {
 /// Renders `text` (a valid gem) like the property above and returns the
 /// number of samples dropped as NaN, infinite or negative.
 fn bad_samples_of(text: &str) -> u64 {
-    let (gem, _) = compile_gem_source("extreme.ron", text, None, MATERIAL_ID_FIRST_STONE)
+    let gem = compile_text("extreme.ron", text)
         .unwrap_or_else(|e| panic!("{e}\n{text}"));
     let (scene, render_scene) = default_scene_without_ground(gem);
     let side = 16;

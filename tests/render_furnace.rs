@@ -9,13 +9,21 @@ use lapidary::render::camera::PinholeCamera;
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, Film, FilmSettings};
 use lapidary::render::integrator::RenderScene;
-use lapidary::render::prepare::compile_gem_source;
+use lapidary::recipe::gem::{compile_gem, Gem, GemSource, Tables};
+use lapidary::recipe::TableCache;
 use lapidary::render::world::{StoneInstance, World};
+
+/// Compiles gem recipe `text` (`path` for messages) with its compensation
+/// tables, computed afresh.
+fn compile_text(path: &str, text: &str) -> Result<Gem, lapidary::recipe::RecipeError> {
+    let cache = TableCache::in_memory();
+    compile_gem(&GemSource::new(path, text), None, Tables::Computed(&cache))
+}
 
 /// One default oval stone under a constant sky, seen from straight above.
 fn render_single_material(material: &str, sky: f64, size: u32, spp: u32, threads: usize) -> Film {
     let text = format!(r#"Gem(materials: {{"m": {material}}}, surface: "m")"#);
-    let (gem, _) = compile_gem_source("test", &text, None, 2).unwrap();
+    let gem = compile_text("test", &text).unwrap();
     let stone = StoneInstance {
         cabochon: Cabochon::new(CabochonParams::default()).unwrap(),
         rotation: DQuat::IDENTITY,
@@ -24,6 +32,7 @@ fn render_single_material(material: &str, sky: f64, size: u32, spp: u32, threads
     };
     let scene = RenderScene {
         world: World::new(vec![stone], None),
+        material_id_bases: RenderScene::material_id_bases(std::slice::from_ref(&gem)),
         gems: vec![gem],
         ground_brdf: None,
         lights: vec![],

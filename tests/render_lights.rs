@@ -15,7 +15,8 @@ use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, FilmSettings};
 use lapidary::render::integrator::RenderScene;
 use lapidary::render::lights::Light;
-use lapidary::render::prepare::compile_gem_source;
+use lapidary::recipe::gem::{compile_gem, Gem, GemSource, Tables};
+use lapidary::recipe::TableCache;
 use lapidary::render::world::{StoneInstance, World};
 
 fn white_lambert() -> lapidary::brdf::LayeredBrdf {
@@ -29,6 +30,13 @@ fn white_lambert() -> lapidary::brdf::LayeredBrdf {
     compile_material(&source, &m).unwrap()
 }
 
+/// Compiles gem recipe `text` (`path` for messages) with its compensation
+/// tables, computed afresh.
+fn compile_text(path: &str, text: &str) -> Result<Gem, lapidary::recipe::RecipeError> {
+    let cache = TableCache::in_memory();
+    compile_gem(&GemSource::new(path, text), None, Tables::Computed(&cache))
+}
+
 /// Radiance of the floor point at the origin seen from an oblique camera
 /// (the mean over a 3 × 3 block of pixels around the film centre).
 fn floor_radiance(lights: Vec<Light>, stones: Vec<StoneInstance>, spp: u32) -> f64 {
@@ -36,10 +44,11 @@ fn floor_radiance(lights: Vec<Light>, stones: Vec<StoneInstance>, spp: u32) -> f
         vec![]
     } else {
         let text = r#"Gem(materials: {"m": Material(layers: [], base: Diffuse(colour: (0.5, 0.5, 0.5)))}, surface: "m")"#;
-        vec![compile_gem_source("test", text, None, 2).unwrap().0]
+        vec![compile_text("test", text).unwrap()]
     };
     let scene = RenderScene {
         world: World::new(stones, Some(0.0)),
+        material_id_bases: RenderScene::material_id_bases(&gems),
         gems,
         ground_brdf: Some(white_lambert()),
         lights,

@@ -7,7 +7,7 @@
 //! [`Voronoi::nearest_within`] says the certificate covers.
 
 use glam::DVec3;
-use lapidary::recipe::gem::{parse_gem, CompiledGem};
+use lapidary::recipe::gem::{parse_gem, Gem};
 use lapidary::recipe::library::{builtin_gem_names, builtin_gem_source};
 use lapidary::texture::pattern::{Pattern, Resolved};
 use lapidary::texture::voronoi::{CertifiedNearest, Voronoi};
@@ -21,7 +21,7 @@ fn step(rng: &mut TestRng, lo: f64, hi: f64) -> f64 {
     10f64.powf(rng.range(lo, hi))
 }
 
-fn builtin(name: &str) -> CompiledGem {
+fn builtin(name: &str) -> Gem {
     let text = builtin_gem_source(name).unwrap_or_else(|| panic!("no built-in gem {name}"));
     parse_gem(&format!("builtin:{name}"), text).unwrap_or_else(|e| panic!("{e}"))
 }

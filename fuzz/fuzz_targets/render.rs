@@ -11,12 +11,11 @@
 
 use std::sync::OnceLock;
 
-use lapidary::recipe::compile::{compile_material, MaterialSource};
 use lapidary::recipe::gem::parse_gem;
 use lapidary::recipe::library::DEFAULT_GEM;
 use lapidary::render::camera::PinholeCamera;
 use lapidary::render::film::{render, FilmSettings};
-use lapidary::render::integrator::{GemShading, RenderScene, MATERIAL_ID_FIRST_STONE};
+use lapidary::render::integrator::RenderScene;
 use lapidary::render::prepare::{camera_for, prepare_scene, stone_instances};
 use lapidary::render::world::{StoneInstance, World};
 use lapidary::scene::default_scene;
@@ -31,7 +30,9 @@ fn base() -> &'static (RenderScene, Vec<StoneInstance>, Option<f64>, PinholeCame
     static BASE: OnceLock<Base> = OnceLock::new();
     BASE.get_or_init(|| {
         let scene = default_scene();
-        let prepared = prepare_scene(&scene, DEFAULT_GEM, None, 4, &|_| {})
+        let cache = lapidary::recipe::TableCache::in_memory();
+        let tables = lapidary::recipe::gem::Tables::Computed(&cache);
+        let prepared = prepare_scene(&scene, DEFAULT_GEM, None, 4, tables, &|_| {})
             .expect("the built-in scene prepares");
         let stones = stone_instances(&scene).expect("the built-in stones are valid");
         let ground = scene.ground.as_ref().map(|g| g.height);
@@ -43,43 +44,24 @@ fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
+    // Compiled without compensation tables: every check, none of the
+    // slow tabulation.
     let Ok(gem) = parse_gem(PATH, text) else {
         return;
     };
-    let mut brdfs = Vec::with_capacity(gem.materials.len());
-    for (name, material) in &gem.materials {
-        let mut material = material.clone();
-        material.multiple_scattering = false;
-        let source = MaterialSource {
-            path: PATH.to_string(),
-            name: name.clone(),
-            text: text.to_string(),
-        };
-        match compile_material(&source, &material) {
-            Ok(brdf) => brdfs.push(brdf),
-            Err(_) => return,
-        }
-    }
+    let seed = gem.seed;
     let (base, stones, ground, camera) = base();
     let scene = RenderScene {
         world: World::new(stones.clone(), *ground),
-        gems: vec![GemShading {
-            pattern: gem.pattern,
-            brdfs,
-            material_id_base: MATERIAL_ID_FIRST_STONE,
-        }],
+        material_id_bases: RenderScene::material_id_bases(std::slice::from_ref(&gem)),
+        gems: vec![gem],
         ground_brdf: base.ground_brdf.clone(),
         lights: base.lights.clone(),
         environment: base.environment.clone(),
         max_bounces: 4,
         ambient_occlusion: None,
     };
-    let settings = FilmSettings {
-        width: 1,
-        height: 1,
-        samples_per_pixel: 1,
-        seed: gem.seed,
-    };
+    let settings = FilmSettings::new(1, 1, 1, seed);
     let film = render(&scene, camera, &settings, &|_| {});
     // The film guard drops NaN, infinite or negative samples; a valid recipe
     // must not produce any.

@@ -320,7 +320,7 @@ fn colour_mix(black: Rgb, white: Rgb, colour: Rgb) -> Rgb {
 /// ρ·E_single(1) exactly, per channel. Materials that differ only in their
 /// base colour (the lavender lepidolite's 14 tiles under one coat) then
 /// share one pair of tables, computed once per process (see
-/// [`crate::brdf::cache::known_single_albedo_pair`]). Each of the pair has
+/// [`Compensation::compute_many_reusing`]). Each of the pair has
 /// the noise of the direct estimate, and so has their convex combination.
 fn black_and_white_twins(brdf: &LayeredBrdf) -> Option<(LayeredBrdf, LayeredBrdf)> {
     let Base::Diffuse {
@@ -431,7 +431,21 @@ enum PairPlan {
 }
 
 /// E_single of a black and of a white base at every node.
-pub(crate) type AlbedoPair = (Vec<Rgb>, Vec<Rgb>);
+pub type AlbedoPair = (Vec<Rgb>, Vec<Rgb>);
+
+/// Looks up a coat's black- and white-base E_single pair by the
+/// [`material_key`] of its white twin (see
+/// [`Compensation::compute_many_reusing`]).
+pub type KnownPair<'a> = dyn Fn(&str) -> Option<AlbedoPair> + 'a;
+
+/// What [`Compensation::compute_many_reusing`] computed.
+pub struct ComputedTables {
+    /// The table of each request, in order (None: no compensation needed).
+    pub tables: Vec<Option<Compensation>>,
+    /// The black- and white-base E_single pairs computed for this batch, by
+    /// the [`material_key`] of the white twin.
+    pub new_pairs: Vec<(String, AlbedoPair)>,
+}
 
 /// One table node to compute: the unit of the batch's parallel loop.
 #[derive(Clone, Copy)]
@@ -455,7 +469,7 @@ impl<'a> TablePlan<'a> {
     /// Plans the tables of `requests`: a stack method per material (walk
     /// tables built in parallel), and the black/white pairs, each once,
     /// that their Lambertian bases share.
-    fn new(requests: &[(&'a LayeredBrdf, u64)]) -> Self {
+    fn new(requests: &[(&'a LayeredBrdf, u64)], known_pair: &KnownPair<'_>) -> Self {
         let methods: Vec<Option<StackMethod>> = requests
             .par_iter()
             .map(|&(brdf, seed)| (!needs_no_table(brdf)).then(|| StackMethod::of(brdf, seed)))
@@ -470,14 +484,12 @@ impl<'a> TablePlan<'a> {
                 let single = match black_and_white_twins(brdf) {
                     None => SingleSource::Direct,
                     Some((black, white)) => {
-                        let key = crate::brdf::cache::material_key(&white, seed);
+                        let key = material_key(&white, seed);
                         let index = pair_keys.iter().position(|k| *k == key).unwrap_or_else(|| {
-                            pairs.push(
-                                match crate::brdf::cache::known_single_albedo_pair(&white, seed) {
-                                    Some(known) => PairPlan::Known(known),
-                                    None => PairPlan::ToCompute(Box::new((black, white)), seed),
-                                },
-                            );
+                            pairs.push(match known_pair(&key) {
+                                Some(known) => PairPlan::Known(known),
+                                None => PairPlan::ToCompute(Box::new((black, white)), seed),
+                            });
                             pair_keys.push(key);
                             pairs.len() - 1
                         });
@@ -547,6 +559,17 @@ impl<'a> TablePlan<'a> {
     }
 }
 
+/// The exact parameters of `brdf` and `seed` as a key: equal keys give
+/// bit-identical tables (the name is left out: it does not change them).
+/// Every `f64` is written in Rust's shortest round-trip form, so two
+/// numbers print alike only when their bits are equal (−0.0 included).
+pub fn material_key(brdf: &LayeredBrdf, seed: u64) -> String {
+    format!(
+        "seed {seed}; model {:?}; interfaces {:?}; base {:?}",
+        brdf.model, brdf.interfaces, brdf.base
+    )
+}
+
 /// E_single of `brdf` at table node `k`, with the stream every table of
 /// `seed` uses for it (salted apart from the E_stack walks' streams).
 fn single_albedo_at_node(brdf: &LayeredBrdf, k: usize, seed: u64) -> Rgb {
@@ -571,7 +594,19 @@ impl Compensation {
     /// number of threads. Bare Lambert surfaces ([`needs_no_table`]) get
     /// None without any work.
     pub fn compute_many(requests: &[(&LayeredBrdf, u64)]) -> Vec<Option<Self>> {
-        let plan = TablePlan::new(requests);
+        Self::compute_many_reusing(requests, &|_| None).tables
+    }
+
+    /// [`Compensation::compute_many`], taking the black- and white-base
+    /// E_single pair of a coat from `known_pair` (by the [`material_key`]
+    /// of the white twin) where a caller kept it from an earlier batch, and
+    /// returning the pairs it computed so that the caller can keep them.
+    /// The same tables, bit for bit, as without them.
+    pub fn compute_many_reusing(
+        requests: &[(&LayeredBrdf, u64)],
+        known_pair: &KnownPair<'_>,
+    ) -> ComputedTables {
+        let plan = TablePlan::new(requests, known_pair);
         let jobs = plan.jobs();
         let values: Vec<Rgb> = jobs.par_iter().map(|job| plan.run(*job)).collect();
         let mut stack = vec![vec![Rgb::ZERO; TABLE_NODES]; plan.materials.len()];
@@ -592,6 +627,7 @@ impl Compensation {
                 }
             }
         }
+        let mut new_pairs = Vec::new();
         let pairs: Vec<AlbedoPair> = plan
             .pairs
             .iter()
@@ -599,12 +635,12 @@ impl Compensation {
             .map(|(pair, computed)| match pair {
                 PairPlan::Known(known) => known.clone(),
                 PairPlan::ToCompute(twins, seed) => {
-                    crate::brdf::cache::remember_single_albedo_pair(&twins.1, *seed, &computed);
+                    new_pairs.push((material_key(&twins.1, *seed), computed.clone()));
                     computed
                 }
             })
             .collect();
-        plan.materials
+        let tables = plan.materials
             .iter()
             .zip(stack.into_iter().zip(single))
             .map(|(material, (stack, mut single))| {
@@ -618,7 +654,8 @@ impl Compensation {
                 }
                 Self::from_albedos(single, stack)
             })
-            .collect()
+            .collect();
+        ComputedTables { tables, new_pairs }
     }
 
     /// The tables from E_single and E_stack at the [`TABLE_NODES`] nodes

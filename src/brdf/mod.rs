@@ -17,7 +17,6 @@
 //! * [`albedo`]: directional albedo estimators.
 
 pub mod albedo;
-pub mod cache;
 pub mod classify;
 pub(crate) mod coat;
 pub mod compensation;

@@ -92,10 +92,11 @@ impl LayeredBrdf {
     }
 
     /// The same material with its multiple-scattering compensation table
-    /// computed (see [`crate::brdf::compensation`]), once per process for
-    /// each distinct set of parameters (see [`crate::brdf::cache`]).
+    /// computed (see [`crate::brdf::compensation`]): a pure function of the
+    /// material's parameters and `seed`. To compute each distinct table
+    /// once, go through `crate::recipe::TableCache`.
     pub fn with_compensation(mut self, seed: u64) -> Self {
-        self.compensation = crate::brdf::cache::compensation(&self, seed);
+        self.compensation = Compensation::compute(&self, seed);
         self
     }
 

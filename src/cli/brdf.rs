@@ -4,8 +4,8 @@ use super::BrdfArgs;
 use lapidary::brdf::albedo::{albedo_angles_deg, directional_albedo, in_plane};
 use lapidary::brdf::reference::{reference_albedo_with, reference_slice, WalkTables};
 use lapidary::brdf::LayeredBrdf;
-use lapidary::plot::{polar_plot, PolarPanel, PolarPlotStyle};
-use lapidary::recipe::compile::{compile_material, locate_material, parse_material};
+use lapidary::gallery::plot::{polar_plot, PolarPanel, PolarPlotStyle};
+use lapidary::recipe::compile::{load_material_without_table, COMPENSATION_SEED};
 use lapidary::sampling::direction_from_degrees;
 
 /// Fixed seed of every estimate this command prints: same output each run.
@@ -16,12 +16,13 @@ const ALBEDO_STD_ERROR: f64 = 0.0025;
 const PLOT_INCIDENCE_DEG: [f64; 4] = [0.0, 30.0, 60.0, 75.0];
 
 fn load(args: &BrdfArgs) -> Result<LayeredBrdf, String> {
-    let source = locate_material(&args.material).map_err(|e| e.to_string())?;
-    let mut material = parse_material(&source.path, &source.text).map_err(|e| e.to_string())?;
-    if args.single_crossing {
-        material.multiple_scattering = false;
+    let (mut brdf, wants_table) =
+        load_material_without_table(&args.material).map_err(|e| e.to_string())?;
+    if wants_table && !args.single_crossing {
+        let cache = super::table_cache_from_env();
+        brdf.compensation = cache.compensation(&brdf, COMPENSATION_SEED);
     }
-    compile_material(&source, &material).map_err(|e| e.to_string())
+    Ok(brdf)
 }
 
 /// Run `lapidary brdf`.

@@ -7,7 +7,8 @@ use std::time::Instant;
 use image::RgbImage;
 use lapidary::recipe::error::did_you_mean;
 use lapidary::recipe::library::builtin_gem_names;
-use lapidary::render::figures::{
+use lapidary::recipe::TableCache;
+use lapidary::gallery::figures::{
     encode_png_compact, figure_3_2, figure_4_11, figure_4_3, gem_sheet, render_gem, FigureError,
     GallerySettings,
 };
@@ -98,6 +99,7 @@ pub fn run(args: GalleryArgs) -> Result<(), String> {
     prepare_dir(&args.output)?;
     let wanted = |name: &str| args.only.is_empty() || args.only.iter().any(|n| n == name);
     let pool = super::worker_pool(args.threads)?;
+    let cache = super::table_cache_from_env();
     let started = Instant::now();
     // Gems are encoded as `lapidary render` encodes them (same bytes);
     // the sheets at the best compression (many renders in one PNG).
@@ -129,7 +131,7 @@ pub fn run(args: GalleryArgs) -> Result<(), String> {
                 continue;
             }
             let since = Instant::now();
-            let picture = render_gem(name, &settings).map_err(|e| e.to_string())?;
+            let picture = render_gem(name, &settings, &cache).map_err(|e| e.to_string())?;
             if wanted(name) {
                 write(name, &picture.image, since)?;
             }
@@ -138,7 +140,7 @@ pub fn run(args: GalleryArgs) -> Result<(), String> {
         if need_sheet {
             write("gallery", &gem_sheet(&pictures), Instant::now())?;
         }
-        type Figure = fn(&GallerySettings) -> Result<RgbImage, FigureError>;
+        type Figure = fn(&GallerySettings, &TableCache) -> Result<RgbImage, FigureError>;
         let figures: [(&str, Figure); 3] = [
             ("figure-4-11", figure_4_11),
             ("figure-3-2", figure_3_2),
@@ -147,7 +149,7 @@ pub fn run(args: GalleryArgs) -> Result<(), String> {
         for (name, make) in figures {
             if wanted(name) {
                 let since = Instant::now();
-                let image = make(&settings).map_err(|e| e.to_string())?;
+                let image = make(&settings, &cache).map_err(|e| e.to_string())?;
                 write(name, &image, since)?;
             }
         }

@@ -3,29 +3,18 @@
 use super::MapsArgs;
 use lapidary::brdf::compensation::single_crossing_albedo;
 use lapidary::brdf::Rgb;
-use lapidary::plot::maps::{maps_sheet, MapsSheetStyle};
-use lapidary::recipe::compile::{compile_material, MaterialSource};
-use lapidary::recipe::gem::{load_gem_source, CompiledGem};
+use lapidary::gallery::plot::maps::{maps_sheet, MapsSheetStyle};
+use lapidary::recipe::gem::{compile_gem, Gem, GemSource, Tables};
 
 /// Panel sizes beyond this would make a sheet of more than ~200 MB.
 const MAX_PANEL_PX: u32 = 4096;
 
 /// Each material's normal-incidence albedo (single-crossing model), the
 /// colour it gets in the surface and glitter panels.
-fn material_colours(gem: &CompiledGem, path: &str, text: &str) -> Result<Vec<Rgb>, String> {
-    gem.materials
+fn material_colours(gem: &Gem) -> Vec<Rgb> {
+    gem.brdfs
         .iter()
-        .map(|(name, material)| {
-            let mut m = material.clone();
-            m.multiple_scattering = false;
-            let source = MaterialSource {
-                path: path.to_string(),
-                name: name.clone(),
-                text: text.to_string(),
-            };
-            let brdf = compile_material(&source, &m).map_err(|e| e.to_string())?;
-            Ok(single_crossing_albedo(&brdf, 1.0, gem.seed))
-        })
+        .map(|brdf| single_crossing_albedo(brdf, 1.0, gem.seed))
         .collect()
 }
 
@@ -44,9 +33,9 @@ pub fn run(args: MapsArgs) -> Result<(), String> {
             args.extent
         ));
     }
-    let (path, text) = load_gem_source(&args.recipe).map_err(|e| e.to_string())?;
-    let gem = lapidary::recipe::gem::parse_gem(&path, &text).map_err(|e| e.to_string())?;
-    let colours = material_colours(&gem, &path, &text)?;
+    let source = GemSource::load(&args.recipe).map_err(|e| e.to_string())?;
+    let gem = compile_gem(&source, None, Tables::Skipped).map_err(|e| e.to_string())?;
+    let colours = material_colours(&gem);
     let style = MapsSheetStyle {
         panel_px: args.size,
         extent: args.extent,

@@ -133,6 +133,27 @@ pub fn code_path_from_env() -> lapidary::render::cpu::CodePath {
     }
 }
 
+/// The compensation-table cache of this run: in memory, and on disk in
+/// `$LAPIDARY_CACHE_DIR`, else `$XDG_CACHE_HOME/lapidary`, else
+/// `~/.cache/lapidary`; in memory only when `LAPIDARY_CACHE=off` or no
+/// home is known.
+pub fn table_cache_from_env() -> lapidary::recipe::TableCache {
+    use lapidary::recipe::TableCache;
+    use std::path::PathBuf;
+    let set = |name: &str| std::env::var_os(name).filter(|v| !v.is_empty());
+    if std::env::var("LAPIDARY_CACHE").is_ok_and(|v| v == "off") {
+        return TableCache::in_memory();
+    }
+    let folder = set("LAPIDARY_CACHE_DIR")
+        .map(PathBuf::from)
+        .or_else(|| set("XDG_CACHE_HOME").map(|xdg| PathBuf::from(xdg).join("lapidary")))
+        .or_else(|| set("HOME").map(|home| PathBuf::from(home).join(".cache").join("lapidary")));
+    match folder {
+        Some(folder) => TableCache::with_folder(folder),
+        None => TableCache::in_memory(),
+    }
+}
+
 /// Parse the command line and run; returns the process exit code.
 pub fn run() -> i32 {
     let cli = match Cli::try_parse() {

@@ -11,6 +11,7 @@ use lapidary::output::exr::{write_exr_owned, ChannelData, ExrChannel};
 use lapidary::output::tonemap::{DisplayTransform, ToneCurve};
 use lapidary::recipe::library::DEFAULT_GEM;
 use lapidary::render::film::{render_cancellable, Film, FilmSettings, FILM_BYTES_PER_PIXEL};
+use lapidary::recipe::gem::Tables;
 use lapidary::render::prepare::{camera_for, prepare_scene};
 use lapidary::scene::{default_scene, load_scene};
 
@@ -228,7 +229,10 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         }
     };
     let started = Instant::now();
-    let mut render_scene = prepare_scene(&scene, gem, args.env.as_deref(), args.bounces, &report)?;
+    let cache = super::table_cache_from_env();
+    let tables = Tables::Computed(&cache);
+    let mut render_scene =
+        prepare_scene(&scene, gem, args.env.as_deref(), args.bounces, tables, &report)?;
     render_scene.ambient_occlusion = args.ao;
     let camera = camera_for(&scene, width, height);
     let settings = FilmSettings {

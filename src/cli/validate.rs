@@ -15,11 +15,11 @@ use lapidary::recipe::compile::{
     compile_material, locate_material, names_a_file, parse_material, read_ron_file, MaterialSource,
 };
 use lapidary::recipe::error::{did_you_mean, line_col_of_offset, RecipeError};
-use lapidary::recipe::gem::{load_gem_source, parse_gem, CompiledGem};
+use lapidary::recipe::gem::{parse_gem, GemSource};
 use lapidary::recipe::library::{
     builtin_gem_names, builtin_gem_source, builtin_material_names, builtin_material_source,
 };
-use lapidary::recipe::material::{BaseSpec, Material};
+use lapidary::recipe::material::BaseSpec;
 use lapidary::scene::spec::SceneSpec;
 use lapidary::scene::{parse_scene, DEFAULT_SCENE_SOURCE};
 use std::path::Path;
@@ -112,59 +112,10 @@ pub fn recipe_kind(path: &str, text: &str) -> Result<RecipeKind, RecipeError> {
     }
 }
 
-/// Compile material `name` of a gem with `multiple_scattering` off. An
-/// inline material is compiled against the gem text from its definition
-/// `"name":` on, so that its errors point into its own `Layer(`s; the
-/// position is then shifted back to the whole file.
-fn compile_gem_material(
-    path: &str,
-    text: &str,
-    name: &str,
-    material: &Material,
-) -> Result<(), RecipeError> {
-    let quoted = format!("\"{name}\"");
-    let definition = text
-        .match_indices(&quoted)
-        .find(|(i, _)| text[i + quoted.len()..].trim_start().starts_with(':'))
-        .map(|(i, _)| i);
-    let (base, from) = match definition {
-        Some(offset) => (line_col_of_offset(text, offset), offset),
-        None => ((1, 1), 0),
-    };
-    let source = MaterialSource {
-        path: path.to_string(),
-        name: name.to_string(),
-        text: text[from..].to_string(),
-    };
-    let mut m = material.clone();
-    m.multiple_scattering = false;
-    compile_material(&source, &m).map(drop).map_err(|mut e| {
-        if let Some((line, col)) = e.position {
-            e.position = Some(if line == 1 {
-                (base.0, base.1 + col - 1)
-            } else {
-                (base.0 + line - 1, col)
-            });
-        }
-        e
-    })
-}
-
 /// Validate a gem recipe: parse, compile the pattern, compile every
 /// material it uses.
 fn validate_gem(path: &str, text: &str) -> Result<String, RecipeError> {
-    let gem: CompiledGem = parse_gem(path, text)?;
-    for (name, material) in &gem.materials {
-        if gem.spec.materials.contains_key(name) {
-            compile_gem_material(path, text, name, material)?;
-        } else {
-            // A library material: its own text, under its own name.
-            let source = locate_material(name)?;
-            let mut m = material.clone();
-            m.multiple_scattering = false;
-            compile_material(&source, &m)?;
-        }
-    }
+    let gem = parse_gem(path, text)?;
     let plural = |n: usize, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
     Ok(format!(
         "ok (gem \"{}\", {}, {}{})",
@@ -231,7 +182,10 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<String,
         .map_err(|e| RecipeError::whole_file(path, format!("cannot re-read: {e}")))?;
     for (stone, written) in scene.stones.iter().zip(&spec.stones) {
         if let (Some(resolved), Some(written)) = (&stone.recipe, &written.recipe) {
-            let (gem_path, gem_text) = load_gem_source(resolved)
+            let GemSource {
+                path: gem_path,
+                text: gem_text,
+            } = GemSource::load(resolved)
                 .map_err(|e| reference_error(path, text, written, "gem", e))?;
             let kind = recipe_kind(&gem_path, &gem_text)
                 .map_err(|e| reference_error(path, text, written, "gem", e))?;

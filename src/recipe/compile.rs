@@ -195,7 +195,7 @@ pub fn compile_material(source: &MaterialSource, m: &Material) -> Result<Layered
 
 /// [`compile_material`] without the compensation table, for callers that
 /// compute the tables of several materials together
-/// ([`crate::brdf::cache::compensations`] with [`COMPENSATION_SEED`]).
+/// ([`crate::recipe::TableCache::compensations`] with [`COMPENSATION_SEED`]).
 pub fn compile_material_without_table(
     source: &MaterialSource,
     m: &Material,

@@ -43,8 +43,13 @@
 //! Seeds: every map derives its own seed from the gem seed and its *name*,
 //! so adding or renaming another map does not reshuffle this one.
 
-use crate::recipe::compile::{parse_material, ron_error};
-use crate::recipe::error::{did_you_mean, RecipeError};
+use crate::brdf::LayeredBrdf;
+use crate::recipe::compile::{
+    compile_material_without_table, locate_material, parse_material, ron_error, MaterialSource,
+    COMPENSATION_SEED,
+};
+use crate::recipe::table_cache::TableCache;
+use crate::recipe::error::{did_you_mean, line_col_of_offset, RecipeError};
 use crate::recipe::library::{builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
 use crate::recipe::ranges;
@@ -58,6 +63,7 @@ use crate::texture::voronoi::Voronoi;
 use glam::DVec3;
 use serde::{Deserialize, Deserializer};
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 fn some_string<'de, D: Deserializer<'de>>(d: D) -> Result<Option<String>, D::Error> {
     String::deserialize(d).map(Some)
@@ -303,29 +309,34 @@ pub enum AroundSpec {
     Direction(f64, f64, f64),
 }
 
-/// A compiled gem: the pattern and the materials its indices refer to.
+/// A gem ready to render: its pattern and one compiled BRDF per material
+/// the pattern's indices refer to. Made only by [`compile_gems`] (and its
+/// one-gem form [`compile_gem`]).
 #[derive(Clone, Debug)]
-pub struct CompiledGem {
+pub struct Gem {
     /// Display name.
     pub name: String,
     /// Free text.
     pub description: String,
-    /// The recipe seed.
+    /// The recipe seed (or the seed that replaced it).
     pub seed: u64,
     /// Host IOR, if given.
     pub host_ior: Option<f64>,
-    /// The flat pattern tree.
+    /// The flat pattern tree (figure 4.6) in texture space.
     pub pattern: Pattern,
-    /// `(name, material)` per material index; build BRDFs with
-    /// [`crate::recipe::compile::compile_material`].
+    /// `(name, material)` per material index, as written.
     pub materials: Vec<(String, Material)>,
+    /// The compiled BRDF per material index. Shared by the gems of one
+    /// recipe with different seeds (a seed changes the pattern, never a
+    /// material): a tray of 1000 lepidolites holds 19 BRDFs, not 19 000.
+    pub brdfs: Arc<[LayeredBrdf]>,
     /// Map name per node index.
     pub map_names: Vec<String>,
     /// The parsed recipe.
     pub spec: GemSpec,
 }
 
-impl CompiledGem {
+impl Gem {
     /// Node index of the map called `name`.
     pub fn map_index(&self, name: &str) -> Option<u32> {
         self.map_names
@@ -343,47 +354,208 @@ impl CompiledGem {
     }
 }
 
+/// A gem recipe's text and where it came from (a path, or `builtin:NAME`),
+/// for error messages.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GemSource {
+    /// The display path.
+    pub path: String,
+    /// The RON text.
+    pub text: String,
+}
+
+impl GemSource {
+    /// Recipe `text` read from `path`.
+    pub fn new(path: &str, text: &str) -> Self {
+        Self {
+            path: path.to_string(),
+            text: text.to_string(),
+        }
+    }
+
+    /// Finds RECIPE as a file (if it names one: ends in `.ron` or has a
+    /// `/`) or as a built-in gem.
+    pub fn load(recipe: &str) -> Result<Self, RecipeError> {
+        let (path, text) = load_gem_source(recipe)?;
+        Ok(Self { path, text })
+    }
+}
+
+/// How compiled materials get their multiple-scattering compensation
+/// tables (section 4.2's energy the single-crossing model loses).
+#[derive(Clone, Copy)]
+pub enum Tables<'a> {
+    /// Every material that asks for one gets its table, through the cache.
+    Computed(&'a TableCache),
+    /// No tables: several times quicker to compile, a little darker; for
+    /// previews, patterns and tests, never for final pictures.
+    Skipped,
+}
+
+/// Compiles one gem recipe with its seed replaced by `seed` when given:
+/// [`compile_gems`] of one request.
+pub fn compile_gem(
+    source: &GemSource,
+    seed: Option<u64>,
+    tables: Tables<'_>,
+) -> Result<Gem, RecipeError> {
+    let mut gems = compile_gems(&[(source, seed)], tables, &mut [])?;
+    Ok(gems.remove(0))
+}
+
+/// The one way from recipe text to a [`Gem`]: each request's text is
+/// parsed into its [`GemSpec`], validated and compiled (pattern and
+/// materials) with its seed replaced when given. The requests of one
+/// recipe (the same source) parse it and compile its materials once and
+/// share the BRDFs; every request gets its own pattern. With
+/// [`Tables::Computed`], the compensation tables of all the gems' materials
+/// and of `more_materials` (e.g. a scene's ground, compiled by
+/// [`crate::recipe::compile::load_material_without_table`]) are computed
+/// together, node by node in one parallel loop.
+pub fn compile_gems(
+    requests: &[(&GemSource, Option<u64>)],
+    tables: Tables<'_>,
+    more_materials: &mut [&mut LayeredBrdf],
+) -> Result<Vec<Gem>, RecipeError> {
+    // Per distinct source: its spec and compiled materials, with whether
+    // each wants a table.
+    let mut recipes: Vec<(&GemSource, GemSpec, Vec<LayeredBrdf>, Vec<bool>)> = Vec::new();
+    let mut recipe_of = Vec::with_capacity(requests.len());
+    let mut compiled = Vec::with_capacity(requests.len());
+    for &(source, seed) in requests {
+        let index = match recipes.iter().position(|r| r.0 == source) {
+            Some(index) => index,
+            None => {
+                let spec = parse_gem_spec(&source.path, &source.text)?;
+                recipes.push((source, spec, Vec::new(), Vec::new()));
+                recipes.len() - 1
+            }
+        };
+        let (_, spec, brdfs, wants_table) = &mut recipes[index];
+        let gem = compile_gem_spec(&source.path, &source.text, spec.clone(), seed)?;
+        if brdfs.is_empty() {
+            for (name, material) in &gem.materials {
+                let inline = gem.spec.materials.contains_key(name);
+                brdfs.push(compile_gem_material(
+                    &source.path,
+                    &source.text,
+                    name,
+                    material,
+                    inline,
+                )?);
+                wants_table.push(material.multiple_scattering);
+            }
+        }
+        recipe_of.push(index);
+        compiled.push(gem);
+    }
+    if let Tables::Computed(cache) = tables {
+        let mut wanting: Vec<&mut LayeredBrdf> = recipes
+            .iter_mut()
+            .flat_map(|(_, _, brdfs, wants)| {
+                brdfs
+                    .iter_mut()
+                    .zip(wants.iter())
+                    .filter_map(|(brdf, wants)| wants.then_some(brdf))
+            })
+            .chain(more_materials.iter_mut().map(|brdf| &mut **brdf))
+            .collect();
+        let requests: Vec<(&LayeredBrdf, u64)> = wanting
+            .iter()
+            .map(|brdf| (&**brdf, COMPENSATION_SEED))
+            .collect();
+        let computed = cache.compensations(&requests);
+        for (brdf, table) in wanting.iter_mut().zip(computed) {
+            brdf.compensation = table;
+        }
+    }
+    let shared: Vec<Arc<[LayeredBrdf]>> = recipes
+        .into_iter()
+        .map(|(_, _, brdfs, _)| Arc::from(brdfs))
+        .collect();
+    Ok(compiled
+        .into_iter()
+        .zip(recipe_of)
+        .map(|(gem, index)| Gem {
+            brdfs: Arc::clone(&shared[index]),
+            ..gem
+        })
+        .collect())
+}
+
 /// Whether a material has a metal base (a glitter or silver-tile entry).
 pub fn has_conductor_base(m: &Material) -> bool {
     matches!(m.base, BaseSpec::Conductor { .. })
 }
 
-/// Read and compile a gem recipe file.
-pub fn load_gem(path: &str) -> Result<CompiledGem, RecipeError> {
+/// Read and compile a gem recipe file, without compensation tables
+/// ([`compile_gem`] with [`Tables::Skipped`]).
+pub fn load_gem(path: &str) -> Result<Gem, RecipeError> {
     let text = crate::recipe::compile::read_ron_file(path, "gem recipe")?;
     parse_gem(path, &text)
 }
 
-/// Parse, validate and compile gem recipe `text` (`path` is for messages).
-pub fn parse_gem(path: &str, text: &str) -> Result<CompiledGem, RecipeError> {
-    parse_gem_with_seed(path, text, None)
+/// Parse, validate and compile gem recipe `text` (`path` is for messages),
+/// without compensation tables ([`compile_gem`] with [`Tables::Skipped`]).
+pub fn parse_gem(path: &str, text: &str) -> Result<Gem, RecipeError> {
+    compile_gem(&GemSource::new(path, text), None, Tables::Skipped)
 }
 
-/// [`parse_gem`], with the recipe's seed replaced by `seed` when given (a
-/// scene's two stones of one gem that should not look alike).
-pub fn parse_gem_with_seed(
+/// Compiles material `name` of a gem without its compensation table. An
+/// inline material is compiled against the gem text from its definition
+/// `"name":` on, so that its errors point into its own `Layer(`s; the
+/// position is then shifted back to the whole file. A library material is
+/// compiled from its own text.
+fn compile_gem_material(
     path: &str,
     text: &str,
-    seed: Option<u64>,
-) -> Result<CompiledGem, RecipeError> {
-    compile_gem_spec(path, text, parse_gem_spec(path, text)?, seed)
+    name: &str,
+    material: &Material,
+    inline: bool,
+) -> Result<LayeredBrdf, RecipeError> {
+    if !inline {
+        return compile_material_without_table(&locate_material(name)?, material);
+    }
+    let quoted = format!("\"{name}\"");
+    let definition = text
+        .match_indices(&quoted)
+        .find(|(i, _)| text[i + quoted.len()..].trim_start().starts_with(':'))
+        .map(|(i, _)| i);
+    let (base, from) = match definition {
+        Some(offset) => (line_col_of_offset(text, offset), offset),
+        None => ((1, 1), 0),
+    };
+    let source = MaterialSource {
+        path: path.to_string(),
+        name: name.to_string(),
+        text: text[from..].to_string(),
+    };
+    compile_material_without_table(&source, material).map_err(|mut e| {
+        if let Some((line, col)) = e.position {
+            e.position = Some(if line == 1 {
+                (base.0, base.1 + col - 1)
+            } else {
+                (base.0 + line - 1, col)
+            });
+        }
+        e
+    })
 }
 
-/// Gem recipe `text` (from `path`) read into its spec, not yet compiled:
-/// a scene with many seeds of one recipe reads it once and compiles it
-/// once per seed ([`compile_gem_spec`]).
-pub fn parse_gem_spec(path: &str, text: &str) -> Result<GemSpec, RecipeError> {
+/// Gem recipe `text` (from `path`) read into its spec, not yet compiled.
+fn parse_gem_spec(path: &str, text: &str) -> Result<GemSpec, RecipeError> {
     ron::from_str::<GemSpec>(text).map_err(|e| ron_error(path, text, e))
 }
 
-/// Compiles `spec`, read by [`parse_gem_spec`] from `text` at `path` (both
-/// for error messages), with its seed replaced by `seed` when given.
-pub fn compile_gem_spec(
+/// Compiles `spec`'s pattern and material list (BRDFs empty), read by
+/// [`parse_gem_spec`] from `text` at `path` (both for error messages), with
+/// its seed replaced by `seed` when given.
+fn compile_gem_spec(
     path: &str,
     text: &str,
     mut spec: GemSpec,
     seed: Option<u64>,
-) -> Result<CompiledGem, RecipeError> {
+) -> Result<Gem, RecipeError> {
     if let Some(seed) = seed {
         spec.seed = seed;
     }
@@ -794,7 +966,7 @@ impl<'a> Compiler<'a> {
         Ok(map)
     }
 
-    fn compile(mut self, spec: GemSpec) -> Result<CompiledGem, RecipeError> {
+    fn compile(mut self, spec: GemSpec) -> Result<Gem, RecipeError> {
         // Inline materials first, in name order, so their indices are stable.
         for name in self.spec.materials.keys() {
             self.materials
@@ -836,7 +1008,8 @@ impl<'a> Compiler<'a> {
         };
         let pattern = Pattern::new(nodes, root, glitter, self.materials.len() as u32)
             .map_err(|e| RecipeError::whole_file(self.path, e.to_string()))?;
-        Ok(CompiledGem {
+        Ok(Gem {
+            brdfs: Arc::from([]),
             name: spec.name.clone(),
             description: spec.description.clone(),
             seed: spec.seed,
@@ -851,7 +1024,7 @@ impl<'a> Compiler<'a> {
 
 /// Find RECIPE as a file (if it names one, ends in `.ron` or has a `/`) or
 /// as a built-in gem; returns the display path and the text.
-pub fn load_gem_source(spec: &str) -> Result<(String, String), RecipeError> {
+fn load_gem_source(spec: &str) -> Result<(String, String), RecipeError> {
     use crate::recipe::error::did_you_mean;
     use crate::recipe::library::{builtin_gem_names, builtin_gem_source};
     if crate::recipe::compile::names_a_file(spec) {

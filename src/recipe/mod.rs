@@ -8,7 +8,9 @@ pub mod gem;
 pub mod library;
 pub mod material;
 pub mod ranges;
+pub mod table_cache;
 
 pub use compile::{load_material, locate_material, parse_material};
 pub use error::RecipeError;
 pub use material::Material;
+pub use table_cache::TableCache;

@@ -7,41 +7,31 @@
 //! the varnish), so a path bounces between stones and the ground until it
 //! escapes to the environment, meets a light, or reaches `max_bounces`.
 
-use std::sync::Arc;
-
 use glam::DVec3;
 
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
+use crate::recipe::gem::Gem;
 use crate::render::environment::Environment;
 use crate::render::lights::Light;
 use crate::render::sampler::{SampleStream, SOBOL_PAIRS};
 use crate::render::world::{Surface, SurfaceHit, World, RAY_OFFSET};
 use crate::sampling::cosine_hemisphere;
-use crate::texture::pattern::Pattern;
 
 /// Length in texture space of one scene unit: recipes write cell sizes in
 /// centimetres of stone (a 10 mm stone is one texture unit long), scenes
 /// write stones in millimetres.
 pub const TEXTURE_UNITS_PER_SCENE_UNIT: f64 = 0.1;
 
-/// A gem ready to shade: its pattern and one compiled BRDF per material.
-pub struct GemShading {
-    /// The pattern tree (figure 4.6) in texture space.
-    pub pattern: Pattern,
-    /// BRDF per pattern material index. Shared by the gems of one recipe
-    /// with different seeds (a seed changes the pattern, never a
-    /// material): a tray of 1000 lepidolites holds 19 BRDFs, not 19 000.
-    pub brdfs: Arc<[LayeredBrdf]>,
-    /// `material_id` AOV value of this gem's material 0.
-    pub material_id_base: u32,
-}
-
 /// Everything the integrator reads.
 pub struct RenderScene {
     /// Stones and ground.
     pub world: World,
     /// Gems, indexed by [`crate::render::world::StoneInstance::gem`].
-    pub gems: Vec<GemShading>,
+    pub gems: Vec<Gem>,
+    /// `material_id` AOV value of each gem's material 0: each gem its own
+    /// run after [`MATERIAL_ID_FIRST_STONE`] (see
+    /// [`RenderScene::material_id_bases`]).
+    pub material_id_bases: Vec<u32>,
     /// The ground's BRDF (used when the world has a ground).
     pub ground_brdf: Option<LayeredBrdf>,
     /// Lights placed in the scene.
@@ -224,6 +214,19 @@ struct MaterialPick {
 }
 
 impl RenderScene {
+    /// The `material_id` AOV value of each gem's material 0: the stones'
+    /// materials count from [`MATERIAL_ID_FIRST_STONE`], each gem its own
+    /// run of [`Gem::brdfs`]`.len()` values.
+    pub fn material_id_bases(gems: &[Gem]) -> Vec<u32> {
+        gems.iter()
+            .scan(MATERIAL_ID_FIRST_STONE, |next, gem| {
+                let base = *next;
+                *next += gem.brdfs.len() as u32;
+                Some(base)
+            })
+            .collect()
+    }
+
     /// Picks the material at a hit seen from direction `wo` (world, unit,
     /// pointing away from the surface). Inlined like
     /// [`RenderScene::radiance`]: out of line it cost a call, six saved
@@ -270,7 +273,7 @@ impl RenderScene {
                     pick: MaterialPick {
                         surface_cell: resolved.surface_cell as u32,
                         glitter: resolved.glitter_cell.is_some(),
-                        material_id: gem.material_id_base + resolved.material,
+                        material_id: self.material_id_bases[stone.gem] + resolved.material,
                     },
                 })
             }

@@ -9,7 +9,6 @@ pub mod camera;
 pub mod cpu;
 pub mod distribution;
 pub mod environment;
-pub mod figures;
 pub mod film;
 pub mod integrator;
 pub mod lights;

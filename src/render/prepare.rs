@@ -1,176 +1,34 @@
-//! Compiling what the integrator needs from recipes: gems (pattern and
-//! BRDFs) and single materials (the ground).
+//! Building what the integrator reads from a scene: its gems compiled
+//! through [`crate::recipe::gem::compile_gems`], the ground's material, the
+//! placed stones, the environment and the camera.
 
 use std::path::Path;
-use std::sync::Arc;
 
 use crate::geometry::Cabochon;
+use crate::recipe::compile::load_material_without_table;
+use crate::recipe::gem::{compile_gems, GemSource, Tables};
 use crate::render::camera::PinholeCamera;
 use crate::render::environment::Environment;
-use crate::render::integrator::{RenderScene, MATERIAL_ID_FIRST_STONE};
+use crate::render::integrator::RenderScene;
 use crate::render::world::{StoneInstance, World};
 use crate::scene::{EnvironmentSpec, Scene};
-
-use crate::brdf::LayeredBrdf;
-use crate::recipe::compile::{
-    compile_material_without_table, load_material_without_table, MaterialSource, COMPENSATION_SEED,
-};
-use crate::recipe::error::RecipeError;
-use crate::recipe::gem::{compile_gem_spec, load_gem_source, parse_gem_spec, GemSpec};
-use crate::render::integrator::GemShading;
-use crate::texture::pattern::Pattern;
-
-/// Loads gem `spec` (a built-in name or a `.ron` path), optionally with
-/// another seed, and compiles every material's BRDF (the layered materials'
-/// multiple-scattering compensation tables together, in parallel).
-/// `material_id_base` is the `material_id` AOV value of its material 0.
-pub fn compile_gem(
-    spec: &str,
-    seed: Option<u64>,
-    material_id_base: u32,
-) -> Result<(GemShading, String), RecipeError> {
-    let (path, text) = load_gem_source(spec)?;
-    compile_gem_source(&path, &text, seed, material_id_base)
-}
-
-/// [`compile_gem`] for recipe `text` already read from `path`.
-pub fn compile_gem_source(
-    path: &str,
-    text: &str,
-    seed: Option<u64>,
-    material_id_base: u32,
-) -> Result<(GemShading, String), RecipeError> {
-    compile_gem_draft_or_full(path, text, seed, material_id_base, false)
-}
-
-/// [`compile_gem_source`]; with `draft`, every material is compiled without
-/// its multiple-scattering compensation table (several times quicker, a
-/// little darker: for previews and tests, never for final pictures).
-pub fn compile_gem_draft_or_full(
-    path: &str,
-    text: &str,
-    seed: Option<u64>,
-    material_id_base: u32,
-    draft: bool,
-) -> Result<(GemShading, String), RecipeError> {
-    let spec = parse_gem_spec(path, text)?;
-    let mut gem = gem_without_tables((path, text, spec), seed, material_id_base, draft, None)?;
-    fill_tables(gem.wanting_tables().collect());
-    Ok(finish_gems(vec![gem]).remove(0))
-}
-
-/// A gem compiled without its materials' compensation tables, so that the
-/// tables of a whole scene can be computed together.
-struct GemWithoutTables {
-    pattern: Pattern,
-    /// The materials' BRDFs; empty when `shares_brdfs_of` is set.
-    brdfs: Vec<LayeredBrdf>,
-    /// The gem (an index into the scene's gems) of the same recipe with
-    /// another seed whose BRDFs this one uses.
-    shares_brdfs_of: Option<usize>,
-    material_id_base: u32,
-    name: String,
-    /// Per material of `brdfs`, whether it wants a table.
-    wants_table: Vec<bool>,
-}
-
-impl GemWithoutTables {
-    /// The materials that want a compensation table.
-    fn wanting_tables(&mut self) -> impl Iterator<Item = &mut LayeredBrdf> {
-        self.brdfs
-            .iter_mut()
-            .zip(&self.wants_table)
-            .filter_map(|(brdf, wants)| wants.then_some(brdf))
-    }
-}
-
-/// The finished gems of a scene: each recipe's BRDFs once, shared by its
-/// other seeds.
-fn finish_gems(gems: Vec<GemWithoutTables>) -> Vec<(GemShading, String)> {
-    let mut finished: Vec<(GemShading, String)> = Vec::with_capacity(gems.len());
-    for gem in gems {
-        let brdfs = match gem.shares_brdfs_of {
-            Some(first) => Arc::clone(&finished[first].0.brdfs),
-            None => Arc::from(gem.brdfs),
-        };
-        finished.push((
-            GemShading {
-                pattern: gem.pattern,
-                brdfs,
-                material_id_base: gem.material_id_base,
-            },
-            gem.name,
-        ));
-    }
-    finished
-}
-
-/// Compiles gem `spec` (read from recipe `text` at `path`) and its
-/// materials without their tables; with `draft` none of them wants one.
-/// With `shares_brdfs_of`, the gem of that index (the same recipe, another
-/// seed) lends its BRDFs and only the pattern is compiled: a seed changes
-/// the pattern, never a material.
-fn gem_without_tables(
-    (path, text, spec): (&str, &str, GemSpec),
-    seed: Option<u64>,
-    material_id_base: u32,
-    draft: bool,
-    shares_brdfs_of: Option<usize>,
-) -> Result<GemWithoutTables, RecipeError> {
-    let gem = compile_gem_spec(path, text, spec, seed)?;
-    let mut brdfs = Vec::new();
-    let mut wants_table = Vec::new();
-    if shares_brdfs_of.is_none() {
-        for (name, material) in &gem.materials {
-            let source = MaterialSource {
-                path: path.to_string(),
-                name: name.clone(),
-                text: text.to_string(),
-            };
-            brdfs.push(compile_material_without_table(&source, material)?);
-            wants_table.push(material.multiple_scattering && !draft);
-        }
-    }
-    Ok(GemWithoutTables {
-        pattern: gem.pattern,
-        brdfs,
-        shares_brdfs_of,
-        material_id_base,
-        name: gem.name,
-        wants_table,
-    })
-}
-
-/// Gives every material of `brdfs` its compensation table, all computed
-/// together (node by node in one parallel loop, each distinct material
-/// once; see [`crate::brdf::cache::compensations`]): what
-/// [`LayeredBrdf::with_compensation`] gives each one alone.
-fn fill_tables(mut brdfs: Vec<&mut LayeredBrdf>) {
-    let requests: Vec<(&LayeredBrdf, u64)> = brdfs
-        .iter()
-        .map(|brdf| (&**brdf, COMPENSATION_SEED))
-        .collect();
-    let tables = crate::brdf::cache::compensations(&requests);
-    for (brdf, table) in brdfs.iter_mut().zip(tables) {
-        brdf.compensation = table;
-    }
-}
 
 /// Builds everything the integrator reads from a compiled scene.
 ///
 /// Stones without a recipe use `default_gem`; `environment_file`, when
 /// given, replaces the scene's environment (the `--env` option). Each gem
 /// recipe is read and its materials compiled once; each distinct (gem,
-/// seed) pair gets its own pattern and shares the recipe's BRDFs. `report`
-/// hears what is being compiled (slow layered materials tabulate their
-/// compensation). The compensation tables of every gem and of the ground
-/// are computed together while the environment is built (baked or loaded)
-/// beside them.
+/// seed) pair gets its own pattern and shares the recipe's BRDFs
+/// ([`compile_gems`]). `report` hears what is being compiled (slow layered
+/// materials tabulate their compensation). The compensation tables of
+/// every gem and of the ground are computed together, with `tables`, while
+/// the environment is built (baked or loaded) beside them.
 pub fn prepare_scene(
     scene: &Scene,
     default_gem: &str,
     environment_file: Option<&Path>,
     max_bounces: u32,
+    tables: Tables<'_>,
     report: &dyn Fn(&str),
 ) -> Result<RenderScene, String> {
     let mut keys: Vec<(String, Option<u64>)> = Vec::new();
@@ -191,34 +49,21 @@ pub fn prepare_scene(
             }
         };
     }
-    let mut gems: Vec<GemWithoutTables> = Vec::with_capacity(keys.len());
-    // Per recipe, read once: its name, path, text and spec, and its first gem.
-    let mut recipes: Vec<(&str, String, String, GemSpec, usize)> = Vec::new();
-    let mut material_id_base = MATERIAL_ID_FIRST_STONE;
-    for (name, seed) in &keys {
-        let recipe = match recipes.iter().position(|r| r.0 == name) {
-            Some(i) => i,
-            None => {
-                report(&format!("compiling gem {name}"));
-                let (path, text) = load_gem_source(name).map_err(|e| e.to_string())?;
-                let spec = parse_gem_spec(&path, &text).map_err(|e| e.to_string())?;
-                recipes.push((name, path, text, spec, gems.len()));
-                recipes.len() - 1
-            }
-        };
-        let (_, path, text, spec, first) = &recipes[recipe];
-        let shares_brdfs_of = (*first != gems.len()).then_some(*first);
-        let gem = gem_without_tables(
-            (path, text, spec.clone()),
-            *seed,
-            material_id_base,
-            false,
-            shares_brdfs_of,
-        )
-        .map_err(|e| e.to_string())?;
-        let first = gem.shares_brdfs_of.map_or(&gem, |first| &gems[first]);
-        material_id_base += first.brdfs.len() as u32;
-        gems.push(gem);
+    let mut sources: Vec<(&str, GemSource)> = Vec::new();
+    for (name, _) in &keys {
+        if !sources.iter().any(|(n, _)| n == name) {
+            sources.push((name, GemSource::load(name).map_err(|e| e.to_string())?));
+        }
+    }
+    let requests: Vec<(&GemSource, Option<u64>)> = keys
+        .iter()
+        .map(|(name, seed)| {
+            let source = sources.iter().find(|(n, _)| n == name).map(|(_, s)| s);
+            (source.expect("every recipe was loaded"), *seed)
+        })
+        .collect();
+    for (name, _) in &sources {
+        report(&format!("compiling gem {name}"));
     }
     let mut ground = match &scene.ground {
         Some(ground) => {
@@ -226,29 +71,24 @@ pub fn prepare_scene(
         }
         None => None,
     };
-    let ((), environment) = rayon::join(
+    let (gems, environment) = rayon::join(
         || {
-            let ground_wanting = ground
+            let mut ground_wanting: Vec<&mut crate::brdf::LayeredBrdf> = ground
                 .iter_mut()
-                .filter_map(|(brdf, wants)| wants.then_some(brdf));
-            fill_tables(
-                gems.iter_mut()
-                    .flat_map(GemWithoutTables::wanting_tables)
-                    .chain(ground_wanting)
-                    .collect(),
-            );
+                .filter_map(|(brdf, wants)| wants.then_some(brdf))
+                .collect();
+            compile_gems(&requests, tables, &mut ground_wanting).map_err(|e| e.to_string())
         },
         || match environment_file {
             Some(path) => Environment::from_file(path, 0.0, 1.0).map_err(|e| e.to_string()),
             None => environment_for_spec(&scene.environment),
         },
     );
+    let gems = gems?;
     Ok(RenderScene {
         world: World::new(stones, scene.ground.as_ref().map(|g| g.height)),
-        gems: finish_gems(gems)
-            .into_iter()
-            .map(|(shading, _)| shading)
-            .collect(),
+        material_id_bases: RenderScene::material_id_bases(&gems),
+        gems,
         ground_brdf: ground.map(|(brdf, _)| brdf),
         lights: scene.lights.clone(),
         environment: environment?,
@@ -309,7 +149,11 @@ pub fn camera_for(scene: &Scene, width: u32, height: u32) -> PinholeCamera {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::recipe::gem::compile_gem;
+    use crate::recipe::TableCache;
+    use crate::render::integrator::MATERIAL_ID_FIRST_STONE;
     use crate::scene::parse_scene;
+    use std::sync::Arc;
     use glam::DVec3;
 
     /// Three stones: the default gem with seeds 1 and 2, then goldstone.
@@ -332,20 +176,25 @@ mod tests {
     #[test]
     fn seeds_of_one_recipe_share_its_brdfs_and_keep_their_own_patterns() {
         let scene = parse_scene(THREE_STONES, None).unwrap();
-        let prepared = prepare_scene(&scene, "green-aventurine", None, 2, &|_| {}).unwrap();
+        let cache = TableCache::in_memory();
+        let tables = Tables::Computed(&cache);
+        let prepared = prepare_scene(&scene, "green-aventurine", None, 2, tables, &|_| {}).unwrap();
         let gems = &prepared.gems;
         assert_eq!(gems.len(), 3);
         assert!(Arc::ptr_eq(&gems[0].brdfs, &gems[1].brdfs));
         assert!(!Arc::ptr_eq(&gems[0].brdfs, &gems[2].brdfs));
         // material_id AOV values: each gem its own run, as without sharing.
-        assert_eq!(gems[0].material_id_base, MATERIAL_ID_FIRST_STONE);
+        let bases = &prepared.material_id_bases;
+        assert_eq!(bases[0], MATERIAL_ID_FIRST_STONE);
         let n = gems[0].brdfs.len() as u32;
-        assert_eq!(gems[1].material_id_base, MATERIAL_ID_FIRST_STONE + n);
-        assert_eq!(gems[2].material_id_base, MATERIAL_ID_FIRST_STONE + 2 * n);
+        assert_eq!(bases[1], MATERIAL_ID_FIRST_STONE + n);
+        assert_eq!(bases[2], MATERIAL_ID_FIRST_STONE + 2 * n);
 
         // The shared BRDFs are those of seed 2 compiled alone, bit for bit,
-        // compensation tables included.
-        let (alone, _) = compile_gem("green-aventurine", Some(2), 0).unwrap();
+        // compensation tables included (computed afresh, not from the cache).
+        let source = GemSource::load("green-aventurine").unwrap();
+        let fresh = TableCache::in_memory();
+        let alone = compile_gem(&source, Some(2), Tables::Computed(&fresh)).unwrap();
         assert_eq!(alone.brdfs.len(), gems[1].brdfs.len());
         let (wi, wo) = (
             DVec3::new(0.3, -0.2, 0.9).normalize(),

@@ -3,7 +3,7 @@
 //! z = 0 through the stone's object space.
 
 use crate::brdf::Rgb;
-use crate::plot::text::{draw_text, text_width};
+use crate::gallery::plot::text::{draw_text, text_width};
 use crate::texture::pattern::Pattern;
 use glam::DVec3;
 use image::{Rgb as Pixel, RgbImage};

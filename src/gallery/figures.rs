@@ -29,19 +29,18 @@ use crate::brdf::classify::classify;
 use crate::brdf::LayeredBrdf;
 use crate::geometry::{Base, CabochonParams, Outline};
 use crate::output::tonemap::DisplayTransform;
-use crate::plot::text::{draw_text_centred, text_height, text_width, ClipRect};
-use crate::plot::{polar_plot, PolarPanel, PolarPlotStyle};
-use crate::recipe::compile::{compile_material, locate_material, parse_material};
+use crate::gallery::plot::text::{draw_text_centred, text_height, text_width, ClipRect};
+use crate::gallery::plot::{polar_plot, PolarPanel, PolarPlotStyle};
+use crate::recipe::compile::{load_material_without_table, COMPENSATION_SEED};
 use crate::recipe::error::RecipeError;
-use crate::recipe::gem::{load_gem_source, parse_gem};
+use crate::recipe::gem::{compile_gem, Gem, GemSource, Tables};
+use crate::recipe::TableCache;
 use crate::recipe::library::builtin_material_names;
 use crate::render::camera::PinholeCamera;
 use crate::render::environment::Environment;
 use crate::render::film::{render, FilmSettings};
-use crate::render::integrator::{GemShading, RenderScene, MATERIAL_ID_FIRST_STONE};
-use crate::render::prepare::{
-    camera_for, compile_gem_draft_or_full, environment_for_spec, stone_instances,
-};
+use crate::render::integrator::RenderScene;
+use crate::render::prepare::{camera_for, environment_for_spec, stone_instances};
 use crate::render::world::World;
 use crate::sampling::direction_from_degrees;
 use crate::scene::{default_scene, Camera, Scene, StonePlacement};
@@ -225,34 +224,48 @@ fn film_settings(side_px: u32, settings: &GallerySettings) -> FilmSettings {
     FilmSettings::new(side_px, side_px, settings.samples_per_pixel, settings.seed)
 }
 
-/// Compiles gem recipe `text` read from `path` as
-/// [`compile_gem_source`](crate::render::prepare::compile_gem_source) does (material ids from
-/// [`MATERIAL_ID_FIRST_STONE`], the recipe's seed), or with `draft` every
-/// material without its compensation table.
-pub fn compile_gem_text(path: &str, text: &str, draft: bool) -> Result<GemShading, FigureError> {
-    Ok(compile_gem_draft_or_full(path, text, None, MATERIAL_ID_FIRST_STONE, draft)?.0)
+/// Compiles gem recipe `source` with the recipe's seed; with `draft`
+/// every material without its compensation table.
+pub fn compile_gem_draft_or_final(
+    source: &GemSource,
+    draft: bool,
+    cache: &TableCache,
+) -> Result<Gem, FigureError> {
+    let tables = if draft {
+        Tables::Skipped
+    } else {
+        Tables::Computed(cache)
+    };
+    Ok(compile_gem(source, None, tables)?)
 }
 
 /// Loads and compiles library material (or material file) `spec`; with
 /// `draft`, without its compensation table.
-pub fn compile_material_spec(spec: &str, draft: bool) -> Result<LayeredBrdf, FigureError> {
-    let source = locate_material(spec)?;
-    let mut material = parse_material(&source.path, &source.text)?;
-    if draft {
-        material.multiple_scattering = false;
+pub fn compile_material_spec(
+    spec: &str,
+    draft: bool,
+    cache: &TableCache,
+) -> Result<LayeredBrdf, FigureError> {
+    let (mut brdf, wants_table) = load_material_without_table(spec)?;
+    if wants_table && !draft {
+        brdf.compensation = cache.compensation(&brdf, COMPENSATION_SEED);
     }
-    Ok(compile_material(&source, &material)?)
+    Ok(brdf)
 }
 
 /// Renders built-in gem `name` on the default scene's cabochon in the
 /// default studio scene: without `draft`, the same bytes as
 /// `lapidary render NAME -o NAME.png --size N --spp S` with the same seed.
-pub fn render_gem(name: &str, settings: &GallerySettings) -> Result<GemPicture, FigureError> {
+pub fn render_gem(
+    name: &str,
+    settings: &GallerySettings,
+    cache: &TableCache,
+) -> Result<GemPicture, FigureError> {
     settings.check()?;
-    let (path, text) = load_gem_source(name)?;
-    let summary = first_sentence(&parse_gem(&path, &text)?.description).to_string();
-    let studio = Studio::new(default_scene(), settings)?;
-    let gem = compile_gem_text(&path, &text, settings.draft)?;
+    let source = GemSource::load(name)?;
+    let studio = Studio::new(default_scene(), settings, cache)?;
+    let gem = compile_gem_draft_or_final(&source, settings.draft, cache)?;
+    let summary = first_sentence(&gem.description).to_string();
     Ok(GemPicture {
         name: name.to_string(),
         summary,
@@ -345,9 +358,9 @@ struct Studio {
 }
 
 impl Studio {
-    fn new(scene: Scene, settings: &GallerySettings) -> Result<Self, FigureError> {
+    fn new(scene: Scene, settings: &GallerySettings, cache: &TableCache) -> Result<Self, FigureError> {
         let ground_brdf = match &scene.ground {
-            Some(ground) => Some(compile_material_spec(&ground.material, settings.draft)?),
+            Some(ground) => Some(compile_material_spec(&ground.material, settings.draft, cache)?),
             None => None,
         };
         let environment = environment_for_spec(&scene.environment).map_err(FigureError::Scene)?;
@@ -362,13 +375,14 @@ impl Studio {
     /// Renders the scene with `gem` on every stone, `side_px` square.
     fn render(
         &self,
-        gem: GemShading,
+        gem: Gem,
         side_px: u32,
         settings: &GallerySettings,
     ) -> Result<RgbImage, FigureError> {
         let stones = stone_instances(&self.scene).map_err(FigureError::Scene)?;
         let render_scene = RenderScene {
             world: World::new(stones, self.scene.ground.as_ref().map(|g| g.height)),
+            material_id_bases: RenderScene::material_id_bases(std::slice::from_ref(&gem)),
             gems: vec![gem],
             ground_brdf: self.ground_brdf.clone(),
             lights: self.scene.lights.clone(),
@@ -410,10 +424,14 @@ pub fn varnish_sphere_gem(thickness: f64) -> String {
 
 /// Compiles `(path, text)` gem recipes in parallel (each layered material
 /// tabulates its multiple-scattering compensation, the slow part).
-fn compile_all(recipes: &[(String, String)], draft: bool) -> Result<Vec<GemShading>, FigureError> {
+fn compile_all(
+    recipes: &[(String, String)],
+    draft: bool,
+    cache: &TableCache,
+) -> Result<Vec<Gem>, FigureError> {
     recipes
         .par_iter()
-        .map(|(path, text)| compile_gem_text(path, text, draft))
+        .map(|(path, text)| compile_gem_draft_or_final(&GemSource::new(path, text), draft, cache))
         .collect()
 }
 
@@ -422,10 +440,11 @@ fn render_spheres(
     recipes: &[(String, String)],
     side_px: u32,
     settings: &GallerySettings,
+    cache: &TableCache,
 ) -> Result<Vec<RgbImage>, FigureError> {
     settings.check()?;
-    let studio = Studio::new(sphere_scene(SPHERE_RADIUS_MM), settings)?;
-    compile_all(recipes, settings.draft)?
+    let studio = Studio::new(sphere_scene(SPHERE_RADIUS_MM), settings, cache)?;
+    compile_all(recipes, settings.draft, cache)?
         .into_iter()
         .map(|gem| studio.render(gem, side_px, settings))
         .collect()
@@ -433,17 +452,20 @@ fn render_spheres(
 
 /// Figure 4.11: every library material on a sphere, labelled with its name
 /// and its section 3.4 class, six to a row.
-pub fn figure_4_11(settings: &GallerySettings) -> Result<RgbImage, FigureError> {
+pub fn figure_4_11(
+    settings: &GallerySettings,
+    cache: &TableCache,
+) -> Result<RgbImage, FigureError> {
     let names: Vec<&str> = builtin_material_names().collect();
     let recipes: Vec<(String, String)> = names
         .iter()
         .map(|name| (format!("builtin:{name}"), library_sphere_gem(name)))
         .collect();
-    let spheres = render_spheres(&recipes, settings.small_sphere_px(), settings)?;
+    let spheres = render_spheres(&recipes, settings.small_sphere_px(), settings, cache)?;
     let mut tiles = Vec::with_capacity(names.len());
     for (name, image) in names.iter().zip(spheres) {
         // The class reads only the parameters: no compensation needed.
-        let class = classify(&compile_material_spec(name, true)?).to_string();
+        let class = classify(&compile_material_spec(name, true, cache)?).to_string();
         tiles.push(Tile {
             image,
             lines: vec![name.to_string(), class],
@@ -459,12 +481,15 @@ pub fn figure_4_11(settings: &GallerySettings) -> Result<RgbImage, FigureError> 
 /// Figure 3.2: white diffuse spheres under the yellow varnish of
 /// [`varnish_sphere_gem`] at the caption's thicknesses, labelled
 /// `d = thickness`, six to a row.
-pub fn figure_3_2(settings: &GallerySettings) -> Result<RgbImage, FigureError> {
+pub fn figure_3_2(
+    settings: &GallerySettings,
+    cache: &TableCache,
+) -> Result<RgbImage, FigureError> {
     let recipes: Vec<(String, String)> = FIGURE_3_2_THICKNESSES
         .iter()
         .map(|d| (format!("figure-3.2:d={d}"), varnish_sphere_gem(*d)))
         .collect();
-    let spheres = render_spheres(&recipes, settings.small_sphere_px(), settings)?;
+    let spheres = render_spheres(&recipes, settings.small_sphere_px(), settings, cache)?;
     let tiles: Vec<Tile> = FIGURE_3_2_THICKNESSES
         .iter()
         .zip(spheres)
@@ -504,16 +529,19 @@ pub fn in_plane_slice(brdf: &LayeredBrdf, incidence_deg: f64) -> PolarPanel {
 /// spheres, each over its BRDF slice at [`FIGURE_4_3_INCIDENCE_DEG`]: the
 /// frosted metal's single highlight lobe against the patina's sharp lobe
 /// on a broad one.
-pub fn figure_4_3(settings: &GallerySettings) -> Result<RgbImage, FigureError> {
+pub fn figure_4_3(
+    settings: &GallerySettings,
+    cache: &TableCache,
+) -> Result<RgbImage, FigureError> {
     let recipes: Vec<(String, String)> = FIGURE_4_3_MATERIALS
         .iter()
         .map(|(name, _)| (format!("builtin:{name}"), library_sphere_gem(name)))
         .collect();
     let side_px = settings.large_sphere_px();
-    let spheres = render_spheres(&recipes, side_px, settings)?;
+    let spheres = render_spheres(&recipes, side_px, settings, cache)?;
     let mut tiles = Vec::with_capacity(spheres.len());
     for ((name, what), sphere) in FIGURE_4_3_MATERIALS.iter().zip(spheres) {
-        let brdf = compile_material_spec(name, settings.draft)?;
+        let brdf = compile_material_spec(name, settings.draft, cache)?;
         let style = PolarPlotStyle {
             panel_size_px: side_px,
             title: format!("{name}: f·cos θo"),
@@ -882,7 +910,7 @@ mod tests {
     #[test]
     fn varnish_recipe_compiles_with_the_thickness() {
         let text = varnish_sphere_gem(7.5);
-        let gem = parse_gem("figure-3.2", &text).unwrap();
+        let gem = crate::recipe::gem::parse_gem("figure-3.2", &text).unwrap();
         assert_eq!(gem.materials.len(), 1);
         assert_eq!(gem.materials[0].1.layers[0].thickness, 7.5);
         assert_eq!(

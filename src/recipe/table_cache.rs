@@ -1,0 +1,255 @@
+//! Compensation tables computed once: [`TableCache`], an in-process
+//! memo and an optional folder on disk, owned by whoever compiles
+//! materials and passed in (the `lapidary` command makes one per run).
+//! The tables themselves are a pure function of a material's parameters
+//! ([`Compensation::compute_many`]); a gem, a scene or the gallery may name
+//! the same material (same parameters) several times, under one name or
+//! several, and each distinct table (0.01–0.2 s) is computed once.
+//!
+//! The key is [`material_key`]: the material's exact parameters and the
+//! seed, not its display name. Two threads that miss on the same key at
+//! once both compute it; the results are identical (the tables are
+//! deterministic), so either may stay.
+//!
+//! On disk: one small text file per material, named by a hash of the key
+//! and holding the format version, the key itself (checked on reading, so
+//! a hash collision is a miss), the identity of the program that wrote it
+//! (its size and modification time: any rebuild, which may change how
+//! tables are computed, invalidates every file), and E_single and E_stack
+//! per node as the hexadecimal bits of each `f64`, from which
+//! [`Compensation::from_albedos`] rebuilds the table bit for bit. Files are
+//! written to a temporary name and renamed, so a reader never sees half a
+//! file; a file that cannot be read or parsed is ignored and rewritten.
+
+use crate::brdf::compensation::{
+    material_key, needs_no_table, AlbedoPair, Compensation, TABLE_NODES,
+};
+use crate::brdf::{LayeredBrdf, Rgb};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, OnceLock};
+
+/// Version of the on-disk format (and of the way tables are computed, as
+/// far as the program's identity does not already cover it).
+pub const DISK_FORMAT_VERSION: u32 = 1;
+
+/// Compensation tables computed so far, in memory and optionally on disk.
+#[derive(Default)]
+pub struct TableCache {
+    /// Tables by [`material_key`] (`None`: no compensation needed).
+    tables: Mutex<HashMap<String, Option<Compensation>>>,
+    /// The black- and white-base E_single pairs of coats over Lambertian
+    /// bases, by the [`material_key`] of the white twin: materials that
+    /// differ only in their base colour share them.
+    single_albedo_pairs: Mutex<HashMap<String, AlbedoPair>>,
+    /// Where tables are kept between runs, if anywhere.
+    folder: Option<PathBuf>,
+}
+
+impl TableCache {
+    /// A cache in memory only.
+    pub fn in_memory() -> Self {
+        Self::default()
+    }
+
+    /// A cache in memory that also reads and writes the files of `folder`
+    /// (created when first written).
+    pub fn with_folder(folder: PathBuf) -> Self {
+        Self {
+            folder: Some(folder),
+            ..Self::default()
+        }
+    }
+
+    /// The folder on disk, if any.
+    pub fn folder(&self) -> Option<&Path> {
+        self.folder.as_deref()
+    }
+
+    /// The tables of `brdf` if this cache holds them in memory already
+    /// (`Some(None)`: computed, and no compensation was needed).
+    pub fn cached(&self, brdf: &LayeredBrdf, seed: u64) -> Option<Option<Compensation>> {
+        lock(&self.tables).get(&material_key(brdf, seed)).cloned()
+    }
+
+    /// [`Compensation::compute`] of `brdf` through the cache.
+    pub fn compensation(&self, brdf: &LayeredBrdf, seed: u64) -> Option<Compensation> {
+        self.compensations(&[(brdf, seed)]).pop().flatten()
+    }
+
+    /// [`Compensation::compute`] of every (material, seed) of `requests`, in
+    /// order: the tables neither memory nor the folder holds are computed
+    /// together, node by node in one parallel loop
+    /// ([`Compensation::compute_many_reusing`]), each distinct one once.
+    /// Bare Lambert surfaces ([`needs_no_table`]) need no table and touch
+    /// neither memory nor disk.
+    pub fn compensations(&self, requests: &[(&LayeredBrdf, u64)]) -> Vec<Option<Compensation>> {
+        let keys: Vec<Option<String>> = requests
+            .iter()
+            .map(|(brdf, seed)| (!needs_no_table(brdf)).then(|| material_key(brdf, *seed)))
+            .collect();
+        let mut found: HashMap<&str, Option<Compensation>> = HashMap::new();
+        {
+            let map = lock(&self.tables);
+            for key in keys.iter().flatten() {
+                if let Some(table) = map.get(key) {
+                    found.insert(key, table.clone());
+                }
+            }
+        }
+        let mut missing: Vec<(&str, (&LayeredBrdf, u64))> = Vec::new();
+        for (key, request) in keys.iter().zip(requests) {
+            let Some(key) = key.as_deref() else { continue };
+            if found.contains_key(key) || missing.iter().any(|(k, _)| *k == key) {
+                continue;
+            }
+            match self.folder.as_deref().and_then(|d| load(d, key)) {
+                Some(table) => {
+                    found.insert(key, table);
+                }
+                None => missing.push((key, *request)),
+            }
+        }
+        // Computed outside the locks: other materials compile meanwhile.
+        // Nothing waits for a pair being computed elsewhere: two batches
+        // that need the same new pair at once both compute it
+        // (identically), since a rayon worker blocked on another's parallel
+        // work could be the one that work needs.
+        let wanted: Vec<(&LayeredBrdf, u64)> =
+            missing.iter().map(|(_, request)| *request).collect();
+        let known_pair = |key: &str| lock(&self.single_albedo_pairs).get(key).cloned();
+        let computed = Compensation::compute_many_reusing(&wanted, &known_pair);
+        {
+            let mut pairs = lock(&self.single_albedo_pairs);
+            for (key, pair) in computed.new_pairs {
+                pairs.entry(key).or_insert(pair);
+            }
+        }
+        for ((key, _), table) in missing.iter().zip(computed.tables) {
+            if let Some(d) = self.folder.as_deref() {
+                // A cache that cannot be written only costs the next run time.
+                let _ = store(d, key, table.as_ref());
+            }
+            found.insert(key, table);
+        }
+        {
+            let mut map = lock(&self.tables);
+            for (key, table) in &found {
+                map.entry(key.to_string())
+                    .or_insert_with(|| table.clone());
+            }
+        }
+        keys.iter()
+            .map(|key| key.as_deref().and_then(|k| found[k].clone()))
+            .collect()
+    }
+}
+
+/// A poisoned lock only means another thread panicked while inserting;
+/// the map itself is still whole.
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// The running program's identity: its size and modification time, which
+/// change with every rebuild ("unknown" when they cannot be read).
+fn program_identity() -> &'static str {
+    static IDENTITY: OnceLock<String> = OnceLock::new();
+    IDENTITY.get_or_init(|| {
+        let metadata = std::env::current_exe().and_then(std::fs::metadata);
+        match metadata {
+            Ok(m) => {
+                let modified = m
+                    .modified()
+                    .ok()
+                    .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+                    .map_or(0, |d| d.as_nanos());
+                format!("{} bytes, modified {modified} ns", m.len())
+            }
+            Err(_) => "unknown".to_string(),
+        }
+    })
+}
+
+/// FNV-1a 64-bit hash of `text`, for file names.
+fn fnv1a(text: &str) -> u64 {
+    text.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+/// The file of `key` in `dir`.
+pub fn cache_file(dir: &Path, key: &str) -> PathBuf {
+    dir.join(format!("compensation-{:016x}.txt", fnv1a(key)))
+}
+
+/// The first three lines of a file for `key` written by this program.
+fn header(key: &str) -> String {
+    format!(
+        "lapidary compensation tables v{DISK_FORMAT_VERSION}\nkey {key}\nprogram {}\n",
+        program_identity()
+    )
+}
+
+/// Reads the tables of `key` from `dir`: None when there is no file, or it
+/// is from another format or program, or for another key, or malformed.
+/// `Some(None)`: stored as "no compensation needed".
+pub fn load(dir: &Path, key: &str) -> Option<Option<Compensation>> {
+    let text = std::fs::read_to_string(cache_file(dir, key)).ok()?;
+    let body = text.strip_prefix(&header(key))?;
+    if body.trim_end() == "none" {
+        return Some(None);
+    }
+    let mut single = Vec::with_capacity(TABLE_NODES);
+    let mut stack = Vec::with_capacity(TABLE_NODES);
+    for line in body.lines() {
+        let numbers: Vec<f64> = line
+            .split_whitespace()
+            .map(|word| u64::from_str_radix(word, 16).ok().map(f64::from_bits))
+            .collect::<Option<_>>()?;
+        let [s0, s1, s2, t0, t1, t2] = numbers.as_slice() else {
+            return None;
+        };
+        if !numbers.iter().all(|x| x.is_finite()) {
+            return None;
+        }
+        single.push(Rgb::new(*s0, *s1, *s2));
+        stack.push(Rgb::new(*t0, *t1, *t2));
+    }
+    if single.len() != TABLE_NODES {
+        return None;
+    }
+    Some(Some(Compensation::from_albedos(single, stack)?))
+}
+
+/// Writes the tables of `key` (None: "no compensation needed") to `dir`,
+/// creating it, through a temporary file renamed into place.
+pub fn store(dir: &Path, key: &str, table: Option<&Compensation>) -> std::io::Result<()> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    std::fs::create_dir_all(dir)?;
+    let mut text = header(key);
+    match table {
+        None => text.push_str("none\n"),
+        Some(t) => {
+            for (s, e) in t.single_albedo.iter().zip(&t.stack_albedo) {
+                let bits: Vec<String> = [s.x, s.y, s.z, e.x, e.y, e.z]
+                    .iter()
+                    .map(|x| format!("{:016x}", x.to_bits()))
+                    .collect();
+                text.push_str(&bits.join(" "));
+                text.push('\n');
+            }
+        }
+    }
+    let target = cache_file(dir, key);
+    let temporary = dir.join(format!(
+        ".compensation-{}-{}.tmp",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    std::fs::write(&temporary, text)?;
+    std::fs::rename(&temporary, &target).inspect_err(|_| {
+        let _ = std::fs::remove_file(&temporary);
+    })
+}
