@@ -22,10 +22,11 @@ const SPP: u32 = 16;
 
 fn renderer(c: &mut Criterion) {
     let scene = default_scene();
+    let default_gem = lapidary::recipe::gem::GemSource::load(DEFAULT_GEM).expect("built-in");
     let cache = lapidary::recipe::TableCache::in_memory();
     let tables = lapidary::recipe::gem::Tables::Computed(&cache);
     let prepared =
-        prepare_scene(&scene, DEFAULT_GEM, None, 4, tables, &|_| {}).expect("default scene");
+        prepare_scene(&scene, &default_gem, None, 4, tables, &|_| {}).expect("default scene");
     let camera = camera_for(&scene, SIDE, SIDE);
     let settings = FilmSettings::new(SIDE, SIDE, SPP, 0);
 
@@ -46,7 +47,8 @@ fn renderer(c: &mut Criterion) {
             .join("bench")
             .join(file);
         let peer = load_scene(&path).expect("the peer scene");
-        let peer_prepared = prepare_scene(&peer, DEFAULT_GEM, None, 4, tables, &|_| {}).expect("peer");
+        let peer_prepared =
+            prepare_scene(&peer, &default_gem, None, 4, tables, &|_| {}).expect("peer");
         let peer_camera = camera_for(&peer, SIDE, SIDE);
         group.bench_function(name, |b| {
             b.iter(|| render(&peer_prepared, &peer_camera, &settings, &|_| {}))

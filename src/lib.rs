@@ -1,16 +1,32 @@
-//! lapidary: procedural gemstones rendered with layered micro-facet BRDFs.
+//! lapidary: procedural gemstones rendered with layered micro-facet BRDFs
+//! (Weidlich & Wilkie, "Thinking in Layers", SIGGRAPH Asia 2011 course
+//! notes: sections 3.4, 4.1–4.3 and the appendix).
 //!
-//! Data flows one way (see `../shared/design.md`): RON recipes are parsed and
-//! validated in [`recipe`], compiled into plain data ([`brdf::LayeredBrdf`]),
-//! and evaluated in the local shading frame (z is the surface normal).
+//! Data flows one way (the repository's `ARCHITECTURE.md`): a RON gem
+//! recipe is parsed, validated and compiled into a [`Gem`] (its pattern
+//! tree and one layered BRDF per material); a scene file becomes a
+//! [`scene::Scene`]; the renderer traces the gems in the scene into a
+//! [`render::film::Film`] of linear radiance and AOVs; [`output`] writes it
+//! as PNG or EXR. A render is a pure function of (recipes, scene, seed,
+//! settings): the same bytes for any thread count.
 //!
 //! ```
-//! use lapidary::sampling::direction_from_degrees;
-//! // A library material by name, compiled with its compensation tables.
-//! let gold = lapidary::recipe::load_material("gold").unwrap();
-//! // f(ωᵢ, ωₒ) at the mirror configuration, 30° from the normal.
-//! let f = gold.eval(direction_from_degrees(30.0, 180.0), direction_from_degrees(30.0, 0.0));
-//! assert!(f.x > f.z, "gold reflects more red than blue");
+//! use lapidary::render::{film, prepare};
+//! use lapidary::{output, scene, GemSource, TableCache, Tables};
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let gem = GemSource::load("goldstone")?; // a built-in name or a .ron path
+//! let scene = scene::default_scene(); // or scene::load_scene(path)?
+//! let cache = TableCache::in_memory(); // or TableCache::with_folder(dir)
+//! let tables = Tables::Computed(&cache);
+//! let traced = prepare::prepare_scene(&scene, &gem, None, 4, tables, &|_| {})?;
+//! let camera = prepare::camera_for(&scene, 32, 32);
+//! let settings = film::FilmSettings::new(32, 32, 4, 1); // size, spp, seed
+//! let film = film::render(&traced, &camera, &settings, &|_| {});
+//! let png = output::tonemap::DisplayTransform::default().encode(&film.rgb, 32, 32);
+//! output::write_png(&std::env::temp_dir().join("goldstone.png"), &png)?;
+//! let layers = output::exr::film_channels(film, false); // RGBA + AOVs
+//! output::exr::write_exr_owned(&std::env::temp_dir().join("goldstone.exr"), 32, 32, layers)?;
+//! # Ok(()) }
 //! ```
 
 pub mod brdf;
@@ -22,3 +38,6 @@ pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod texture;
+
+pub use recipe::gem::{compile_gem, compile_gems, Gem, GemSource, Tables};
+pub use recipe::TableCache;

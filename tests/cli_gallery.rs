@@ -13,8 +13,8 @@ use std::path::{Path, PathBuf};
 use std::process::Output;
 
 use image::RgbImage;
-use lapidary::recipe::library::builtin_gem_names;
 use lapidary::gallery::figures::{FIGURE_3_2_THICKNESSES, FRAME_COLOUR};
+use lapidary::recipe::library::builtin_gem_names;
 
 fn scratch(name: &str) -> PathBuf {
     common::cli::scratch("gallery", name)

@@ -437,6 +437,9 @@ fn the_vector_code_path_writes_the_same_bytes_as_the_portable_one() {
             summaries[0]
         );
         let bytes = |path: &std::path::Path| std::fs::read(path).unwrap();
-        assert!(bytes(&default) == bytes(&portable), "{name}: the copies differ");
+        assert!(
+            bytes(&default) == bytes(&portable),
+            "{name}: the copies differ"
+        );
     }
 }

@@ -5,9 +5,9 @@
 
 use glam::DVec3;
 use lapidary::recipe::gem::{compile_gem, load_gem, parse_gem, Gem, GemSource, Tables};
-use lapidary::recipe::TableCache;
 use lapidary::recipe::library::{builtin_gem_names, builtin_gem_source, BUILTIN_GEMS};
 use lapidary::recipe::material::{BaseSpec, Material};
+use lapidary::recipe::TableCache;
 use lapidary::render::film::{render, FilmSettings};
 use lapidary::render::integrator::{RenderScene, MATERIAL_ID_FIRST_STONE};
 use lapidary::render::prepare::{camera_for, prepare_scene};
@@ -161,15 +161,20 @@ fn assert_renders(name: &str, prepared: &mut RenderScene, gem: Option<Gem>) {
 #[test]
 fn every_builtin_renders_finite_pixels() {
     let scene = default_scene();
-    let mut prepared =
-        prepare_scene(&scene, "sunstone", None, 2, Tables::Computed(&TableCache::in_memory()), &|_| {})
-            .unwrap_or_else(|e| panic!("{e}"));
+    let mut prepared = prepare_scene(
+        &scene,
+        &GemSource::load("sunstone").unwrap(),
+        None,
+        2,
+        Tables::Computed(&TableCache::in_memory()),
+        &|_| {},
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
     assert_renders("sunstone", &mut prepared, None);
     for name in builtin_gem_names() {
         let text = builtin_gem_source(name).unwrap();
         let source = GemSource::new(&format!("builtin:{name}"), text);
-        let shading =
-            compile_gem(&source, None, Tables::Skipped).unwrap_or_else(|e| panic!("{e}"));
+        let shading = compile_gem(&source, None, Tables::Skipped).unwrap_or_else(|e| panic!("{e}"));
         assert_renders(name, &mut prepared, Some(shading));
     }
 }

@@ -34,7 +34,15 @@ fn the_peer_scene_matches_mitsubas_ground_and_stone() {
     let scene = load_scene(&path).unwrap();
     let cache = lapidary::recipe::TableCache::in_memory();
     let tables = lapidary::recipe::gem::Tables::Computed(&cache);
-    let prepared = prepare_scene(&scene, "green-aventurine", None, 4, tables, &|_| {}).unwrap();
+    let prepared = prepare_scene(
+        &scene,
+        &lapidary::recipe::gem::GemSource::load("green-aventurine").unwrap(),
+        None,
+        4,
+        tables,
+        &|_| {},
+    )
+    .unwrap();
     let side = 128;
     let camera = camera_for(&scene, side, side);
     let settings = FilmSettings::new(side, side, 64, 3);

@@ -14,10 +14,10 @@
 
 use std::sync::OnceLock;
 
-use lapidary::render::environment::Environment;
-use lapidary::render::film::{render, FilmSettings};
 use lapidary::recipe::gem::{compile_gem, Gem, GemSource, Tables};
 use lapidary::recipe::TableCache;
+use lapidary::render::environment::Environment;
+use lapidary::render::film::{render, FilmSettings};
 use lapidary::render::integrator::RenderScene;
 use lapidary::render::prepare::{camera_for, stone_instances};
 use lapidary::render::world::World;
@@ -340,8 +340,7 @@ fn default_scene_without_ground(gem: Gem) -> (Scene, RenderScene) {
 /// Renders `text` (a valid gem) like the property above and returns the
 /// number of samples dropped as NaN, infinite or negative.
 fn bad_samples_of(text: &str) -> u64 {
-    let gem = compile_text("extreme.ron", text)
-        .unwrap_or_else(|e| panic!("{e}\n{text}"));
+    let gem = compile_text("extreme.ron", text).unwrap_or_else(|e| panic!("{e}\n{text}"));
     let (scene, render_scene) = default_scene_without_ground(gem);
     let side = 16;
     let camera = camera_for(&scene, side, side);

@@ -5,12 +5,12 @@ use glam::{DQuat, DVec3};
 use lapidary::brdf::Rgb;
 use lapidary::geometry::{Cabochon, CabochonParams};
 use lapidary::recipe::compile::metal_normal_incidence;
+use lapidary::recipe::gem::{compile_gem, Gem, GemSource, Tables};
+use lapidary::recipe::TableCache;
 use lapidary::render::camera::PinholeCamera;
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, Film, FilmSettings};
 use lapidary::render::integrator::RenderScene;
-use lapidary::recipe::gem::{compile_gem, Gem, GemSource, Tables};
-use lapidary::recipe::TableCache;
 use lapidary::render::world::{StoneInstance, World};
 
 /// Compiles gem recipe `text` (`path` for messages) with its compensation

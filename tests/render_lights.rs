@@ -9,14 +9,14 @@ use glam::{DQuat, DVec3};
 use lapidary::brdf::Rgb;
 use lapidary::geometry::{Cabochon, CabochonParams};
 use lapidary::recipe::compile::{compile_material, MaterialSource};
+use lapidary::recipe::gem::{compile_gem, Gem, GemSource, Tables};
 use lapidary::recipe::parse_material;
+use lapidary::recipe::TableCache;
 use lapidary::render::camera::PinholeCamera;
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, FilmSettings};
 use lapidary::render::integrator::RenderScene;
 use lapidary::render::lights::Light;
-use lapidary::recipe::gem::{compile_gem, Gem, GemSource, Tables};
-use lapidary::recipe::TableCache;
 use lapidary::render::world::{StoneInstance, World};
 
 fn white_lambert() -> lapidary::brdf::LayeredBrdf {

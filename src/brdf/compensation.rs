@@ -23,8 +23,8 @@
 //! eq. 3, with 1 − E replaced by the deficit), per colour channel. The sum
 //! with the single-crossing BRDF is clamped at zero by the caller.
 //!
-//! Cost (issue 6: compiling must not dominate a render): a smooth coat over
-//! a Lambertian or black base needs no walk, its series sums in closed form
+//! Cost (compiling must not dominate a render): a smooth coat over a
+//! Lambertian or black base needs no walk, its series sums in closed form
 //! ([`SmoothCoatOverLambert`]); a smooth coat over any other base (metal
 //! flakes) is the walk's Markov chain in the cosine, solved
 //! ([`crate::brdf::smooth_coat`]); other stacks trace stratified batches of
@@ -588,8 +588,8 @@ impl Compensation {
     /// white E_single of each coat over a Lambertian base, once per coat)
     /// computed in one parallel loop: a gem's or a scene's materials keep
     /// every thread busy to the end instead of each table waiting on its
-    /// slowest node, and a shared black/white pair no longer holds the
-    /// others up. Each node is the same deterministic call as before, so the
+    /// slowest node, and a shared black/white pair does not hold the
+    /// others up. Each node is the same deterministic call either way, so the
     /// tables are bit for bit those of one-by-one computation, whatever the
     /// number of threads. Bare Lambert surfaces ([`needs_no_table`]) get
     /// None without any work.
@@ -640,7 +640,8 @@ impl Compensation {
                 }
             })
             .collect();
-        let tables = plan.materials
+        let tables = plan
+            .materials
             .iter()
             .zip(stack.into_iter().zip(single))
             .map(|(material, (stack, mut single))| {

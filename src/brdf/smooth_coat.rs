@@ -32,11 +32,11 @@
 //! (every bounce loses light to the base or out of the coat), solved by
 //! Gaussian elimination, stable without pivoting for such a matrix.
 //!
-//! Against the walk (issue 6): the lavender lepidolite's silver flakes
-//! under a smooth coat kept light trapped beyond the critical angle for
-//! dozens of bounces, so the walk needed its maximum 8192 paths at most
-//! grazing nodes and still left a standard error of 2·10⁻³; the chain costs
-//! a fixed number of base samples and has no such noise.
+//! Against the walk: the lavender lepidolite's silver flakes under a
+//! smooth coat keep light trapped beyond the critical angle for dozens of
+//! bounces, so the walk needs its maximum 8192 paths at most grazing nodes
+//! and still leaves a standard error of 2·10⁻³; the chain costs a fixed
+//! number of base samples and has no such noise.
 
 use crate::brdf::fresnel;
 use crate::brdf::layer::{Base, Interface};

@@ -181,7 +181,7 @@ impl LayeredBrdf {
         let transmission_in = 1.0 - fresnel::dielectric(wi.z, itf.eta); // T₁₂
                                                                         // Appendix `tir`: t = (1 − G) + (1 − F)·G with G of the refracted pair.
                                                                         // Its (1 − F) is T₂₁ (by the Stokes relations F(ω′ₒ, 1/η) = F(ωₒ, η)),
-                                                                        // so T₂₁ is not multiplied again (deviation from the formula).
+                                                                        // so T₂₁ is not multiplied again (it would be counted twice).
         let g_inside = itf.lobe.g(wi_in, wo_in, h);
         let f_out = fresnel_out();
         let tir = (1.0 - g_inside) + (1.0 - f_out) * g_inside;
@@ -350,8 +350,7 @@ impl LayeredBrdf {
     /// renderer. It returns the whole [`BrdfAt`], so that the prepared
     /// quantities are written once, into the caller's value: prepared in a
     /// callee and wrapped by the caller, they were copied twice, and the
-    /// copies' wide loads stalled on the callee's narrow stores (3 % of a
-    /// peer render).
+    /// copies' wide loads stalled on the callee's narrow stores.
     #[inline(never)]
     fn layered_at(&self, wo: DVec3) -> BrdfAt<'_> {
         let form = match self.coat_at(wo) {

@@ -5,13 +5,13 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use image::RgbImage;
-use lapidary::recipe::error::did_you_mean;
-use lapidary::recipe::library::builtin_gem_names;
-use lapidary::recipe::TableCache;
 use lapidary::gallery::figures::{
     encode_png_compact, figure_3_2, figure_4_11, figure_4_3, gem_sheet, render_gem, FigureError,
     GallerySettings,
 };
+use lapidary::recipe::error::did_you_mean;
+use lapidary::recipe::library::builtin_gem_names;
+use lapidary::recipe::TableCache;
 
 /// The non-gem outputs, by the name `--only` knows them (file = name.png).
 const FIGURES: [&str; 4] = ["gallery", "figure-4-11", "figure-3-2", "figure-4-3"];

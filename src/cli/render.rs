@@ -7,11 +7,11 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use lapidary::output::exr::{write_exr_owned, ChannelData, ExrChannel};
+use lapidary::output::exr::{film_channels, write_exr_owned};
 use lapidary::output::tonemap::{DisplayTransform, ToneCurve};
+use lapidary::recipe::gem::{GemSource, Tables};
 use lapidary::recipe::library::DEFAULT_GEM;
-use lapidary::render::film::{render_cancellable, Film, FilmSettings, FILM_BYTES_PER_PIXEL};
-use lapidary::recipe::gem::Tables;
+use lapidary::render::film::{render_cancellable, FilmSettings, FILM_BYTES_PER_PIXEL};
 use lapidary::render::prepare::{camera_for, prepare_scene};
 use lapidary::scene::{default_scene, load_scene};
 
@@ -221,7 +221,8 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         Some(path) => load_scene(path).map_err(|e| e.to_string())?,
         None => default_scene(),
     };
-    let gem = args.recipe.as_deref().unwrap_or(DEFAULT_GEM);
+    let gem = GemSource::load(args.recipe.as_deref().unwrap_or(DEFAULT_GEM))
+        .map_err(|e| e.to_string())?;
     let quiet = args.quiet;
     let report = |message: &str| {
         if !quiet {
@@ -231,8 +232,14 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     let started = Instant::now();
     let cache = super::table_cache_from_env();
     let tables = Tables::Computed(&cache);
-    let mut render_scene =
-        prepare_scene(&scene, gem, args.env.as_deref(), args.bounces, tables, &report)?;
+    let mut render_scene = prepare_scene(
+        &scene,
+        &gem,
+        args.env.as_deref(),
+        args.bounces,
+        tables,
+        &report,
+    )?;
     render_scene.ambient_occlusion = args.ao;
     let camera = camera_for(&scene, width, height);
     let settings = FilmSettings {
@@ -302,7 +309,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             lapidary::output::write_png(&args.output, &image).map_err(|e| e.to_string())?;
         }
         Format::Exr => {
-            let channels = exr_channels(film, args.ao.is_some());
+            let channels = film_channels(film, args.ao.is_some());
             write_exr_owned(&args.output, width, height, channels).map_err(|e| e.to_string())?;
         }
     }
@@ -325,39 +332,4 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         settings.code_path.name(),
     ));
     Ok(())
-}
-
-/// The EXR channels of a film: RGBA and the AOV layers, dotted names, plus
-/// `ao` when `with_ao`. Takes the film so that single-valued buffers move
-/// into the channels and the three-valued ones are freed as soon as split.
-pub fn exr_channels(film: Film, with_ao: bool) -> Vec<ExrChannel> {
-    let f32_channel = |name: &str, data: Vec<f32>| ExrChannel {
-        name: name.to_string(),
-        data: ChannelData::F32(data),
-    };
-    let split = |v: Vec<[f32; 3]>, names: [&str; 3]| {
-        let channels: Vec<ExrChannel> = (0..3)
-            .map(|i| f32_channel(names[i], v.iter().map(|p| p[i]).collect()))
-            .collect();
-        drop(v);
-        channels
-    };
-    let mut channels = split(film.rgb, ["R", "G", "B"]);
-    channels.push(f32_channel("A", film.alpha));
-    channels.extend(split(film.albedo, ["albedo.R", "albedo.G", "albedo.B"]));
-    channels.extend(split(film.normal, ["normal.X", "normal.Y", "normal.Z"]));
-    channels.push(f32_channel("depth.Z", film.depth));
-    channels.push(ExrChannel {
-        name: "surface_cell".to_string(),
-        data: ChannelData::U32(film.surface_cell),
-    });
-    channels.push(f32_channel("glitter", film.glitter));
-    channels.push(ExrChannel {
-        name: "material_id".to_string(),
-        data: ChannelData::U32(film.material_id),
-    });
-    if with_ao {
-        channels.push(f32_channel("ao", film.ao));
-    }
-    channels
 }

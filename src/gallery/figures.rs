@@ -27,15 +27,15 @@ use rayon::prelude::*;
 
 use crate::brdf::classify::classify;
 use crate::brdf::LayeredBrdf;
-use crate::geometry::{Base, CabochonParams, Outline};
-use crate::output::tonemap::DisplayTransform;
 use crate::gallery::plot::text::{draw_text_centred, text_height, text_width, ClipRect};
 use crate::gallery::plot::{polar_plot, PolarPanel, PolarPlotStyle};
+use crate::geometry::{Base, CabochonParams, Outline};
+use crate::output::tonemap::DisplayTransform;
 use crate::recipe::compile::{load_material_without_table, COMPENSATION_SEED};
 use crate::recipe::error::RecipeError;
 use crate::recipe::gem::{compile_gem, Gem, GemSource, Tables};
-use crate::recipe::TableCache;
 use crate::recipe::library::builtin_material_names;
+use crate::recipe::TableCache;
 use crate::render::camera::PinholeCamera;
 use crate::render::environment::Environment;
 use crate::render::film::{render, FilmSettings};
@@ -358,9 +358,17 @@ struct Studio {
 }
 
 impl Studio {
-    fn new(scene: Scene, settings: &GallerySettings, cache: &TableCache) -> Result<Self, FigureError> {
+    fn new(
+        scene: Scene,
+        settings: &GallerySettings,
+        cache: &TableCache,
+    ) -> Result<Self, FigureError> {
         let ground_brdf = match &scene.ground {
-            Some(ground) => Some(compile_material_spec(&ground.material, settings.draft, cache)?),
+            Some(ground) => Some(compile_material_spec(
+                &ground.material,
+                settings.draft,
+                cache,
+            )?),
             None => None,
         };
         let environment = environment_for_spec(&scene.environment).map_err(FigureError::Scene)?;
@@ -481,10 +489,7 @@ pub fn figure_4_11(
 /// Figure 3.2: white diffuse spheres under the yellow varnish of
 /// [`varnish_sphere_gem`] at the caption's thicknesses, labelled
 /// `d = thickness`, six to a row.
-pub fn figure_3_2(
-    settings: &GallerySettings,
-    cache: &TableCache,
-) -> Result<RgbImage, FigureError> {
+pub fn figure_3_2(settings: &GallerySettings, cache: &TableCache) -> Result<RgbImage, FigureError> {
     let recipes: Vec<(String, String)> = FIGURE_3_2_THICKNESSES
         .iter()
         .map(|d| (format!("figure-3.2:d={d}"), varnish_sphere_gem(*d)))
@@ -529,10 +534,7 @@ pub fn in_plane_slice(brdf: &LayeredBrdf, incidence_deg: f64) -> PolarPanel {
 /// spheres, each over its BRDF slice at [`FIGURE_4_3_INCIDENCE_DEG`]: the
 /// frosted metal's single highlight lobe against the patina's sharp lobe
 /// on a broad one.
-pub fn figure_4_3(
-    settings: &GallerySettings,
-    cache: &TableCache,
-) -> Result<RgbImage, FigureError> {
+pub fn figure_4_3(settings: &GallerySettings, cache: &TableCache) -> Result<RgbImage, FigureError> {
     let recipes: Vec<(String, String)> = FIGURE_4_3_MATERIALS
         .iter()
         .map(|(name, _)| (format!("builtin:{name}"), library_sphere_gem(name)))

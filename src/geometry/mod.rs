@@ -3,8 +3,9 @@
 //! A stone is an [`Outline`] (the girdle seen from above, sized by a
 //! [`Footprint`]) swept into a dome, a vertical girdle band and a flat or
 //! domed base: a [`Cabochon`]. The solid is convex and closed by
-//! construction; rays are intersected without tessellation (a tessellated
-//! dome through the BVH is too slow, see `../shared/crates.md`), so the BVH
+//! construction; rays are intersected without tessellation (a finely
+//! tessellated dome traced through a triangle BVH is too slow: its cost
+//! grows with the triangle count a smooth silhouette needs), so the BVH
 //! only has to hold one box per stone ([`Cabochon::bounds`]).
 
 #![deny(missing_docs)]

@@ -29,6 +29,7 @@ use rayon::prelude::*;
 use super::exr_zip;
 
 use super::{check_writable, write_atomically_with, OutputError};
+use crate::render::film::Film;
 
 /// The samples of one channel, row-major, `width * height` of them.
 #[derive(Clone, Debug, PartialEq)]
@@ -296,4 +297,38 @@ pub fn read_exr(path: &Path) -> Result<ExrImage, OutputError> {
         height,
         channels,
     })
+}
+/// The EXR channels of a film: RGBA and the AOV layers, dotted names, plus
+/// `ao` when `with_ao`. Takes the film so that single-valued buffers move
+/// into the channels and the three-valued ones are freed as soon as split.
+pub fn film_channels(film: Film, with_ao: bool) -> Vec<ExrChannel> {
+    let f32_channel = |name: &str, data: Vec<f32>| ExrChannel {
+        name: name.to_string(),
+        data: ChannelData::F32(data),
+    };
+    let split = |v: Vec<[f32; 3]>, names: [&str; 3]| {
+        let channels: Vec<ExrChannel> = (0..3)
+            .map(|i| f32_channel(names[i], v.iter().map(|p| p[i]).collect()))
+            .collect();
+        drop(v);
+        channels
+    };
+    let mut channels = split(film.rgb, ["R", "G", "B"]);
+    channels.push(f32_channel("A", film.alpha));
+    channels.extend(split(film.albedo, ["albedo.R", "albedo.G", "albedo.B"]));
+    channels.extend(split(film.normal, ["normal.X", "normal.Y", "normal.Z"]));
+    channels.push(f32_channel("depth.Z", film.depth));
+    channels.push(ExrChannel {
+        name: "surface_cell".to_string(),
+        data: ChannelData::U32(film.surface_cell),
+    });
+    channels.push(f32_channel("glitter", film.glitter));
+    channels.push(ExrChannel {
+        name: "material_id".to_string(),
+        data: ChannelData::U32(film.material_id),
+    });
+    if with_ao {
+        channels.push(f32_channel("ao", film.ao));
+    }
+    channels
 }

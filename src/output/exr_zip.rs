@@ -1,9 +1,9 @@
 //! OpenEXR's ZIP codec for blocks of one scan line (`ZIPS`), at zlib
 //! level 1.
 //!
-//! The `exr` crate compresses its ZIP blocks at zlib level 4. On a 512²
-//! render's 14 channels level 1 is three times as fast for a file 1.5 %
-//! larger (issue 6: writing the EXR was a twelfth of the peer scene's whole
+//! The `exr` crate compresses its ZIP blocks at zlib level 4. On a
+//! render's 14 channels level 1 is several times as fast for a file about
+//! 1.5 % larger (writing the EXR is otherwise a noticeable part of a whole
 //! run), and any reader decodes both alike: the level is the encoder's
 //! choice alone (OpenEXR itself makes it a setting).
 //!
@@ -61,10 +61,9 @@ pub fn encode_block(raw_le: &[u8]) -> Vec<u8> {
 thread_local! {
     /// This thread's zlib compressor, reset for each block. A new one per
     /// block (what `miniz_oxide::deflate::compress_to_vec_zlib` makes)
-    /// allocates and zeroes ≈ 300 kB of tables for a 30 kB line: alone,
-    /// reuse takes the deflate of a 512² render's lines from 103 to 62 ms
-    /// of CPU; in a whole render it saves ≈ 12 ms of CPU (perf samples of
-    /// the deflate, memset and page faults). The same bytes either way.
+    /// allocates and zeroes ≈ 300 kB of tables for a 30 kB line: the
+    /// zeroing and its page faults are a large part of the cost of
+    /// compressing the line. The same bytes either way.
     static COMPRESSOR: RefCell<Box<CompressorOxide>> = RefCell::new(Box::new(
         CompressorOxide::new(create_comp_flags_from_zip_params(
             i32::from(ZLIB_LEVEL),

@@ -48,11 +48,11 @@ use crate::recipe::compile::{
     compile_material_without_table, locate_material, parse_material, ron_error, MaterialSource,
     COMPENSATION_SEED,
 };
-use crate::recipe::table_cache::TableCache;
 use crate::recipe::error::{did_you_mean, line_col_of_offset, RecipeError};
 use crate::recipe::library::{builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
 use crate::recipe::ranges;
+use crate::recipe::table_cache::TableCache;
 use crate::texture::hash::{derive_stream, hash_prefix, seed_key};
 use crate::texture::noise_fns::{Fbm, Marble, PerlinNoise, PerlinSource, Turbulence};
 use crate::texture::pattern::{

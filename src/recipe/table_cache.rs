@@ -136,8 +136,7 @@ impl TableCache {
         {
             let mut map = lock(&self.tables);
             for (key, table) in &found {
-                map.entry(key.to_string())
-                    .or_insert_with(|| table.clone());
+                map.entry(key.to_string()).or_insert_with(|| table.clone());
             }
         }
         keys.iter()

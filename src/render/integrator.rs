@@ -77,7 +77,7 @@ pub struct FirstHit {
 /// A pixel's sums of its samples' [`FirstHit`]s, which
 /// [`RenderScene::radiance`] adds to where the first hit is known: a
 /// returned `FirstHit` went through an 80-byte stack copy at the end of
-/// every path and back (peer render loop 235.1 -> 234.4 M instructions).
+/// every path and back.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FirstHitSums {
     /// Σ depth over the samples that hit something.
@@ -231,8 +231,7 @@ impl RenderScene {
     /// pointing away from the surface). Inlined like
     /// [`RenderScene::radiance`]: out of line it cost a call, six saved
     /// registers and the `Option<Shading>` through memory at every vertex
-    /// (peer render loop 305.7 -> 297.9 M instructions; keeping only the
-    /// stone branch out of line gave 298.5 M).
+    /// (keeping only the stone branch out of line saved less).
     #[inline(always)]
     fn shade(&self, hit: &SurfaceHit, wo: DVec3) -> Option<Shading<'_>> {
         match hit.surface {
@@ -288,8 +287,7 @@ impl RenderScene {
     /// Inlined into the film's per-sample loop (its only caller): as a call
     /// it saved six registers, re-read a dozen scene fields into stack slots
     /// and returned the 80-byte `FirstHit` through memory on every sample,
-    /// ~100 instructions that the loop now hoists or keeps in registers
-    /// (peer scene render loop 315.1 -> 305.7 M instructions).
+    /// work that the loop now hoists or keeps in registers.
     #[inline(always)]
     pub fn radiance(
         &self,
@@ -467,8 +465,8 @@ impl RenderScene {
     /// normal (1 escaped, 0 blocked), from a side stream so the beauty
     /// image does not depend on the option. Out of line, and called only
     /// when the option is on: inlined, the compiler hoisted the side
-    /// stream's hashing above the option's test, ~50 instructions on every
-    /// sample of every render.
+    /// stream's hashing above the option's test, so that every sample of
+    /// every render paid for it.
     #[inline(never)]
     fn unoccluded(
         &self,
@@ -516,8 +514,8 @@ impl RenderScene {
     ///
     /// Always inlined into [`RenderScene::radiance`] (as the compiler chose
     /// by itself until the film's loop grew): out of line, this and
-    /// [`RenderScene::nearest_light`] cost the peer render loop 5 % more
-    /// instructions in calls and arguments through memory.
+    /// [`RenderScene::nearest_light`] cost calls and arguments passed
+    /// through memory on every vertex.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn direct(

@@ -47,10 +47,10 @@ impl LightSpec {
     /// Choose a direction towards the light seen from `point`.
     ///
     /// Inlined, with the sphere light (the one the benchmark scenes use)
-    /// handled here and the other kinds behind a call: with [`Light::hit`]
-    /// inlined the same way, the lights' share of the peer scene's
-    /// instructions fell by 15 % (the call, the sample passed back through
-    /// memory and the dispatch on the kind).
+    /// handled here and the other kinds behind a call: a call returned the
+    /// sample through memory after a dispatch on the kind, which (with the
+    /// same overhead in [`Light::hit`]) was a large part of what the lights
+    /// cost.
     #[inline(always)]
     pub fn sample(&self, point: DVec3, u: [f64; 2]) -> Option<LightSample> {
         match *self {
@@ -310,8 +310,7 @@ pub(crate) fn cone_pdf(cos_max: f64) -> f64 {
 ///   direction = (p + x·m, s·q + y·m, z·c − w),
 ///
 /// the same vector without building t and b: 10 multiplications instead of
-/// 20 (3.6 instructions fewer per light sample as compiled), equal to the
-/// sum over the basis to rounding.
+/// 20, equal to the sum over the basis to rounding.
 /// Unit by construction (sin² + cos² = 1 and an orthonormal basis, to
 /// within 10⁻¹³): no normalisation, whose division and square root are a
 /// tenth of a light sample's time.

@@ -1,7 +1,7 @@
 //! The CPU ray caster: camera, lights, environment, integrator and film.
 //!
-//! Data flows one way (`../shared/design.md`): a compiled scene and its
-//! compiled gems go in, linear radiance per pixel (plus AOVs) comes out.
+//! Data flows one way: a compiled scene and its compiled gems go in,
+//! linear radiance per pixel (plus AOVs) comes out.
 //! Every pixel is a pure function of (scene, gems, seed, settings), so the
 //! image is the same whatever the thread count.
 

@@ -15,7 +15,8 @@ use crate::scene::{EnvironmentSpec, Scene};
 
 /// Builds everything the integrator reads from a compiled scene.
 ///
-/// Stones without a recipe use `default_gem`; `environment_file`, when
+/// Stones without a recipe use `default_gem` (loaded by
+/// [`GemSource::load`]); `environment_file`, when
 /// given, replaces the scene's environment (the `--env` option). Each gem
 /// recipe is read and its materials compiled once; each distinct (gem,
 /// seed) pair gets its own pattern and shares the recipe's BRDFs
@@ -25,22 +26,17 @@ use crate::scene::{EnvironmentSpec, Scene};
 /// the environment is built (baked or loaded) beside them.
 pub fn prepare_scene(
     scene: &Scene,
-    default_gem: &str,
+    default_gem: &GemSource,
     environment_file: Option<&Path>,
     max_bounces: u32,
     tables: Tables<'_>,
     report: &dyn Fn(&str),
 ) -> Result<RenderScene, String> {
-    let mut keys: Vec<(String, Option<u64>)> = Vec::new();
+    // Each distinct (recipe, seed) is one gem; `None` is `default_gem`.
+    let mut keys: Vec<(Option<&str>, Option<u64>)> = Vec::new();
     let mut stones = stone_instances(scene)?;
     for (stone, instance) in scene.stones.iter().zip(&mut stones) {
-        let key = (
-            stone
-                .recipe
-                .clone()
-                .unwrap_or_else(|| default_gem.to_string()),
-            stone.seed,
-        );
+        let key = (stone.recipe.as_deref(), stone.seed);
         instance.gem = match keys.iter().position(|k| *k == key) {
             Some(i) => i,
             None => {
@@ -49,22 +45,27 @@ pub fn prepare_scene(
             }
         };
     }
-    let mut sources: Vec<(&str, GemSource)> = Vec::new();
-    for (name, _) in &keys {
-        if !sources.iter().any(|(n, _)| n == name) {
-            sources.push((name, GemSource::load(name).map_err(|e| e.to_string())?));
+    let mut sources: Vec<(Option<&str>, GemSource)> = Vec::new();
+    for (recipe, _) in &keys {
+        if !sources.iter().any(|(r, _)| r == recipe) {
+            let source = match recipe {
+                Some(name) => GemSource::load(name).map_err(|e| e.to_string())?,
+                None => default_gem.clone(),
+            };
+            report(&format!(
+                "compiling gem {}",
+                source.path.strip_prefix("builtin:").unwrap_or(&source.path)
+            ));
+            sources.push((*recipe, source));
         }
     }
     let requests: Vec<(&GemSource, Option<u64>)> = keys
         .iter()
-        .map(|(name, seed)| {
-            let source = sources.iter().find(|(n, _)| n == name).map(|(_, s)| s);
+        .map(|(recipe, seed)| {
+            let source = sources.iter().find(|(r, _)| r == recipe).map(|(_, s)| s);
             (source.expect("every recipe was loaded"), *seed)
         })
         .collect();
-    for (name, _) in &sources {
-        report(&format!("compiling gem {name}"));
-    }
     let mut ground = match &scene.ground {
         Some(ground) => {
             Some(load_material_without_table(&ground.material).map_err(|e| e.to_string())?)
@@ -153,8 +154,8 @@ mod tests {
     use crate::recipe::TableCache;
     use crate::render::integrator::MATERIAL_ID_FIRST_STONE;
     use crate::scene::parse_scene;
-    use std::sync::Arc;
     use glam::DVec3;
+    use std::sync::Arc;
 
     /// Three stones: the default gem with seeds 1 and 2, then goldstone.
     const THREE_STONES: &str = r#"Scene(
@@ -178,7 +179,8 @@ mod tests {
         let scene = parse_scene(THREE_STONES, None).unwrap();
         let cache = TableCache::in_memory();
         let tables = Tables::Computed(&cache);
-        let prepared = prepare_scene(&scene, "green-aventurine", None, 2, tables, &|_| {}).unwrap();
+        let default_gem = GemSource::load("green-aventurine").unwrap();
+        let prepared = prepare_scene(&scene, &default_gem, None, 2, tables, &|_| {}).unwrap();
         let gems = &prepared.gems;
         assert_eq!(gems.len(), 3);
         assert!(Arc::ptr_eq(&gems[0].brdfs, &gems[1].brdfs));

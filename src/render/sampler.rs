@@ -83,9 +83,9 @@ impl PixelSampler {
 }
 
 /// How many consecutive samples of a pixel [`PixelSampler::batch`] makes
-/// points for: sixteen 32-bit lanes, two AVX2 registers (a batch of eight,
-/// one register, took 1.4 % more instructions per sample: the fixed steps
-/// of a batch are shared by fewer samples).
+/// points for: sixteen 32-bit lanes, two AVX2 registers (rather than eight
+/// in one register, so that the fixed steps of a batch are shared by more
+/// samples).
 pub const SAMPLE_BATCH: u32 = 16;
 
 /// Every Sobol pair of [`SAMPLE_BATCH`] consecutive samples of one pixel

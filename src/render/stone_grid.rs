@@ -168,9 +168,8 @@ impl StoneGrid {
     /// grid (a point on the border of the union box may round to just
     /// outside it). A product with 1/cell size, clamped as a float and cast
     /// through u32: a cast from f64 to usize takes a dozen instructions in
-    /// the baseline x86-64 code (with the divisions the product replaces,
-    /// 3 % of a 1000-stone tray's instructions). `max` first turns a NaN
-    /// into 0.
+    /// the baseline x86-64 code, and the product replaces a division. `max`
+    /// first turns a NaN into 0.
     #[inline(always)]
     fn cell_of(&self, p: f64, axis: usize) -> usize {
         let c = (p - self.corner[axis]) * self.inverse_cell_size[axis];

@@ -945,9 +945,8 @@ impl Pattern {
     ///
     /// A plain stone (one material, no maps, no glitter) is answered
     /// inline without a call: what `resolve_surface` returns for a bare
-    /// root, the material with cell 0 and no map (issue 6: a call and the
-    /// 64-byte answer through memory cost the peer scene's render loop
-    /// 69 instructions per stone hit).
+    /// root, the material with cell 0 and no map (out of line, every stone
+    /// hit paid for a call and the 64-byte answer through memory).
     #[inline(always)]
     pub fn resolve(&self, p: DVec3) -> Resolved {
         match (self.root, self.glitter.is_none()) {

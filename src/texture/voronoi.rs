@@ -818,8 +818,9 @@ impl Voronoi {
     }
 
     /// Whether `certified` (from [`Voronoi::certify_nearest`] on this same
-    /// Voronoi) covers `p`, i.e. whether `nearest(p)` is its site. About 25
-    /// instructions instead of a search; false for a non-finite `p`.
+    /// Voronoi) covers `p`, i.e. whether `nearest(p)` is its site. Two
+    /// distances and a comparison instead of a search; false for a
+    /// non-finite `p`.
     #[inline]
     pub fn nearest_within(&self, certified: &CertifiedNearest, p: DVec3) -> bool {
         let q = p * certified.inverse_scale;
