@@ -915,6 +915,117 @@ fn scene_with_an_empty_stone_list() {
     bad_scene("scene-no-stones", from, "", "stones: [", &["stones"]);
 }
 
+/// A scene made from [`GOOD_SCENE`] by replacing `from` with `to`, naming
+/// something that does not resolve: the string `written` (with its quotes,
+/// first occurrence). `validate` and `render --scene` must both refuse it
+/// with `scene:LINE:COL: ` at that string, on stderr, then every needle,
+/// and `render` must write no picture.
+fn bad_scene_reference(case: &str, from: &str, to: &str, written: &str, needles: &[&str]) {
+    assert!(
+        GOOD_SCENE.contains(from),
+        "{case}: `{from}` not in GOOD_SCENE"
+    );
+    let text = GOOD_SCENE.replacen(from, to, 1);
+    let dir = scratch(case);
+    let path = dir.join(format!("{case}.ron"));
+    std::fs::write(&path, &text).unwrap();
+    let offset = text.find(written).expect("the name is written");
+    let line = text[..offset].matches('\n').count() + 1;
+    let col = text[..offset].rsplit('\n').next().unwrap().chars().count() + 1;
+    let place = format!("{}:{line}:{col}: ", path.display());
+    let mut expected = vec![place.clone()];
+    expected.extend(
+        needles
+            .iter()
+            .map(|s| s.replace("{dir}", dir.to_str().unwrap())),
+    );
+
+    let out = lapidary(&[OsString::from("validate"), path.clone().into()]);
+    assert_refused(case, &out, &expected);
+    let render = [
+        OsString::from("render"),
+        "--scene".into(),
+        path.clone().into(),
+        "--size".into(),
+        "8".into(),
+        "--spp".into(),
+        "1".into(),
+    ];
+    // On stderr, as one message: the place, then what is wrong.
+    let picture = dir.join("direct.png");
+    let mut args = render.to_vec();
+    args.extend(["-o".into(), picture.clone().into()]);
+    let out = lapidary(&args);
+    assert_eq!(out.status.code(), Some(1), "{case}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let message = stderr
+        .lines()
+        .find(|l| l.contains(&place))
+        .unwrap_or_else(|| panic!("{case}: no `{place}` on stderr:\n{stderr}"));
+    for needle in &expected[1..] {
+        assert!(
+            message.contains(needle.as_str()),
+            "{case}: `{needle}` missing: {message}"
+        );
+    }
+    assert!(!picture.exists(), "{case}: a picture was written");
+    assert_refused_writing(case, &render, "scene.png", &expected);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Where [`GOOD_SCENE`]'s stone gets a `recipe:` line.
+const STONE_SHAPE: &str = "            shape: Cabochon(";
+
+#[test]
+fn scene_naming_an_unknown_gem() {
+    bad_scene_reference(
+        "scene-unknown-gem",
+        STONE_SHAPE,
+        "            recipe: Some(\"goldston\"),\n            shape: Cabochon(",
+        "\"goldston\"",
+        &[
+            "stone 1: unknown gem `goldston` (did you mean `goldstone`?)",
+            "allowed: a built-in gem name (",
+        ],
+    );
+}
+
+#[test]
+fn scene_naming_a_missing_gem_file() {
+    bad_scene_reference(
+        "scene-missing-gem",
+        STONE_SHAPE,
+        "            recipe: Some(\"gems/opal.ron\"),\n            shape: Cabochon(",
+        "\"gems/opal.ron\"",
+        &["stone 1: gem file `gems/opal.ron` not found at {dir}/gems/opal.ron"],
+    );
+}
+
+#[test]
+fn scene_naming_an_unknown_ground_material() {
+    bad_scene_reference(
+        "scene-unknown-ground",
+        "    environment:",
+        "    ground: Some(Ground(height: 0.0, material: \"teflom\")),\n    environment:",
+        "\"teflom\"",
+        &[
+            "ground: unknown material `teflom` (did you mean `teflon`?)",
+            "allowed: a built-in material name (",
+        ],
+    );
+}
+
+#[test]
+fn scene_naming_a_missing_environment_file() {
+    bad_scene_reference(
+        "scene-missing-env",
+        "environment: Constant(radiance: (0.5, 0.5, 0.5))",
+        "environment: File(path: \"nope.exr\", intensity: 1.0)",
+        "\"nope.exr\"",
+        &["environment: image file `nope.exr` not found at {dir}/nope.exr"],
+    );
+}
+
 // ---- the command line and the output -----------------------------------------
 
 #[test]

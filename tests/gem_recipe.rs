@@ -247,6 +247,71 @@ fn unknown_map_name() {
     );
 }
 
+/// Parses `text`, expects an error at `line:col` whose message contains
+/// every `needle`.
+fn expect_error_at(text: &str, line: usize, col: usize, needles: &[&str]) {
+    let message = parse_gem("bad.ron", text)
+        .expect_err("should be rejected")
+        .to_string();
+    let prefix = format!("bad.ron:{line}:{col}: ");
+    assert!(
+        message.starts_with(&prefix),
+        "expected {prefix}… got {message}"
+    );
+    for needle in needles {
+        assert!(
+            message.contains(needle),
+            "`{needle}` missing from: {message}"
+        );
+    }
+}
+
+#[test]
+fn names_in_comments_and_descriptions_do_not_place_errors() {
+    // `surface` and the name in a comment and in a string before the field.
+    let text = GOOD
+        .replacen(
+            "Gem(\n",
+            "// The surface: \"vein\" stripes.\nGem(\n    description: \"a surface of veins\",\n",
+            1,
+        )
+        .replace("surface: \"veins\"", "surface: \"vein\"");
+    let line = line_of(&text, "    surface: \"vein\"");
+    expect_error_at(
+        &text,
+        line,
+        5,
+        &["`surface` names `vein`", "did you mean `veins`"],
+    );
+}
+
+#[test]
+fn a_reference_is_placed_at_its_use_not_at_a_definition_of_the_name() {
+    // `lilac` is defined above (as a material) and used here as a map.
+    let text = GOOD.replacen(
+        r#"(material: "lilac", weight: 2.0)"#,
+        r#"(map: "lilac", weight: 2.0)"#,
+        1,
+    );
+    let line = line_of(&text, r#"(map: "lilac""#);
+    let col = text
+        .lines()
+        .nth(line - 1)
+        .unwrap()
+        .find(r#""lilac""#)
+        .unwrap()
+        + 1;
+    expect_error_at(
+        &text,
+        line,
+        col,
+        &[
+            "unknown map `lilac`",
+            "allowed: a name from `maps` (big, small, veins)",
+        ],
+    );
+}
+
 #[test]
 fn map_containing_itself_directly() {
     expect_error(

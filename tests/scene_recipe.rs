@@ -329,25 +329,48 @@ const PATHS: &str = r#"Scene(
     stones: [
         Stone(recipe: Some("gems/opal.ron"), shape: Cabochon(outline: Oval, length: 10.0, width: 8.0)),
         Stone(recipe: Some("lavender-lepidolite"), shape: Cabochon(outline: Oval, length: 10.0, width: 8.0)),
-        Stone(recipe: Some("/abs/gem.ron"), shape: Cabochon(outline: Oval, length: 10.0, width: 8.0)),
+        Stone(recipe: Some("ABSOLUTE/gem.ron"), shape: Cabochon(outline: Oval, length: 10.0, width: 8.0)),
         Stone(recipe: Some("my-gem.ron"), shape: Cabochon(outline: Oval, length: 10.0, width: 8.0)),
     ],
     ground: Some(Ground(height: 0.0, material: "../materials/velvet.ron")),
     environment: File(path: "hdr/studio.hdr", rotation_deg: 15.0, intensity: 0.5),
 )"#;
 
+/// A fresh folder `root/shots` holding every file [`PATHS`] names (empty
+/// files: the scene checks that they exist, the renderer reads them), and
+/// PATHS with its absolute path pointing into `root/elsewhere`.
+fn paths_scene(name: &str) -> (PathBuf, String) {
+    let root = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&root);
+    let dir = root.join("shots");
+    for file in [
+        "shots/gems/opal.ron",
+        "shots/my-gem.ron",
+        "shots/hdr/studio.hdr",
+        "materials/velvet.ron",
+        "elsewhere/gem.ron",
+    ] {
+        let path = root.join(file);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(&path, "").unwrap();
+    }
+    let text = PATHS.replace("ABSOLUTE", root.join("elsewhere").to_str().unwrap());
+    (dir, text)
+}
+
 #[test]
 fn relative_paths_resolve_against_the_scene_folder() {
-    let dir = Path::new("/data/shots");
-    let scene = parse_scene(PATHS, Some(&dir.join("ring.ron"))).unwrap();
+    let (dir, text) = paths_scene("scene_recipe_paths");
+    let scene = parse_scene(&text, Some(&dir.join("ring.ron"))).unwrap();
     let recipes: Vec<Option<String>> = scene.stones.iter().map(|s| s.recipe.clone()).collect();
     let in_dir = |p: &str| Some(dir.join(p).to_string_lossy().into_owned());
+    let absolute = dir.parent().unwrap().join("elsewhere/gem.ron");
     assert_eq!(
         recipes,
         [
             in_dir("gems/opal.ron"),
             Some("lavender-lepidolite".to_string()),
-            Some("/abs/gem.ron".to_string()),
+            Some(absolute.to_string_lossy().into_owned()),
             in_dir("my-gem.ron"),
         ]
     );
@@ -365,17 +388,57 @@ fn relative_paths_resolve_against_the_scene_folder() {
     );
     assert_eq!(scene.path.as_deref(), Some(dir.join("ring.ron").as_path()));
 
-    // Without a scene file, paths stay as written.
-    let bare = parse_scene(PATHS, None).unwrap();
-    assert_eq!(bare.stones[0].recipe.as_deref(), Some("gems/opal.ron"));
+    // Without a scene file, paths stay as written: relative to the current
+    // directory (the crate's root under `cargo test`).
+    let bare = text
+        .replace("gems/opal.ron", "gem-recipes/goldstone.ron")
+        .replace("my-gem.ron", "./gem-recipes/sunstone.ron")
+        .replace("../materials/velvet.ron", "gem-recipes/materials/gold.ron")
+        .replace("hdr/studio.hdr", "tests/scene_recipe.rs");
+    // (an existing file, but not an image)
+    let err = parse_scene(&bare, None).unwrap_err().to_string();
+    assert!(err.starts_with("<scene>:10:29: environment"), "{err}");
+    assert!(
+        err.contains("`tests/scene_recipe.rs` has the extension `.rs`"),
+        "{err}"
+    );
+    let bare = bare.replace("tests/scene_recipe.rs", "gem-recipes/nope.hdr");
+    let err = parse_scene(&bare, None).unwrap_err().to_string();
+    assert!(
+        err.starts_with("<scene>:10:29: environment: image file `gem-recipes/nope.hdr` not found in the current directory;"),
+        "{err}"
+    );
+    let bare = bare.replace(
+        "File(path: \"gem-recipes/nope.hdr\", rotation_deg: 15.0, intensity: 0.5)",
+        "Studio(intensity: 1.0)",
+    );
+    let scene = parse_scene(&bare, None).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        scene.stones[0].recipe.as_deref(),
+        Some("gem-recipes/goldstone.ron")
+    );
+    assert_eq!(
+        scene.stones[3].recipe.as_deref(),
+        Some("./gem-recipes/sunstone.ron")
+    );
+    assert_eq!(
+        scene.ground.unwrap().material,
+        "gem-recipes/materials/gold.ron"
+    );
+    // … and a file missing there is named as looked for there.
+    let missing = bare.replace("gem-recipes/goldstone.ron", "gem-recipes/goldstones.ron");
+    let err = parse_scene(&missing, None).unwrap_err().to_string();
+    assert!(
+        err.starts_with("<scene>:4:28: stone 1: gem file `gem-recipes/goldstones.ron` not found in the current directory (did you mean `gem-recipes/goldstone.ron`?)"),
+        "{err}"
+    );
 }
 
 #[test]
 fn load_scene_reads_a_file_and_names_a_missing_one() {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("scene_recipe_load");
-    std::fs::create_dir_all(&dir).unwrap();
+    let (dir, text) = paths_scene("scene_recipe_load");
     let file = dir.join("paths.ron");
-    std::fs::write(&file, PATHS).unwrap();
+    std::fs::write(&file, text).unwrap();
     let scene = load_scene(&file).unwrap();
     assert_eq!(
         scene.stones[0].recipe,
@@ -689,8 +752,9 @@ fn empty_names_are_refused_at_their_field() {
         "material: \"\"",
         "material: \"\"",
         &[
-            "`material` is empty",
-            "allowed: a built-in material name or a .ron material file",
+            "ground: `material` is empty",
+            "allowed: a built-in material name (acrylic-lacquer, ",
+            "or a .ron material file",
         ],
     );
     expect_error(
@@ -698,8 +762,206 @@ fn empty_names_are_refused_at_their_field() {
         "            position: (0.0, 0.0, 2.5),\n            recipe: Some(\" \"),",
         "recipe: Some",
         &[
-            "`recipe` is empty",
-            "allowed: a built-in gem name or a .ron gem file",
+            "stone 1: `recipe` is empty",
+            "allowed: a built-in gem name (blue-goldstone, ",
+            "or a .ron gem file",
         ],
     );
+}
+
+// ---- references: gems, materials and files a scene names ----------------------
+
+/// 1-based (line, col) of the `nth` (0-based) occurrence of `needle`.
+fn place(text: &str, needle: &str, nth: usize) -> (usize, usize) {
+    let offset = text
+        .match_indices(needle)
+        .nth(nth)
+        .unwrap_or_else(|| panic!("`{needle}` #{nth} not in the scene"))
+        .0;
+    let before = &text[..offset];
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().unwrap().chars().count() + 1;
+    (line, col)
+}
+
+/// A scene of two stones in `dir` (holding `gems/real.ron` and `sky.hdr`)
+/// naming the gems, ground material and environment image given; the
+/// names also appear in a comment and in the other stone, so a position
+/// found by searching the text for them would be wrong.
+fn scene_naming(stone_1: &str, stone_2: &str, ground: &str, environment: &str) -> String {
+    format!(
+        r#"// Names in a comment do not count: "{stone_1}" "{stone_2}" "{ground}" "{environment}"
+Scene(
+    ground: Some(Ground(height: 0.0, material: "{ground}")),
+    camera: Orbit(target: (0.0, 0.0, 1.0), distance: 40.0, elevation_deg: 30.0, azimuth_deg: 0.0, vertical_fov_deg: 25.0),
+    stones: [
+        Stone(
+            recipe: Some("{stone_1}"),
+            shape: Cabochon(outline: Oval, length: 10.0, width: 8.0),
+        ),
+        Stone(recipe: Some("{stone_2}"), shape: Cabochon(outline: Round, length: 6.0, width: 6.0), position: (12.0, 0.0, 0.0)),
+    ],
+    environment: File(path: "{environment}"),
+)
+"#
+    )
+}
+
+/// A folder for the reference tests, holding `gems/real.ron` and `sky.hdr`.
+fn reference_dir() -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("scene_recipe_references");
+    std::fs::create_dir_all(dir.join("gems")).unwrap();
+    std::fs::create_dir_all(dir.join("folder.ron")).unwrap();
+    std::fs::write(dir.join("gems/real.ron"), "").unwrap();
+    std::fs::write(dir.join("sky.hdr"), "").unwrap();
+    dir
+}
+
+/// Loads `text` as `dir/scene.ron`; its error must start with
+/// `scene.ron:LINE:COL: ` at the `nth` occurrence of `at` and hold every
+/// needle.
+fn expect_reference_error(text: &str, at: &str, nth: usize, needles: &[&str]) -> String {
+    let dir = reference_dir();
+    let file = dir.join("scene.ron");
+    let message = parse_scene(text, Some(&file))
+        .expect_err("should be rejected")
+        .to_string();
+    let (line, col) = place(text, at, nth);
+    let prefix = format!("{}:{line}:{col}: ", file.display());
+    assert!(
+        message.starts_with(&prefix),
+        "expected {prefix}… got {message}"
+    );
+    for needle in needles {
+        assert!(
+            message.contains(needle),
+            "`{needle}` missing from: {message}"
+        );
+    }
+    message
+}
+
+#[test]
+fn the_reference_scene_is_good_as_written() {
+    let dir = reference_dir();
+    let text = scene_naming("goldstone", "gems/real.ron", "teflon", "sky.hdr");
+    let scene = parse_scene(&text, Some(&dir.join("scene.ron"))).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.stones[0].recipe.as_deref(), Some("goldstone"));
+    assert_eq!(
+        scene.stones[1].recipe,
+        Some(dir.join("gems/real.ron").to_string_lossy().into_owned())
+    );
+    assert_eq!(scene.ground.unwrap().material, "teflon");
+}
+
+#[test]
+fn an_unknown_gem_name_is_reported_where_written_with_did_you_mean() {
+    let text = scene_naming("goldstone", "goldston", "teflon", "sky.hdr");
+    expect_reference_error(
+        &text,
+        "\"goldston\"",
+        1, // the comment's, then the second stone's
+        &[
+            "stone 2: unknown gem `goldston` (did you mean `goldstone`?)",
+            "allowed: a built-in gem name (blue-goldstone, goldstone, ",
+        ],
+    );
+}
+
+#[test]
+fn a_name_valid_in_one_place_is_refused_in_another() {
+    // `gold` is a built-in material (the ground, written first) but no gem.
+    let text = scene_naming("gold", "goldstone", "gold", "sky.hdr");
+    expect_reference_error(&text, "\"gold\"", 3, &["stone 1: unknown gem `gold`"]);
+}
+
+#[test]
+fn a_missing_gem_file_is_reported_where_written() {
+    let dir = reference_dir();
+    let text = scene_naming("goldstone", "gems/reel.ron", "teflon", "sky.hdr");
+    let looked_for = dir.join("gems/reel.ron");
+    expect_reference_error(
+        &text,
+        "\"gems/reel.ron\"",
+        1,
+        &[
+            "stone 2: gem file `gems/reel.ron` not found at ",
+            &looked_for.display().to_string(),
+            "(did you mean `gems/real.ron`?)",
+        ],
+    );
+    // A built-in written as a file.
+    let text = scene_naming("goldstone.ron", "gems/real.ron", "teflon", "sky.hdr");
+    expect_reference_error(
+        &text,
+        "\"goldstone.ron\"",
+        1,
+        &[
+            "stone 1: gem file `goldstone.ron` not found at ",
+            "(did you mean the built-in gem `goldstone`, written without a path or `.ron`?)",
+        ],
+    );
+    // A folder.
+    let text = scene_naming("folder.ron", "gems/real.ron", "teflon", "sky.hdr");
+    expect_reference_error(
+        &text,
+        "\"folder.ron\"",
+        1,
+        &["stone 1: gem file `folder.ron` is a directory at "],
+    );
+}
+
+#[test]
+fn an_unknown_ground_material_is_reported_where_written_with_did_you_mean() {
+    let text = scene_naming("goldstone", "gems/real.ron", "teflom", "sky.hdr");
+    expect_reference_error(
+        &text,
+        "\"teflom\"",
+        1,
+        &[
+            "ground: unknown material `teflom` (did you mean `teflon`?)",
+            "allowed: a built-in material name (acrylic-lacquer, ",
+        ],
+    );
+    let text = scene_naming("goldstone", "gems/real.ron", "mats/velvet.ron", "sky.hdr");
+    expect_reference_error(
+        &text,
+        "\"mats/velvet.ron\"",
+        1,
+        &["ground: material file `mats/velvet.ron` not found at "],
+    );
+}
+
+#[test]
+fn a_missing_environment_file_is_reported_where_written() {
+    let dir = reference_dir();
+    let text = scene_naming("goldstone", "gems/real.ron", "teflon", "skye.hdr");
+    expect_reference_error(
+        &text,
+        "\"skye.hdr\"",
+        1,
+        &[
+            "environment: image file `skye.hdr` not found at ",
+            &dir.join("skye.hdr").display().to_string(),
+            "(did you mean `sky.hdr`?)",
+            "allowed: an equirectangular .hdr or .exr image file",
+        ],
+    );
+    // Not an image the renderer reads, though it exists.
+    let text = scene_naming("goldstone", "gems/real.ron", "teflon", "gems/real.ron");
+    expect_reference_error(
+        &text,
+        "\"gems/real.ron\"",
+        3, // twice in the comment, the second stone's, then the environment's
+        &["environment: image file `gems/real.ron` has the extension `.ron`"],
+    );
+}
+
+#[test]
+fn a_stone_of_the_command_line_gem_names_nothing_to_check() {
+    // `recipe: None` (and no recipe) is the gem given to `lapidary render`.
+    let text = scene_naming("goldstone", "goldstone", "teflon", "sky.hdr")
+        .replace("recipe: Some(\"goldstone\")", "recipe: None");
+    let scene = parse_scene(&text, Some(&reference_dir().join("scene.ron"))).unwrap();
+    assert_eq!(scene.stones[0].recipe, None);
 }

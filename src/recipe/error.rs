@@ -33,10 +33,15 @@ impl RecipeError {
         }
     }
 
-    /// An error at the first occurrence of `needle` in `source` (or the
-    /// whole file if it does not occur), for problems found after parsing.
+    /// An error at the first place `needle` is written in `source` as code
+    /// ([`find_in_code`]: not in a comment; a quoted needle as a whole string
+    /// literal, any other not inside one), else at its first occurrence
+    /// anywhere, else about the whole file; for problems found after parsing.
     pub fn at_text(path: &str, source: &str, needle: &str, message: impl Into<String>) -> Self {
-        match find_position(source, needle, 0) {
+        let place = find_in_code(source, needle)
+            .map(|offset| line_col_of_offset(source, offset))
+            .or_else(|| find_position(source, needle, 0));
+        match place {
             Some((line, col)) => RecipeError::at(path, line, col, message),
             None => RecipeError::whole_file(path, message),
         }
@@ -58,6 +63,87 @@ impl std::error::Error for RecipeError {}
 pub fn find_position(source: &str, needle: &str, nth: usize) -> Option<(usize, usize)> {
     let offset = source.match_indices(needle).nth(nth)?.0;
     Some(line_col_of_offset(source, offset))
+}
+
+/// A copy of RON `text` with the comments and the contents of string
+/// literals blanked to spaces (the quotes kept), byte for byte, so that
+/// offsets (and the original text's line:col) stay valid: names and
+/// brackets in comments and strings do not count when searching it.
+pub fn blank_comments_and_strings(text: &str) -> Vec<u8> {
+    let bytes = text.as_bytes();
+    let n = bytes.len();
+    let mut code = bytes.to_vec();
+    let mut i = 0;
+    while i < n {
+        // Blank [from, to) and go on at `next`.
+        let (from, to, next) = match bytes[i] {
+            b'"' => {
+                let mut k = i + 1;
+                while k < n && bytes[k] != b'"' {
+                    k += if bytes[k] == b'\\' { 2 } else { 1 };
+                }
+                (i + 1, k.min(n), k + 1)
+            }
+            b'/' if bytes.get(i + 1) == Some(&b'/') => {
+                let end = bytes[i..].iter().position(|&c| c == b'\n');
+                let to = end.map_or(n, |e| i + e);
+                (i, to, to)
+            }
+            b'/' if bytes.get(i + 1) == Some(&b'*') => {
+                let end = text[i + 2..].find("*/");
+                let to = end.map_or(n, |e| i + 2 + e + 2);
+                (i, to, to)
+            }
+            _ => {
+                i += 1;
+                continue;
+            }
+        };
+        code[from..to].fill(b' ');
+        i = next;
+    }
+    code
+}
+
+/// Byte offset of the first place `needle` is written in RON `source` as
+/// code: never inside a comment; a needle in quotes (`"gold"`) only as a
+/// whole string literal, and preferably one that is a value (a reference
+/// to the name) rather than a map key (`"gold": …`, its definition); any
+/// other needle (`surface`) only outside string literals.
+pub fn find_in_code(source: &str, needle: &str) -> Option<usize> {
+    let code = blank_comments_and_strings(source);
+    let quoted = needle.len() >= 2 && needle.starts_with('"') && needle.ends_with('"');
+    let mut key = None;
+    for (i, _) in source.match_indices(needle) {
+        let span = &code[i..i + needle.len()];
+        if !quoted {
+            if span == needle.as_bytes() {
+                return Some(i);
+            }
+            continue;
+        }
+        // Both quotes are code and everything between them was blanked:
+        // the literal itself, not a quote closing an earlier string.
+        let inner = &needle.as_bytes()[1..needle.len() - 1];
+        let literal = span[0] == b'"'
+            && span[span.len() - 1] == b'"'
+            && span[1..span.len() - 1]
+                .iter()
+                .zip(inner)
+                .all(|(c, n)| *c == b' ' || *n == b' ');
+        if !literal {
+            continue;
+        }
+        let after = code[i + needle.len()..]
+            .iter()
+            .find(|c| !c.is_ascii_whitespace());
+        if after == Some(&b':') {
+            key.get_or_insert(i);
+        } else {
+            return Some(i);
+        }
+    }
+    key
 }
 
 /// 1-based line and column of a byte offset.
@@ -132,6 +218,33 @@ mod tests {
     fn field_before_finds_the_last_field_name_ignoring_comments() {
         let src = "Layer(\n  ior: \"x\", // note: here\n";
         assert_eq!(field_before(src, 2, 8).as_deref(), Some("ior"));
+    }
+
+    #[test]
+    fn find_in_code_skips_comments_strings_and_definitions() {
+        let src = "// surface: \"gold\"\nGem(description: \"a surface\", /* \"gold\" */\n  materials: {\"gold\": M()}, surface: \"gold\")";
+        let code_surface = src.rfind("surface").unwrap();
+        assert_eq!(find_in_code(src, "surface"), Some(code_surface));
+        // The value `"gold"`, not the comments' nor the key `"gold":`.
+        assert_eq!(
+            find_in_code(src, "\"gold\""),
+            Some(src.rfind("\"gold\"").unwrap())
+        );
+        // Only a key: the key.
+        let defined = "{\"tiles\" : A(), \"x\": B(\"y\")}";
+        assert_eq!(find_in_code(defined, "\"tiles\""), Some(1));
+        // A quote closing a string is not a literal of the name.
+        assert_eq!(find_in_code("(a: \"b\"c\")", "\"c\""), None);
+        assert_eq!(find_in_code("// only here: gold", "gold"), None);
+        let e = RecipeError::at_text("f.ron", "// gold\nx: gold", "gold", "m");
+        assert_eq!(e.position, Some((2, 4)));
+        // Nowhere as code: the first occurrence, then the whole file.
+        let e = RecipeError::at_text("f.ron", "// gold\n", "gold", "m");
+        assert_eq!(e.position, Some((1, 4)));
+        assert_eq!(
+            RecipeError::at_text("f.ron", "", "gold", "m").position,
+            None
+        );
     }
 
     #[test]

@@ -6,6 +6,14 @@
 //! look_at, 1 to [`MAX_STONES`] stones, Rect aim_at ≠ centre, the cabochon's
 //! own rules) are checked after parsing; their errors are located by a small
 //! walk over the RON text (`Locator`) at the field they concern.
+//!
+//! So are the scene's references: each stone's gem (a built-in name, or a
+//! `.ron` file that must exist), the ground's material (likewise) and the
+//! environment image (an existing `.hdr` or `.exr` file). A bad one is
+//! reported at the string where it is written, with a did-you-mean among
+//! the built-in names or the files beside the one named. What the files
+//! hold is read and checked when the scene is rendered, with positions in
+//! those files.
 
 use super::spec::{
     BaseSpec, CameraSpec, EnvironmentKind, GroundSpec, LightKind, OutlineSpec, SceneSpec,
@@ -15,7 +23,10 @@ use super::{Camera, EnvironmentSpec, Ground, LightSpec, Scene, StonePlacement, M
 use crate::brdf::Rgb;
 use crate::geometry::{Base, Cabochon, CabochonParams, GeometryError, Outline};
 use crate::recipe::compile::{read_ron_file, ron_error};
-use crate::recipe::error::{did_you_mean, line_col_of_offset, RecipeError};
+use crate::recipe::error::{
+    blank_comments_and_strings, did_you_mean, line_col_of_offset, RecipeError,
+};
+use crate::recipe::library::{builtin_gem_names, builtin_material_names};
 use glam::{DQuat, DVec3};
 use std::path::{Path, PathBuf};
 
@@ -32,7 +43,9 @@ const VERTICAL_TOLERANCE: f64 = 1e-9;
 
 /// Parse and validate scene `text`. `path` is the scene file, used in error
 /// messages and to resolve relative paths (without one, errors say
-/// `<scene>` and relative paths stay as written).
+/// `<scene>` and relative paths stay as written: relative to the current
+/// directory). The gems, materials and environment image the scene names
+/// must exist (see the module docs).
 pub fn parse_scene(text: &str, path: Option<&Path>) -> Result<Scene, RecipeError> {
     let display = path.map_or_else(|| "<scene>".to_string(), |p| p.display().to_string());
     parse_named(text, &display, path)
@@ -112,40 +125,10 @@ struct Locator<'t> {
 
 impl<'t> Locator<'t> {
     fn new(text: &'t str) -> Self {
-        let bytes = text.as_bytes();
-        let n = bytes.len();
-        let mut code = bytes.to_vec();
-        let mut i = 0;
-        while i < n {
-            // Blank [from, to) and go on at `next`: offsets (and the original
-            // text's line:col) stay valid.
-            let (from, to, next) = match bytes[i] {
-                b'"' => {
-                    let mut k = i + 1;
-                    while k < n && bytes[k] != b'"' {
-                        k += if bytes[k] == b'\\' { 2 } else { 1 };
-                    }
-                    (i + 1, k.min(n), k + 1)
-                }
-                b'/' if bytes.get(i + 1) == Some(&b'/') => {
-                    let end = bytes[i..].iter().position(|&c| c == b'\n');
-                    let to = end.map_or(n, |e| i + e);
-                    (i, to, to)
-                }
-                b'/' if bytes.get(i + 1) == Some(&b'*') => {
-                    let end = text[i + 2..].find("*/");
-                    let to = end.map_or(n, |e| i + 2 + e + 2);
-                    (i, to, to)
-                }
-                _ => {
-                    i += 1;
-                    continue;
-                }
-            };
-            code[from..to].fill(b' ');
-            i = next;
+        Locator {
+            text,
+            code: blank_comments_and_strings(text),
         }
-        Locator { text, code }
     }
 
     fn skip_ws(&self, mut i: usize) -> usize {
@@ -231,10 +214,11 @@ impl<'t> Locator<'t> {
         (at < end && self.code[at] != b']').then_some(at)
     }
 
-    /// (line, col) of the deepest point of `steps` that could be found
-    /// (a field's name, or a list element's start); `None` if not even the
+    /// The deepest point of `steps` that could be found: its mark (a
+    /// field's name, or a list element's start), the start and end of its
+    /// value, and whether every step was found; `None` if not even the
     /// first step was found.
-    fn find(&self, steps: &[Step]) -> Option<(usize, usize)> {
+    fn walk(&self, steps: &[Step]) -> Option<(usize, usize, usize, bool)> {
         let mut start = self.skip_ws(0);
         let mut end = self.code.len();
         let mut best = None;
@@ -243,12 +227,32 @@ impl<'t> Locator<'t> {
                 Step::Field(name) => self.body(start, end).and_then(|b| self.field(b, end, name)),
                 Step::Element(n) => self.element(start, end, n).map(|e| (e, e)),
             };
-            let Some((mark, value)) = found else { break };
-            best = Some(mark);
+            let Some((mark, value)) = found else {
+                return best.map(|(mark, start, end, _)| (mark, start, end, false));
+            };
             start = value;
             end = self.value_end(value);
+            best = Some((mark, start, end, true));
         }
-        best.map(|offset| line_col_of_offset(self.text, offset))
+        best
+    }
+
+    /// (line, col) of the deepest point of `steps` that could be found
+    /// (a field's name, or a list element's start); `None` if not even the
+    /// first step was found.
+    fn find(&self, steps: &[Step]) -> Option<(usize, usize)> {
+        self.walk(steps)
+            .map(|(mark, ..)| line_col_of_offset(self.text, mark))
+    }
+
+    /// (line, col) of the string literal (its opening quote) that is the
+    /// value at `steps`, also inside a `Some(…)`: where a name or a path
+    /// was written. Falls back to [`Locator::find`]'s place.
+    fn find_string(&self, steps: &[Step]) -> Option<(usize, usize)> {
+        let (mark, start, end, complete) = self.walk(steps)?;
+        let quote = (start..end).find(|&i| self.code[i] == b'"');
+        let offset = quote.filter(|_| complete).unwrap_or(mark);
+        Some(line_col_of_offset(self.text, offset))
     }
 }
 
@@ -262,7 +266,16 @@ struct Compiler<'a> {
 
 impl Compiler<'_> {
     fn error(&self, steps: &[Step], message: String) -> RecipeError {
-        match self.locator.find(steps) {
+        self.error_at(self.locator.find(steps), message)
+    }
+
+    /// An error at the string (a name or a path) written at `steps`.
+    fn error_at_string(&self, steps: &[Step], message: String) -> RecipeError {
+        self.error_at(self.locator.find_string(steps), message)
+    }
+
+    fn error_at(&self, place: Option<(usize, usize)>, message: String) -> RecipeError {
+        match place {
             Some((line, col)) => RecipeError::at(self.display, line, col, message),
             None => RecipeError::whole_file(self.display, message),
         }
@@ -367,14 +380,6 @@ impl Compiler<'_> {
                 Step::Field(field),
             ]
         };
-        let recipe = match &spec.recipe {
-            None => None,
-            Some(name) => Some(self.name_or_path(
-                name,
-                &at("recipe"),
-                "a built-in gem name or a .ron gem file",
-            )?),
-        };
         let ShapeSpec::Cabochon {
             outline,
             length,
@@ -405,6 +410,17 @@ impl Compiler<'_> {
             buff_top,
         };
         Cabochon::new(shape).map_err(|e| self.shape_error(index, &e))?;
+        // The gem it names, checked after its own shape.
+        let recipe = match &spec.recipe {
+            None => None,
+            Some(name) => Some(self.name_or_path(
+                name,
+                &at("recipe"),
+                &format!("stone {}", index + 1),
+                "gem",
+                &builtin_gem_names().collect::<Vec<_>>(),
+            )?),
+        };
         let [x, y, z] = spec.rotation_deg.map(f64::to_radians);
         Ok(StonePlacement {
             recipe,
@@ -437,7 +453,9 @@ impl Compiler<'_> {
         let material = self.name_or_path(
             &spec.material,
             &[Step::Field("ground"), Step::Field("material")],
-            "a built-in material name or a .ron material file",
+            "ground",
+            "material",
+            &builtin_material_names().collect::<Vec<_>>(),
         )?;
         Ok(Ground {
             height: spec.height,
@@ -532,37 +550,106 @@ impl Compiler<'_> {
                 path,
                 rotation_deg,
                 intensity,
-            } => {
-                if path.trim().is_empty() {
-                    return Err(self.error(
-                        &[Step::Field("environment"), Step::Field("path")],
-                        "environment `path` is empty; allowed: an HDR or EXR image file, relative to the scene file".to_string(),
-                    ));
-                }
-                EnvironmentSpec::File {
-                    path: self.resolve(path),
-                    rotation_deg: *rotation_deg,
-                    intensity: *intensity,
-                }
-            }
+            } => EnvironmentSpec::File {
+                path: self.environment_file(path)?,
+                rotation_deg: *rotation_deg,
+                intensity: *intensity,
+            },
         })
     }
 
-    /// A library name stays a name; a path (with `/` or ending in `.ron`)
-    /// is resolved against the scene's folder.
-    fn name_or_path(&self, spec: &str, at: &[Step], allowed: &str) -> Result<String, RecipeError> {
+    /// The environment image `written`, resolved against the scene's folder:
+    /// it must be an existing `.hdr` or `.exr` file (its contents are read
+    /// by the renderer).
+    fn environment_file(&self, written: &str) -> Result<PathBuf, RecipeError> {
+        const ALLOWED: &str =
+            "an equirectangular .hdr or .exr image file, relative to the scene file";
+        let at = [Step::Field("environment"), Step::Field("path")];
+        if written.trim().is_empty() {
+            return Err(self.error_at_string(
+                &at,
+                format!("environment: `path` is empty; allowed: {ALLOWED}"),
+            ));
+        }
+        let resolved = self.resolve(written);
+        let extension = resolved
+            .extension()
+            .map(|e| e.to_string_lossy().to_lowercase())
+            .unwrap_or_default();
+        if !ENVIRONMENT_EXTENSIONS.contains(&extension.as_str()) {
+            let found = if extension.is_empty() {
+                "no extension".to_string()
+            } else {
+                format!("the extension `.{extension}`")
+            };
+            return Err(self.error_at_string(
+                &at,
+                format!("environment: image file `{written}` has {found}; allowed: {ALLOWED}"),
+            ));
+        }
+        if let Some(problem) = file_problem(written, &resolved, ENVIRONMENT_EXTENSIONS, None) {
+            return Err(self.error_at_string(
+                &at,
+                format!("environment: image file `{written}` {problem}; allowed: {ALLOWED}"),
+            ));
+        }
+        Ok(resolved)
+    }
+
+    /// A gem or material as written at `at` (`context` opens the messages):
+    /// a name stays a name and must be one of the built-in `kind`s
+    /// `builtins`; a path (with `/` or ending in `.ron`) is resolved against
+    /// the scene's folder and must be an existing file (its contents are
+    /// read and checked when the scene is rendered).
+    fn name_or_path(
+        &self,
+        spec: &str,
+        at: &[Step],
+        context: &str,
+        kind: &str,
+        builtins: &[&str],
+    ) -> Result<String, RecipeError> {
+        let allowed = format!(
+            "a built-in {kind} name ({}) or a .ron {kind} file (a path with `/` or ending in `.ron`, relative to the scene file)",
+            builtins.join(", ")
+        );
         if spec.trim().is_empty() {
             let field = match at.last() {
                 Some(Step::Field(f)) => f,
                 _ => "name",
             };
-            return Err(self.error(at, format!("`{field}` is empty; allowed: {allowed}")));
+            return Err(self.error_at_string(
+                at,
+                format!("{context}: `{field}` is empty; allowed: {allowed}"),
+            ));
         }
-        Ok(if spec.contains('/') || spec.ends_with(".ron") {
-            self.resolve(spec).to_string_lossy().into_owned()
-        } else {
-            spec.to_string()
-        })
+        if !(spec.contains('/') || spec.ends_with(".ron")) {
+            if builtins.contains(&spec) {
+                return Ok(spec.to_string());
+            }
+            let hint = did_you_mean(spec, builtins.iter().copied())
+                .map(|s| format!(" (did you mean `{s}`?)"))
+                .unwrap_or_default();
+            return Err(self.error_at_string(
+                at,
+                format!("{context}: unknown {kind} `{spec}`{hint}; allowed: {allowed}"),
+            ));
+        }
+        let resolved = self.resolve(spec);
+        // A built-in named like a file (`goldstone.ron`) is a likely slip.
+        let builtin = Path::new(spec)
+            .file_stem()
+            .and_then(|stem| did_you_mean(stem.to_str()?, builtins.iter().copied()))
+            .map(|name| {
+                format!(" (did you mean the built-in {kind} `{name}`, written without a path or `.ron`?)")
+            });
+        if let Some(problem) = file_problem(spec, &resolved, &["ron"], builtin) {
+            return Err(self.error_at_string(
+                at,
+                format!("{context}: {kind} file `{spec}` {problem}; allowed: {allowed}"),
+            ));
+        }
+        Ok(resolved.to_string_lossy().into_owned())
     }
 
     fn resolve(&self, path: &str) -> PathBuf {
@@ -571,6 +658,68 @@ impl Compiler<'_> {
             _ => PathBuf::from(path),
         }
     }
+}
+
+/// The extensions (lower case) of the environment images the renderer
+/// reads: Radiance RGBE and OpenEXR.
+const ENVIRONMENT_EXTENSIONS: &[&str] = &["hdr", "exr"];
+
+/// At most this many entries of a folder are read for a did-you-mean.
+const MAX_SIBLINGS: usize = 4096;
+
+/// Why the file a scene names as `written` (found at `resolved`) cannot be
+/// used, if it cannot: it does not exist (with a did-you-mean among the
+/// files beside it whose extension is one of `extensions`, else the hint
+/// `otherwise`), is a folder, or cannot be looked at.
+fn file_problem(
+    written: &str,
+    resolved: &Path,
+    extensions: &[&str],
+    otherwise: Option<String>,
+) -> Option<String> {
+    let place = if resolved.as_os_str() != written {
+        format!(" at {}", resolved.display())
+    } else if resolved.is_relative() {
+        " in the current directory".to_string()
+    } else {
+        String::new()
+    };
+    match std::fs::metadata(resolved) {
+        Ok(m) if m.is_dir() => Some(format!("is a directory{place}, not a file")),
+        Ok(_) => None,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            let hint = sibling_like(written, resolved, extensions)
+                .map(|s| format!(" (did you mean `{s}`?)"))
+                .or(otherwise)
+                .unwrap_or_default();
+            Some(format!("not found{place}{hint}"))
+        }
+        Err(e) => Some(format!("cannot be read{place}: {e}")),
+    }
+}
+
+/// `written` with its file name replaced by the closest name of a file
+/// beside `resolved` with one of `extensions`, if one is close.
+fn sibling_like(written: &str, resolved: &Path, extensions: &[&str]) -> Option<String> {
+    let name = resolved.file_name()?.to_str()?;
+    let folder = match resolved.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let siblings: Vec<String> = std::fs::read_dir(folder)
+        .ok()?
+        .take(MAX_SIBLINGS)
+        .filter_map(|entry| entry.ok()?.file_name().into_string().ok())
+        .filter(|s| {
+            let extension = Path::new(s)
+                .extension()
+                .map(|e| e.to_string_lossy().to_lowercase());
+            extension.is_some_and(|e| extensions.contains(&e.as_str()))
+        })
+        .collect();
+    let close = did_you_mean(name, siblings.iter().map(String::as_str))?;
+    let folder_as_written = written.rfind('/').map_or("", |k| &written[..=k]);
+    Some(format!("{folder_as_written}{close}"))
 }
 
 /// `v / |v|`, or `None` when `v` is zero (or so small that it cannot be
@@ -604,5 +753,20 @@ mod tests {
         // A missing element falls back to the deepest place found: `a`.
         assert_eq!(l.find(&[Step::Field("a"), Step::Element(5)]), Some((2, 2)));
         assert_eq!(l.find(&[Step::Field("zz")]), None);
+    }
+
+    #[test]
+    fn locator_finds_the_string_written_as_a_value() {
+        // The same name in a comment and in another element first.
+        let text = "S( // r: Some(\"g\")\n s: [(r: Some(\"g\")),\n  (q: 1, r: Some( \"g\" ))],\n e: F(p: \"g\"))";
+        let l = Locator::new(text);
+        let r1 = [Step::Field("s"), Step::Element(1), Step::Field("r")];
+        assert_eq!(l.find_string(&r1), Some((3, 19)));
+        assert_eq!(l.find(&r1), Some((3, 10)));
+        let p = [Step::Field("e"), Step::Field("p")];
+        assert_eq!(l.find_string(&p), Some((4, 10)));
+        // A step not found: the deepest place found, not a string in it.
+        let missing = [Step::Field("s"), Step::Element(1), Step::Field("zz")];
+        assert_eq!(l.find_string(&missing), Some((3, 3)));
     }
 }

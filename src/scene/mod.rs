@@ -4,9 +4,10 @@
 //! A scene file ([`spec`], units as written) is parsed and validated into
 //! the plain data below ([`compile`]): angles become directions and
 //! quaternions, relative paths are resolved against the scene file's
-//! folder, and each stone's shape has passed
-//! [`crate::geometry::Cabochon::new`]. Errors are [`crate::recipe::RecipeError`]s,
-//! `file:line:col: message`, naming the field and its allowed range.
+//! folder, the gems, materials and environment image it names exist, and
+//! each stone's shape has passed [`crate::geometry::Cabochon::new`]. Errors
+//! are [`crate::recipe::RecipeError`]s, `file:line:col: message`, naming the
+//! field (or the name as written) and what is allowed.
 //!
 //! World space: z is up; lengths are scene units (millimetres, the unit of
 //! the gem recipes' object space).
@@ -71,7 +72,8 @@ pub struct Camera {
 #[derive(Clone, Debug, PartialEq)]
 pub struct StonePlacement {
     /// `None`: the gem named on the command line; otherwise a built-in gem
-    /// name, or a path already resolved against the scene file's folder.
+    /// name, or the path of an existing file, already resolved against the
+    /// scene file's folder.
     pub recipe: Option<String>,
     /// The stone's geometry, already validated by
     /// [`crate::geometry::Cabochon::new`].
@@ -97,8 +99,8 @@ impl StonePlacement {
 pub struct Ground {
     /// Its z.
     pub height: f64,
-    /// A built-in material name, or a path resolved against the scene
-    /// file's folder.
+    /// A built-in material name, or the path of an existing file, resolved
+    /// against the scene file's folder.
     pub material: String,
 }
 
@@ -166,8 +168,9 @@ pub enum EnvironmentSpec {
     },
     /// A latitude-longitude HDR/EXR image.
     File {
-        /// The image path, resolved against the scene file's folder (its
-        /// existence is checked by the renderer).
+        /// The image path (`.hdr` or `.exr`), resolved against the scene
+        /// file's folder; the file existed when the scene was loaded, its
+        /// contents are read by the renderer.
         path: PathBuf,
         /// Turn about world z, degrees.
         rotation_deg: f64,
