@@ -54,7 +54,7 @@ pub fn mix64(mut z: u64) -> u64 {
 /// are Taylor polynomials to x¹³ and x¹⁴ (the first omitted terms are below
 /// (π/4)¹⁵/15! ≈ 2·10⁻¹⁴ and (π/4)¹⁶/16! ≈ 10⁻¹⁵); several times faster
 /// than libm's `sin_cos`, which rounds correctly at a cost no sample needs.
-pub fn sin_cos_turns(t: f64) -> (f64, f64) {
+pub(crate) fn sin_cos_turns(t: f64) -> (f64, f64) {
     let (quarter, quadrant) = nearest_quarter_turn(t);
     let x = (t - quarter * 0.25) * (2.0 * PI);
     let x2 = x * x;
@@ -87,9 +87,9 @@ pub fn sin_cos_turns(t: f64) -> (f64, f64) {
     // sin and cos of q·π/2 + x: (sin, cos), (cos, −sin), (−sin, −cos),
     // (−cos, sin) for q = 0…3. The pair swaps for odd q, the sine is
     // negated for q = 2, 3 (bit 1 of q) and the cosine for q = 1, 2 (bit 1
-    // of q + 1): a select and two sign flips rather than a match, so that
-    // the lane loops of [`crate::render::ground_paths`] compile it to
-    // vector blends (the same bits: a negation is exact).
+    // of q + 1): a select and two sign flips rather than a match, which
+    // compile to blends with no branch (the same bits: a negation is
+    // exact).
     let odd = quadrant & 1 == 1;
     let (sin_abs, cos_abs) = if odd { (cos, sin) } else { (sin, cos) };
     (

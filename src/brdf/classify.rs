@@ -7,7 +7,7 @@ use std::fmt;
 
 /// Surfaces below this roughness count as smooth: the notes give 0.01°–4°
 /// for smooth layers and at least 5° for rough ones (sections 4.2.1–4.2.5).
-pub const SMOOTH_BELOW_DEG: f64 = 5.0;
+pub(crate) const SMOOTH_BELOW_DEG: f64 = 5.0;
 
 /// The six basic groups of figure 3.8 (plus bare varnish).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

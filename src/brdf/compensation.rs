@@ -31,8 +31,8 @@
 //! walks only until the node's standard error is below 10⁻³
 //! ([`adaptive_walk_albedo`]); E_single of a Lambertian base is mixed from
 //! a black- and a white-base table shared by every colour under the same
-//! coat; and [`crate::brdf::cache`] keeps finished tables per process and
-//! on disk.
+//! coat. Tables are a pure function of the stack; the compiling layer
+//! (`crate::recipe::TableCache`) keeps finished ones in memory and on disk.
 
 use crate::brdf::fresnel;
 use crate::brdf::layer::Base;
@@ -68,7 +68,7 @@ const MIN_WALKS_PER_NODE: usize = 1024;
 const TARGET_STANDARD_ERROR: f64 = 1e-3;
 /// Stratified samples per node for E_single: a 64 × 64 grid (32 × 32 doubles
 /// its noise: ~5·10⁻³ near the normal, ~2·10⁻² at grazing for rough coats).
-pub const SINGLE_SAMPLES_SIDE: usize = 64;
+pub(crate) const SINGLE_SAMPLES_SIDE: usize = 64;
 
 /// The tabulated deficit of a material and its cosine-weighted average.
 #[derive(Clone, Debug, PartialEq)]
@@ -119,7 +119,7 @@ fn direction_at_cosine(mu: f64) -> DVec3 {
 
 /// Directional albedo ∫ f(ωᵢ, ωₒ) cosθᵢ dωᵢ of the single-crossing model at
 /// outgoing cosine `mu`, by stratified importance sampling (the table's
-/// [`SINGLE_SAMPLES_SIDE`]² samples).
+/// `SINGLE_SAMPLES_SIDE`² samples).
 pub fn single_crossing_albedo(brdf: &LayeredBrdf, mu: f64, seed: u64) -> Rgb {
     single_crossing_albedo_sampled(brdf, mu, seed, SINGLE_SAMPLES_SIDE)
 }
@@ -229,7 +229,7 @@ pub fn adaptive_walk_albedo(brdf: &LayeredBrdf, tables: &WalkTables, mu: f64, se
 }
 
 /// The closed form of E_stack for one smooth dielectric coat (roughness 0,
-/// i.e. the clamp [`crate::brdf::microfacet::MIN_ROUGHNESS_DEG`]) over a
+/// i.e. the clamp `MIN_ROUGHNESS_DEG`) over a
 /// Lambertian (σ = 0) or black base, the only stack where the random
 /// walk's series sums exactly:
 ///
@@ -431,15 +431,15 @@ enum PairPlan {
 }
 
 /// E_single of a black and of a white base at every node.
-pub type AlbedoPair = (Vec<Rgb>, Vec<Rgb>);
+pub(crate) type AlbedoPair = (Vec<Rgb>, Vec<Rgb>);
 
 /// Looks up a coat's black- and white-base E_single pair by the
 /// [`material_key`] of its white twin (see
 /// [`Compensation::compute_many_reusing`]).
-pub type KnownPair<'a> = dyn Fn(&str) -> Option<AlbedoPair> + 'a;
+pub(crate) type KnownPair<'a> = dyn Fn(&str) -> Option<AlbedoPair> + 'a;
 
 /// What [`Compensation::compute_many_reusing`] computed.
-pub struct ComputedTables {
+pub(crate) struct ComputedTables {
     /// The table of each request, in order (None: no compensation needed).
     pub tables: Vec<Option<Compensation>>,
     /// The black- and white-base E_single pairs computed for this batch, by
@@ -602,7 +602,7 @@ impl Compensation {
     /// of the white twin) where a caller kept it from an earlier batch, and
     /// returning the pairs it computed so that the caller can keep them.
     /// The same tables, bit for bit, as without them.
-    pub fn compute_many_reusing(
+    pub(crate) fn compute_many_reusing(
         requests: &[(&LayeredBrdf, u64)],
         known_pair: &KnownPair<'_>,
     ) -> ComputedTables {
@@ -661,8 +661,8 @@ impl Compensation {
 
     /// The tables from E_single and E_stack at the [`TABLE_NODES`] nodes
     /// (everything else follows from them deterministically, so a table
-    /// stored as these two columns is rebuilt bit for bit; see
-    /// [`crate::brdf::cache`]). None when the deficit is below 3·10⁻³ at
+    /// stored as these two columns is rebuilt bit for bit, as
+    /// `crate::recipe::TableCache` does from disk). None when the deficit is below 3·10⁻³ at
     /// every node, or when the columns are not [`TABLE_NODES`] long.
     pub fn from_albedos(single_albedo: Vec<Rgb>, stack_albedo: Vec<Rgb>) -> Option<Self> {
         if single_albedo.len() != TABLE_NODES || stack_albedo.len() != TABLE_NODES {
@@ -720,15 +720,10 @@ impl Compensation {
         self.deficit_by_cosine[j] * (1.0 - t) + self.deficit_by_cosine[j + 1] * t
     }
 
-    /// P(μ), the positive part of the deficit: the albedo the lobe adds.
-    pub fn added_albedo(&self, mu: f64) -> Rgb {
-        self.albedo(mu).max(Rgb::ZERO)
-    }
-
     /// Probability with which a layered BRDF samples this lobe for an
     /// outgoing direction whose table value is D(μₒ) = `d_o`: the mean added
     /// albedo d mapped to d / (d + 0.5), at most one half.
-    pub fn sampling_probability(d_o: Rgb) -> f64 {
+    pub(crate) fn sampling_probability(d_o: Rgb) -> f64 {
         let d = d_o.max(Rgb::ZERO).element_sum() / 3.0;
         (d / (d + 0.5)).min(0.5)
     }
@@ -741,7 +736,7 @@ impl Compensation {
     /// The lobe for an outgoing direction whose table value is D(μₒ) =
     /// `d_o`, so that a path vertex looks D(μₒ) up and scales it once for
     /// all its evaluations (see `BrdfAt`).
-    pub fn at_outgoing(&self, d_o: Rgb) -> CompensationAt {
+    pub(crate) fn at_outgoing(&self, d_o: Rgb) -> CompensationAt {
         CompensationAt {
             positive_o: d_o.max(Rgb::ZERO),
             negative_o: (-d_o).max(Rgb::ZERO),
@@ -756,7 +751,7 @@ impl Compensation {
 /// The two table values are multiplied first, so the lobe stays exactly
 /// reciprocal.
 #[derive(Clone, Copy, Debug)]
-pub struct CompensationAt {
+pub(crate) struct CompensationAt {
     /// P(μₒ) per channel.
     positive_o: Rgb,
     /// X(μₒ) per channel.

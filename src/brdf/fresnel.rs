@@ -18,7 +18,7 @@ pub fn dielectric(cos_incident: f64, eta: f64) -> f64 {
 /// [`dielectric`] (and of `microfacet::refract`) that does not depend on
 /// the polarisation, computed once where a caller needs both.
 #[derive(Clone, Copy, Debug)]
-pub struct Snell {
+pub(crate) struct Snell {
     /// cosθₜ of the transmitted direction; None under total internal
     /// reflection (sin²θₜ ≥ 1).
     pub cos_t: Option<f64>,
@@ -43,7 +43,7 @@ impl Snell {
 /// that need cosθₜ too: the Fresnel equations for the two polarisations,
 /// averaged (1 under total internal reflection).
 #[inline]
-pub fn dielectric_from_snell(cos_incident: f64, snell: Snell, eta: f64) -> f64 {
+pub(crate) fn dielectric_from_snell(cos_incident: f64, snell: Snell, eta: f64) -> f64 {
     let Some(cos_t) = snell.cos_t else {
         return 1.0;
     };
@@ -55,7 +55,8 @@ pub fn dielectric_from_snell(cos_incident: f64, snell: Snell, eta: f64) -> f64 {
 
 /// Cosine of the critical angle for light inside a medium of relative index
 /// `eta` = n_outside / n_inside < 1; 0 when there is no critical angle.
-pub fn critical_cosine(eta: f64) -> f64 {
+#[cfg(test)]
+pub(crate) fn critical_cosine(eta: f64) -> f64 {
     if eta >= 1.0 {
         0.0
     } else {
@@ -114,7 +115,7 @@ impl Complex {
 /// The appendix's `complexFresnelReflector` is an approximation; we use the
 /// exact expression so that normal incidence gives ((n−1)² + k²)/((n+1)² + k²).
 /// With k = 0 it equals [`dielectric`] for light entering the denser side.
-pub fn conductor_scalar(cos_incident: f64, n: f64, k: f64) -> f64 {
+pub(crate) fn conductor_scalar(cos_incident: f64, n: f64, k: f64) -> f64 {
     let cos_i = cos_incident.abs().min(1.0);
     let eta = Complex::new(n, k);
     let sin2_i = 1.0 - cos_i * cos_i;
@@ -127,7 +128,7 @@ pub fn conductor_scalar(cos_incident: f64, n: f64, k: f64) -> f64 {
     f.clamp(0.0, 1.0)
 }
 
-/// [`conductor_scalar`] per RGB channel (R, G, B at 680, 525, 450 nm, table 4.2).
+/// `conductor_scalar` per RGB channel (R, G, B at 680, 525, 450 nm, table 4.2).
 pub fn conductor(cos_incident: f64, n: Rgb, k: Rgb) -> Rgb {
     Rgb::new(
         conductor_scalar(cos_incident, n.x, k.x),
@@ -137,7 +138,7 @@ pub fn conductor(cos_incident: f64, n: Rgb, k: Rgb) -> Rgb {
 }
 
 /// Normal-incidence reflectance of a conductor, ((n−1)² + k²)/((n+1)² + k²).
-pub fn conductor_normal_incidence(n: f64, k: f64) -> f64 {
+pub(crate) fn conductor_normal_incidence(n: f64, k: f64) -> f64 {
     ((n - 1.0).powi(2) + k * k) / ((n + 1.0).powi(2) + k * k)
 }
 

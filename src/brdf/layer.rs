@@ -32,7 +32,7 @@ impl Interface {
     /// Beer-Lambert transmittance exp(−α d / cosθ) of one straight crossing
     /// of the layer at a direction with cosine `cos_theta` to the normal
     /// (eq. 3.4 with path length l = d / cosθ).
-    pub fn crossing_transmittance(&self, cos_theta: f64) -> Rgb {
+    pub(crate) fn crossing_transmittance(&self, cos_theta: f64) -> Rgb {
         if self.thickness == 0.0 || self.absorption_rgb == Rgb::ZERO {
             return Rgb::ONE;
         }
@@ -45,14 +45,18 @@ impl Interface {
     /// Appendix `absorption`: Beer's law along both refracted directions,
     /// exp(−α d (1/cosθ'ᵢ + 1/cosθ'ₒ)), the cosines clamped at 0.001 as there.
     #[inline]
-    pub fn round_trip_transmittance(&self, wi_inside: DVec3, wo_inside: DVec3) -> Rgb {
+    pub(crate) fn round_trip_transmittance(&self, wi_inside: DVec3, wo_inside: DVec3) -> Rgb {
         self.round_trip_transmittance_of_cosines(wi_inside.z, wo_inside.z)
     }
 
     /// [`Interface::round_trip_transmittance`] of two directions inside
     /// the layer given by their cosines to the normal.
     #[inline]
-    pub fn round_trip_transmittance_of_cosines(&self, cos_i_inside: f64, cos_o_inside: f64) -> Rgb {
+    pub(crate) fn round_trip_transmittance_of_cosines(
+        &self,
+        cos_i_inside: f64,
+        cos_o_inside: f64,
+    ) -> Rgb {
         if self.thickness == 0.0 || self.absorption_rgb == Rgb::ZERO {
             return Rgb::ONE;
         }
@@ -144,7 +148,7 @@ impl Base {
 
     /// A rough guess of the base's hemispherical albedo (mean over channels),
     /// used only to choose how often to sample it.
-    pub fn albedo_guess(&self) -> f64 {
+    pub(crate) fn albedo_guess(&self) -> f64 {
         match self {
             Base::Diffuse { colour, .. } => colour.element_sum() / 3.0,
             Base::Conductor {

@@ -13,7 +13,7 @@ use std::f64::consts::PI;
 
 /// The smallest roughness we evaluate, in degrees: the notes' "0.01° for very
 /// smooth, almost perfect surfaces" (section 4.2.1). Zero would be a Dirac lobe.
-pub const MIN_ROUGHNESS_DEG: f64 = 0.01;
+pub(crate) const MIN_ROUGHNESS_DEG: f64 = 0.01;
 
 /// Which micro-facet normal distribution (and matching shadowing) to use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -33,7 +33,7 @@ pub enum MicrofacetModel {
 pub struct Microfacet {
     /// The distribution family.
     pub model: MicrofacetModel,
-    /// Average slope m in degrees, clamped to at least [`MIN_ROUGHNESS_DEG`].
+    /// Average slope m in degrees, clamped to at least `MIN_ROUGHNESS_DEG`.
     pub roughness_deg: f64,
     /// Blinn exponent β = −ln 2 / ln cos m (only used by `Blinn`).
     pub blinn_exponent: f64,
@@ -147,7 +147,7 @@ impl Microfacet {
     }
 
     /// Sample a micro-facet normal with density D(h)·cosθh (upper hemisphere).
-    pub fn sample_normal(&self, u1: f64, u2: f64) -> DVec3 {
+    pub(crate) fn sample_normal(&self, u1: f64, u2: f64) -> DVec3 {
         let cos_theta = match self.model {
             // ∫ D cos dω for Blinn gives cosθ = u^(1/(β+2)).
             // As exp(ln u/(β+2)): u > 0 here (ln 0 = −∞ gives exp = 0,
@@ -169,13 +169,13 @@ impl Microfacet {
     }
 
     /// Density of [`Microfacet::sample_normal`] with respect to solid angle.
-    pub fn normal_pdf(&self, h: DVec3) -> f64 {
+    pub(crate) fn normal_pdf(&self, h: DVec3) -> f64 {
         self.d(h) * h.z.max(0.0)
     }
 
     /// Torrance-Sparrow reflection D·G·F/(4 cosθi cosθo) without F (the
     /// caller multiplies the Fresnel factor of its interface).
-    pub fn reflection_without_fresnel(&self, wi: DVec3, wo: DVec3) -> (f64, DVec3) {
+    pub(crate) fn reflection_without_fresnel(&self, wi: DVec3, wo: DVec3) -> (f64, DVec3) {
         let h = (wi + wo).normalize_or_zero();
         if h == DVec3::ZERO || wi.z <= 0.0 || wo.z <= 0.0 {
             return (0.0, DVec3::Z);
@@ -188,7 +188,7 @@ impl Microfacet {
     /// [`Microfacet::reflection_pdf`] at once, D(h) evaluated once:
     /// (value, pdf, h), each equal to the separate call's.
     #[inline]
-    pub fn reflection_value_and_pdf(&self, wi: DVec3, wo: DVec3) -> (f64, f64, DVec3) {
+    pub(crate) fn reflection_value_and_pdf(&self, wi: DVec3, wo: DVec3) -> (f64, f64, DVec3) {
         let h = half_vector(wi, wo);
         if h == DVec3::ZERO || wi.z <= 0.0 || wo.z <= 0.0 {
             return (0.0, 0.0, DVec3::Z);
@@ -207,7 +207,7 @@ impl Microfacet {
     }
 
     /// Sample the incident direction of the reflection lobe for outgoing `wo`:
-    /// a normal from [`Microfacet::sample_normal`], mirrored. None below the horizon.
+    /// a normal from `sample_normal`, mirrored. None below the horizon.
     pub fn sample_reflection(&self, wo: DVec3, u1: f64, u2: f64) -> Option<DVec3> {
         let h = self.sample_normal(u1, u2);
         let oh = wo.dot(h);
@@ -282,7 +282,7 @@ fn pow_cos(cos: f64, beta: f64) -> f64 {
 }
 
 /// Mirror `w` about the unit normal `n`.
-pub fn reflect(w: DVec3, n: DVec3) -> DVec3 {
+pub(crate) fn reflect(w: DVec3, n: DVec3) -> DVec3 {
     2.0 * w.dot(n) * n - w
 }
 
@@ -291,7 +291,7 @@ pub fn reflect(w: DVec3, n: DVec3) -> DVec3 {
 /// the transmitted direction pointing away on the other side, or None under
 /// total internal reflection (Snell, eq. 3.2).
 #[inline]
-pub fn refract(w: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
+pub(crate) fn refract(w: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
     let cos_i = w.dot(n);
     let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
     if sin2_t >= 1.0 {

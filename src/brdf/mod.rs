@@ -3,10 +3,10 @@
 //! is the surface normal and both directions point away from the surface.
 //!
 //! * [`fresnel`]: dielectric and conductor Fresnel terms;
-//! * [`microfacet`]: Blinn (V-cavity), Beckmann and GGX (Smith) lobes;
-//! * [`diffuse`]: Lambert and Oren-Nayar;
-//! * [`layer`]: compiled interfaces (with Beer absorption) and bases;
-//! * [`stack`]: the layered BRDF with eval, sample and pdf, and its form
+//! * `microfacet`: Blinn (V-cavity), Beckmann and GGX (Smith) lobes;
+//! * `diffuse`: Lambert and Oren-Nayar;
+//! * `layer`: compiled interfaces (with Beer absorption) and bases;
+//! * `stack`: the layered BRDF with eval, sample and pdf, and its form
 //!   prepared for one outgoing direction ([`BrdfAt`], one per path vertex);
 //! * `coat`: the same model in closed form for one interface over a
 //!   Lambert base, the commonest stack (what the renderer evaluates there);
@@ -20,13 +20,13 @@ pub mod albedo;
 pub mod classify;
 pub(crate) mod coat;
 pub mod compensation;
-pub mod diffuse;
+pub(crate) mod diffuse;
 pub mod fresnel;
-pub mod layer;
-pub mod microfacet;
+pub(crate) mod layer;
+pub(crate) mod microfacet;
 pub mod reference;
 pub mod smooth_coat;
-pub mod stack;
+pub(crate) mod stack;
 
 /// Linear RGB, one value per channel (R, G, B at 680, 525, 450 nm for the
 /// conductor tables of section 4.2.3).

@@ -186,7 +186,7 @@ impl WalkTables {
 
 /// A source of uniform numbers in [0, 1) for the walk: the generator itself,
 /// or [`PresetUniforms`] whose first numbers are chosen by the caller.
-pub trait Uniforms {
+pub(crate) trait Uniforms {
     /// The next uniform number.
     fn next_f64(&mut self) -> f64;
 }
@@ -200,7 +200,7 @@ impl Uniforms for Rng {
 /// Uniforms whose first four are given (e.g. a point of a stratified set,
 /// so that the first micro-facet normal and the first base bounce of a
 /// batch of walks are stratified), the rest drawn from a generator.
-pub struct PresetUniforms<'a> {
+pub(crate) struct PresetUniforms<'a> {
     /// The first four numbers handed out.
     pub preset: [f64; 4],
     /// How many of `preset` have been handed out.
@@ -306,7 +306,7 @@ pub(crate) fn scatter_base(
 
 /// Follow one path of light arriving from direction `wi` (z > 0) and call
 /// `tally(exit_direction, power)` for every part of it that leaves the top.
-pub fn trace_path(
+pub(crate) fn trace_path(
     brdf: &LayeredBrdf,
     tables: &WalkTables,
     wi: DVec3,
@@ -317,7 +317,7 @@ pub fn trace_path(
 }
 
 /// [`trace_path`] drawing its random numbers from any [`Uniforms`].
-pub fn trace_path_with(
+pub(crate) fn trace_path_with(
     brdf: &LayeredBrdf,
     tables: &WalkTables,
     wi: DVec3,

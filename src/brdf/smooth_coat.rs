@@ -3,7 +3,7 @@
 //! in one number, the cosine of its direction, whose escape probability
 //! solves a small linear system.
 //!
-//! Under a smooth coat (roughness at the clamp [`MIN_ROUGHNESS_DEG`]) the
+//! Under a smooth coat (roughness at the clamp `MIN_ROUGHNESS_DEG`) the
 //! random walk of [`crate::brdf::reference`] does three things over and
 //! over: it crosses the layer (Beer, T(ν) = exp(−αd/ν), eq. 3.4), scatters
 //! at the base (a new direction and a weight), crosses the layer again and
@@ -23,9 +23,9 @@
 //!
 //! E_stack(μ) = F(μ) + (1 − F(μ)) · T(μ′) · U(μ′),   μ′ the refracted cosine.
 //!
-//! U is represented by its values at [`CHAIN_NODES`] cosines with linear
+//! U is represented by its values at `CHAIN_NODES` cosines with linear
 //! interpolation between them. Each node's expectation is a stratified
-//! average over [`CHAIN_SAMPLES_SIDE`]² base samples in which the escaping
+//! average over `CHAIN_SAMPLES_SIDE`² base samples in which the escaping
 //! term is exact for each sample's own ν′ (the Fresnel step at the critical
 //! angle is never interpolated) and only U(ν′) of the light sent back is
 //! interpolated. That gives U = b + M·U with M ≥ 0 and row sums below 1
@@ -49,15 +49,15 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 /// Cosines at which U is solved for: ν_j = (j + ½)/N.
-pub const CHAIN_NODES: usize = 256;
+pub(crate) const CHAIN_NODES: usize = 256;
 /// Each node's expectation averages a jittered grid of this many squared
 /// base samples.
-pub const CHAIN_SAMPLES_SIDE: usize = 32;
+pub(crate) const CHAIN_SAMPLES_SIDE: usize = 32;
 /// The first bounce of [`SmoothCoatChain::albedo`], whose escaping part is
 /// the answer's largest (a 32² grid leaves ~5·10⁻⁴ of noise there against
 /// the closed form over Lambert; this one ~10⁻⁴), averages this many
 /// squared samples.
-pub const FIRST_BOUNCE_SAMPLES_SIDE: usize = 64;
+pub(crate) const FIRST_BOUNCE_SAMPLES_SIDE: usize = 64;
 
 /// E_stack of one smooth coat over a conductor, Oren-Nayar or any other
 /// base, from the solved chain (see the module docs).

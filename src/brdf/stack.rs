@@ -312,8 +312,9 @@ impl LayeredBrdf {
     /// sample and every BRDF sample. Equal to the two separate calls (up to
     /// rounding for one interface over a Lambert base, see [`LayeredBrdf::at`]).
     /// Same as `self.at(wo).eval_and_pdf(wi)`.
+    #[cfg(test)]
     #[inline]
-    pub fn eval_and_pdf(&self, wi: DVec3, wo: DVec3) -> (Rgb, f64) {
+    pub(crate) fn eval_and_pdf(&self, wi: DVec3, wo: DVec3) -> (Rgb, f64) {
         self.at(wo).eval_and_pdf(wi)
     }
 
@@ -321,7 +322,7 @@ impl LayeredBrdf {
     /// that depends on wo alone (the compensation lookup D(μₒ) and the lobe
     /// probability, the top interface's F(cosθₒ), mixture weights and
     /// refracted wo) is computed here once, and shared by the
-    /// [`BrdfAt::eval_and_pdf`] and [`BrdfAt::sample`] calls made at that
+    /// `eval_and_pdf` and [`BrdfAt::sample`] calls made at that
     /// vertex. A bare Lambert material (no layers, σ = 0, no compensation)
     /// takes a shortcut: f = colour/π with cosine-weighted sampling; one
     /// interface over a Lambert base takes the closed form of the `coat`
@@ -520,7 +521,7 @@ impl BrdfAt<'_> {
     /// [`LayeredBrdf::eval`] and [`LayeredBrdf::pdf`] (up to rounding for
     /// the closed form of a coat, see [`LayeredBrdf::at`]).
     #[inline]
-    pub fn eval_and_pdf(&self, wi: DVec3) -> (Rgb, f64) {
+    pub(crate) fn eval_and_pdf(&self, wi: DVec3) -> (Rgb, f64) {
         if wi.z <= 0.0 {
             return (Rgb::ZERO, 0.0);
         }

@@ -16,9 +16,9 @@
 //!
 //! A sphere is a cabochon with a round outline, an elliptical dome of
 //! height r over a girdle of diameter 2r, no girdle band and a domed back of
-//! depth r ([`sphere_shape`]). Each sphere is rendered in an image of its
+//! depth r (`sphere_shape`). Each sphere is rendered in an image of its
 //! own with the camera on its centre, and the images are tiled by
-//! [`contact_sheet`]: a tile's centre is its sphere's centre.
+//! `contact_sheet`: a tile's centre is its sphere's centre.
 
 use glam::{DQuat, DVec3};
 use image::imageops::{self, FilterType};
@@ -47,16 +47,16 @@ use crate::scene::{default_scene, Camera, Scene, StonePlacement};
 
 /// Largest image side accepted, in pixels (a bound on film memory: the
 /// gallery holds every gem's image for the contact sheet).
-pub const MAX_SIZE_PX: u32 = 8192;
+pub(crate) const MAX_SIZE_PX: u32 = 8192;
 /// Most samples per pixel accepted.
-pub const MAX_SAMPLES_PER_PIXEL: u32 = 1 << 20;
+pub(crate) const MAX_SAMPLES_PER_PIXEL: u32 = 1 << 20;
 /// Most bounces accepted.
 pub const MAX_BOUNCES: u32 = 64;
 
 /// Radius of the figure spheres in scene units (mm): about the size of the
 /// default scene's 10 × 8 mm stone, so the studio's key light (1.5 mm at
 /// ≈ 24 mm) and ground look the same on both.
-pub const SPHERE_RADIUS_MM: f64 = 4.0;
+pub(crate) const SPHERE_RADIUS_MM: f64 = 4.0;
 
 /// Layer thicknesses of figure 3.2, as listed in its caption.
 pub const FIGURE_3_2_THICKNESSES: [f64; 12] =
@@ -71,44 +71,44 @@ pub const FIGURE_3_2_THICKNESSES: [f64; 12] =
 /// to orange (d = 3–5, green falls) and a dark red-brown (d = 15: red keeps
 /// `exp(−1.5)` ≈ 0.22): the notes' "progressive changes in colour,
 /// saturation and hue".
-pub const FIGURE_3_2_ABSORPTION: [f64; 3] = [0.05, 0.1, 0.9];
+pub(crate) const FIGURE_3_2_ABSORPTION: [f64; 3] = [0.05, 0.1, 0.9];
 
 /// Diffuse reflectance of figure 3.2's "white" base: a white paint's, with
 /// headroom below 1 so the tone curve keeps the colour at d = 0 visible.
-pub const FIGURE_3_2_BASE_WHITE: f64 = 0.8;
+pub(crate) const FIGURE_3_2_BASE_WHITE: f64 = 0.8;
 
 /// The two materials of figure 4.3 with what the notes call them:
 /// blue metallic paint (4.11i, frosted metal: a rough 17° varnish over a
 /// 1° aluminium) and silver paint (4.11e, patina: a 7° varnish over a 10°
 /// silver), effective roughness 17° both (section 4.2.6).
-pub const FIGURE_4_3_MATERIALS: [(&str, &str); 2] = [
+pub(crate) const FIGURE_4_3_MATERIALS: [(&str, &str); 2] = [
     ("blue-metallic-paint", "frosted metal (4.11i): one lobe"),
     ("silver-paint", "patina (4.11e): two lobes"),
 ];
 
 /// Incidence angle of figure 4.3's BRDF slices, degrees from the normal.
-pub const FIGURE_4_3_INCIDENCE_DEG: f64 = 30.0;
+pub(crate) const FIGURE_4_3_INCIDENCE_DEG: f64 = 30.0;
 
 /// Background of the sheets.
-pub const SHEET_BACKGROUND: Rgb<u8> = Rgb([22, 24, 30]);
+pub(crate) const SHEET_BACKGROUND: Rgb<u8> = Rgb([22, 24, 30]);
 /// The one-pixel frame drawn around every tile's image: a colour no label
 /// uses, so a program can find the tiles by their frames.
 pub const FRAME_COLOUR: Rgb<u8> = Rgb([92, 98, 118]);
 /// Colour of a tile's first label line (the name) and of the title.
-pub const NAME_COLOUR: Rgb<u8> = Rgb([232, 232, 238]);
+pub(crate) const NAME_COLOUR: Rgb<u8> = Rgb([232, 232, 238]);
 /// Colour of a tile's further label lines.
-pub const CAPTION_COLOUR: Rgb<u8> = Rgb([150, 156, 172]);
+pub(crate) const CAPTION_COLOUR: Rgb<u8> = Rgb([150, 156, 172]);
 
 /// Side of a gem thumbnail on the contact sheet at most, pixels.
-pub const THUMBNAIL_MAX_PX: u32 = 256;
+pub(crate) const THUMBNAIL_MAX_PX: u32 = 256;
 /// Smallest side of a figure sphere, pixels: small enough to be quick,
 /// large enough that the label under it fits and a sphere has a centre.
-pub const MIN_SPHERE_PX: u32 = 48;
+pub(crate) const MIN_SPHERE_PX: u32 = 48;
 /// Narrowest tile: room for 24 label characters at text scale 1 (the
 /// longest library name, `blue-metallic-car-paint`, has 23).
-pub const MIN_CELL_WIDTH_PX: u32 = 192;
+pub(crate) const MIN_CELL_WIDTH_PX: u32 = 192;
 /// Space between tiles and around the sheet, pixels.
-pub const GUTTER_PX: u32 = 12;
+pub(crate) const GUTTER_PX: u32 = 12;
 
 /// Why a picture could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -136,11 +136,11 @@ pub enum FigureError {
 /// How to render the gallery's images.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct GallerySettings {
-    /// Side of each gem image, pixels (1 to [`MAX_SIZE_PX`]). The figures
+    /// Side of each gem image, pixels (1 to `MAX_SIZE_PX`). The figures
     /// scale with it: spheres of `size_px / 5` (figures 4.11, 3.2) and
-    /// `size_px / 2` (figure 4.3), at least [`MIN_SPHERE_PX`].
+    /// `size_px / 2` (figure 4.3), at least `MIN_SPHERE_PX`.
     pub size_px: u32,
-    /// Samples per pixel (1 to [`MAX_SAMPLES_PER_PIXEL`]).
+    /// Samples per pixel (1 to `MAX_SAMPLES_PER_PIXEL`).
     pub samples_per_pixel: u32,
     /// Seed of the sample pattern (the gems keep their recipe seeds).
     pub seed: u64,
@@ -187,13 +187,13 @@ impl GallerySettings {
     }
 
     /// Side of a sphere of figures 4.11 and 3.2, pixels.
-    pub fn small_sphere_px(&self) -> u32 {
+    pub(crate) fn small_sphere_px(&self) -> u32 {
         // A fifth keeps the 24-sphere figure 4.11 near 1 MB as a PNG at 768.
         (self.size_px / 5).max(MIN_SPHERE_PX)
     }
 
     /// Side of a sphere of figure 4.3 (a magnification), pixels.
-    pub fn large_sphere_px(&self) -> u32 {
+    pub(crate) fn large_sphere_px(&self) -> u32 {
         (self.size_px / 2).max(MIN_SPHERE_PX)
     }
 }
@@ -226,7 +226,7 @@ fn film_settings(side_px: u32, settings: &GallerySettings) -> FilmSettings {
 
 /// Compiles gem recipe `source` with the recipe's seed; with `draft`
 /// every material without its compensation table.
-pub fn compile_gem_draft_or_final(
+pub(crate) fn compile_gem_draft_or_final(
     source: &GemSource,
     draft: bool,
     cache: &TableCache,
@@ -241,7 +241,7 @@ pub fn compile_gem_draft_or_final(
 
 /// Loads and compiles library material (or material file) `spec`; with
 /// `draft`, without its compensation table.
-pub fn compile_material_spec(
+pub(crate) fn compile_material_spec(
     spec: &str,
     draft: bool,
     cache: &TableCache,
@@ -276,7 +276,7 @@ pub fn render_gem(
 /// The first sentence of `text`: up to the first `.`, `!` or `?` followed
 /// by white space or the end (so "section 4.3.1" does not end it), with
 /// runs of white space made single spaces.
-pub fn first_sentence(text: &str) -> String {
+pub(crate) fn first_sentence(text: &str) -> String {
     let words: Vec<&str> = text.split_whitespace().collect();
     let mut out = Vec::new();
     for word in words {
@@ -291,7 +291,7 @@ pub fn first_sentence(text: &str) -> String {
 /// A sphere of radius `radius_mm` as a cabochon: round outline of diameter
 /// 2r, elliptical dome (profile exponent 2) of height r, no girdle band, a
 /// domed back of depth r. The object-space origin is the sphere's centre.
-pub fn sphere_shape(radius_mm: f64) -> CabochonParams {
+pub(crate) fn sphere_shape(radius_mm: f64) -> CabochonParams {
     CabochonParams {
         outline: Outline::Round,
         length: 2.0 * radius_mm,
@@ -321,7 +321,7 @@ const SPHERE_CAMERA_AZIMUTH_DEG: f64 = -90.0;
 /// one sphere of `radius_mm` resting on the ground, filmed by a camera
 /// aimed at the sphere's centre, so the centre of the image is the centre
 /// of the sphere.
-pub fn sphere_scene(radius_mm: f64) -> Scene {
+pub(crate) fn sphere_scene(radius_mm: f64) -> Scene {
     let mut scene = default_scene();
     let ground = scene.ground.as_ref().map_or(0.0, |g| g.height);
     let centre = DVec3::new(0.0, 0.0, ground + radius_mm);
@@ -409,7 +409,7 @@ impl Studio {
 
 /// A gem recipe whose whole surface is library material `material`
 /// (library names need no inline material).
-pub fn library_sphere_gem(material: &str) -> String {
+pub(crate) fn library_sphere_gem(material: &str) -> String {
     format!(
         "Gem(name: \"{material}\", description: \"a sphere of {material}\", seed: 1, surface: \"{material}\")"
     )
@@ -419,7 +419,7 @@ pub fn library_sphere_gem(material: &str) -> String {
 /// varnish of IOR 1.5 (the notes' usual varnish, section 4.2) with the
 /// yellow absorption [`FIGURE_3_2_ABSORPTION`] and thickness
 /// `thickness`, over a white Lambertian base.
-pub fn varnish_sphere_gem(thickness: f64) -> String {
+pub(crate) fn varnish_sphere_gem(thickness: f64) -> String {
     let [r, g, b] = FIGURE_3_2_ABSORPTION;
     let w = FIGURE_3_2_BASE_WHITE;
     format!(
@@ -487,7 +487,7 @@ pub fn figure_4_11(
 }
 
 /// Figure 3.2: white diffuse spheres under the yellow varnish of
-/// [`varnish_sphere_gem`] at the caption's thicknesses, labelled
+/// `varnish_sphere_gem` at the caption's thicknesses, labelled
 /// `d = thickness`, six to a row.
 pub fn figure_3_2(settings: &GallerySettings, cache: &TableCache) -> Result<RgbImage, FigureError> {
     let recipes: Vec<(String, String)> = FIGURE_3_2_THICKNESSES
@@ -512,7 +512,7 @@ pub fn figure_3_2(settings: &GallerySettings, cache: &TableCache) -> Result<RgbI
 
 /// The in-plane slice `f(ωi, ωo)·cosθo` of `brdf` at incidence
 /// `incidence_deg`, light on the φ = 180° side (as `lapidary brdf -o`).
-pub fn in_plane_slice(brdf: &LayeredBrdf, incidence_deg: f64) -> PolarPanel {
+pub(crate) fn in_plane_slice(brdf: &LayeredBrdf, incidence_deg: f64) -> PolarPanel {
     let wi = direction_from_degrees(incidence_deg, 180.0);
     let mut curves: [Vec<(f64, f64)>; 3] = Default::default();
     for step in 0..=720 {
@@ -530,8 +530,8 @@ pub fn in_plane_slice(brdf: &LayeredBrdf, incidence_deg: f64) -> PolarPanel {
     }
 }
 
-/// Figure 4.3: the two materials of [`FIGURE_4_3_MATERIALS`] on larger
-/// spheres, each over its BRDF slice at [`FIGURE_4_3_INCIDENCE_DEG`]: the
+/// Figure 4.3: the two materials of `FIGURE_4_3_MATERIALS` on larger
+/// spheres, each over its BRDF slice at `FIGURE_4_3_INCIDENCE_DEG`: the
 /// frosted metal's single highlight lobe against the patina's sharp lobe
 /// on a broad one.
 pub fn figure_4_3(settings: &GallerySettings, cache: &TableCache) -> Result<RgbImage, FigureError> {
@@ -577,7 +577,7 @@ fn stack_vertically(top: &RgbImage, bottom: &RgbImage) -> RgbImage {
 }
 
 /// The gallery's contact sheet: every gem's render scaled to at most
-/// [`THUMBNAIL_MAX_PX`], with its name and the first sentence of its
+/// `THUMBNAIL_MAX_PX`, with its name and the first sentence of its
 /// description, four to a row.
 pub fn gem_sheet(gems: &[GemPicture]) -> RgbImage {
     let tiles: Vec<Tile> = gems
@@ -619,7 +619,7 @@ pub fn encode_png_compact(image: &RgbImage) -> Result<Vec<u8>, image::ImageError
 
 /// One picture of a sheet with the words under it.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Tile {
+pub(crate) struct Tile {
     /// The picture.
     pub image: RgbImage,
     /// Its label: the first line in [`NAME_COLOUR`], the others (wrapped to
@@ -629,7 +629,7 @@ pub struct Tile {
 
 /// Where everything of a contact sheet goes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct SheetLayout {
+pub(crate) struct SheetLayout {
     /// Tiles per row.
     pub columns: u32,
     /// Rows of tiles.
@@ -653,17 +653,17 @@ const LINE_GAP_PX: u32 = 3;
 
 impl SheetLayout {
     /// Height of the title band above the tiles.
-    pub fn title_height_px(&self) -> u32 {
+    pub(crate) fn title_height_px(&self) -> u32 {
         GUTTER_PX + text_height(self.text_scale)
     }
 
     /// Height of one label line with its gap.
-    pub fn line_height_px(&self) -> u32 {
+    pub(crate) fn line_height_px(&self) -> u32 {
         text_height(self.text_scale) + LINE_GAP_PX * self.text_scale
     }
 
     /// Height of one row: image, a gap, the label lines.
-    pub fn row_height_px(&self) -> u32 {
+    pub(crate) fn row_height_px(&self) -> u32 {
         self.image_height_px
             + LINE_GAP_PX * self.text_scale
             + self.label_lines * self.line_height_px()
@@ -678,7 +678,7 @@ impl SheetLayout {
     }
 
     /// Top-left corner of tile `index`'s cell (reading order).
-    pub fn cell_origin_px(&self, index: u32) -> (u32, u32) {
+    pub(crate) fn cell_origin_px(&self, index: u32) -> (u32, u32) {
         let (column, row) = (index % self.columns, index / self.columns);
         (
             GUTTER_PX + column * (self.cell_width_px + GUTTER_PX),
@@ -687,7 +687,7 @@ impl SheetLayout {
     }
 
     /// Characters of label that fit on one line of a cell.
-    pub fn chars_per_line(&self) -> usize {
+    pub(crate) fn chars_per_line(&self) -> usize {
         (self.cell_width_px / text_width("m", self.text_scale).max(1)) as usize
     }
 }
@@ -757,7 +757,7 @@ fn label_lines(tile: &Tile, chars_per_line: usize) -> Vec<(String, bool)> {
 }
 
 /// The layout [`contact_sheet`] uses for `tiles` at most `columns` wide.
-pub fn sheet_layout(tiles: &[Tile], columns: u32) -> SheetLayout {
+pub(crate) fn sheet_layout(tiles: &[Tile], columns: u32) -> SheetLayout {
     let count = u32::try_from(tiles.len()).unwrap_or(u32::MAX);
     let columns = columns.clamp(1, count.max(1));
     let image_width = tiles.iter().map(|t| t.image.width() + 2).max().unwrap_or(0);
@@ -788,7 +788,7 @@ pub fn sheet_layout(tiles: &[Tile], columns: u32) -> SheetLayout {
 /// Tiles `tiles` in reading order, at most `columns` to a row, under
 /// `title`: each image centred in its cell inside a one-pixel
 /// [`FRAME_COLOUR`] frame, its label lines centred under it.
-pub fn contact_sheet(title: &str, tiles: &[Tile], columns: u32) -> RgbImage {
+pub(crate) fn contact_sheet(title: &str, tiles: &[Tile], columns: u32) -> RgbImage {
     let layout = sheet_layout(tiles, columns);
     let (width, height) = layout.size_px();
     let mut sheet = RgbImage::from_pixel(width, height, SHEET_BACKGROUND);

@@ -39,7 +39,7 @@
 //! Round and oval stones with p = 2 are intersected exactly (quadratics for
 //! the dome, the band's elliptic cylinder and the base ellipsoid). All other
 //! stones use monotone Newton iteration on `N − 1` along the ray, stopped when
-//! a step is below `1e-12 × size` (at most [`MAX_NEWTON_STEPS`]); hit points
+//! a step is below `1e-12 × size` (at most `MAX_NEWTON_STEPS`); hit points
 //! lie within about `1e-9 × size` of the surface, on its outside. Normals are
 //! the normalised analytic gradient of `N`, smooth everywhere except at the
 //! points of a pear or marquise and along the rims of a buff top or flat base.
@@ -111,7 +111,7 @@ pub const PROFILE_EXPONENT_RANGE: (f64, f64) = (1.0, 16.0);
 
 /// Upper bound on Newton steps per root; a ray that has not converged by
 /// then grazes the stone and is reported as a miss.
-pub const MAX_NEWTON_STEPS: usize = 64;
+pub(crate) const MAX_NEWTON_STEPS: usize = 64;
 
 /// A ray–stone intersection in object space.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -141,7 +141,7 @@ enum Side {
 /// Largest extent of a stone (length, width, or height from base to top), in
 /// object units (mm in a scene): the BVH over stones is built in f32, where
 /// 1e300 is infinite and the build panics.
-pub const MAX_SIZE: f64 = 1e5;
+pub(crate) const MAX_SIZE: f64 = 1e5;
 
 /// A validated, analytic cabochon solid (see the module docs for the
 /// geometry and accuracy).
@@ -262,7 +262,7 @@ impl Cabochon {
 
     /// Whether the stone is a flat-backed oval (round/oval outline, profile
     /// exponent 2, flat base, any girdle band and buff top), intersected by
-    /// [`Self::intersect_flat_oval`].
+    /// `intersect_flat_oval`.
     pub fn is_flat_oval(&self) -> bool {
         self.flat_oval
     }
@@ -373,7 +373,7 @@ impl Cabochon {
     /// `dir` need not be normalised. Chords shorter than `1e-8 × size`
     /// (grazing rays) count as misses, so hits always come in entry/exit
     /// pairs. A flat-backed oval (round/oval, p = 2, flat base) takes
-    /// [`Self::intersect_flat_oval`]; every other stone
+    /// `intersect_flat_oval`; every other stone
     /// [`Self::intersect_general`].
     #[inline(always)]
     pub fn intersect(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> Option<Hit> {
@@ -430,7 +430,7 @@ impl Cabochon {
     /// `1e-12 × size` tolerance in z lets a root of the other patch stand in
     /// at a rim, and in the last bits of the normal.
     #[inline(always)]
-    pub fn intersect_flat_oval(
+    pub(crate) fn intersect_flat_oval(
         &self,
         origin: DVec3,
         dir: DVec3,

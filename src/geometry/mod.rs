@@ -10,9 +10,9 @@
 
 #![deny(missing_docs)]
 
-pub mod cabochon;
-pub mod error;
-pub mod outline;
+pub(crate) mod cabochon;
+pub(crate) mod error;
+pub(crate) mod outline;
 
 pub use cabochon::{Base, Cabochon, CabochonParams, Hit, PROFILE_EXPONENT_RANGE};
 pub use error::GeometryError;

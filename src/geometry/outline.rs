@@ -189,7 +189,7 @@ impl Footprint {
     /// point) and on the symmetry axis of a point (where `|y|` has a kink) a
     /// one-sided value is returned. Callers multiply it by `p·s^(p−1)`, which
     /// vanishes at the centre.
-    pub fn gauge_and_gradient(&self, x: f64, y: f64) -> (f64, DVec2) {
+    pub(crate) fn gauge_and_gradient(&self, x: f64, y: f64) -> (f64, DVec2) {
         let (ia, ib) = (self.inv_half.x, self.inv_half.y);
         match self.outline {
             Outline::Round | Outline::Oval => {

@@ -5,7 +5,7 @@
 //! most portable layout, which Nuke, Blender, `exrheader` and the `exr`
 //! crate all read as layers named by the prefix. Samples are stored exactly
 //! (32-bit float or unsigned int) with ZIP compression of each scan line
-//! (OpenEXR's `ZIPS`, at zlib level 1: [`super::exr_zip`]), so a round
+//! (OpenEXR's `ZIPS`, at zlib level 1: `exr_zip`), so a round
 //! trip is bit-exact.
 //!
 //! The file is encoded in memory and written with

@@ -22,12 +22,12 @@ use miniz_oxide::deflate::core::{
 };
 
 /// The zlib level of every block.
-pub const ZLIB_LEVEL: u8 = 1;
+pub(crate) const ZLIB_LEVEL: u8 = 1;
 
 /// The stored bytes of one block whose raw little-endian bytes are
 /// `raw_le`: the compressed form, or `raw_le` itself when that is not
 /// smaller.
-pub fn encode_block(raw_le: &[u8]) -> Vec<u8> {
+pub(crate) fn encode_block(raw_le: &[u8]) -> Vec<u8> {
     // Loops over whole slices without a dependency from one byte to the
     // next, so that they vectorise (a third of the time of byte-by-byte
     // loops).

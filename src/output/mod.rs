@@ -2,7 +2,7 @@
 //! goes to a temporary file beside the target, which is then renamed over it.
 
 pub mod exr;
-pub mod exr_zip;
+pub(crate) mod exr_zip;
 pub mod tonemap;
 
 use std::io::Write;
@@ -57,7 +57,7 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
 /// the temporary sibling, which is synced and renamed over `path` only if
 /// `write` succeeds; on any error it is removed and `path` is untouched.
 /// `write`'s error message becomes the [`OutputError`]'s.
-pub fn write_atomically_with(
+pub(crate) fn write_atomically_with(
     path: &Path,
     write: impl FnOnce(&mut std::fs::File) -> Result<(), String>,
 ) -> Result<(), OutputError> {

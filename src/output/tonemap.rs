@@ -9,7 +9,7 @@
 //!    plain clamp to `[0, 1]` ([`ToneCurve::Linear`]);
 //! 3. sRGB encoding: [`srgb_encode`], the IEC 61966-2-1 OETF;
 //! 4. quantisation to 8 bits with a deterministic dither of less than half a
-//!    code ([`dither_offset_lsb`]), which turns the banding of smooth
+//!    code (`dither_offset_lsb`), which turns the banding of smooth
 //!    gradients into unbiased, invisible noise.
 //!
 //! The curve is applied per channel, not on luminance. Per channel, a very
@@ -163,7 +163,8 @@ fn quantize_u8(encoded: f64, offset_lsb: f64) -> u8 {
 /// with full avalanche), so neighbouring pixels and channels get
 /// independent offsets (white noise, no visible pattern) and the result does
 /// not depend on thread count or tile order.
-pub fn dither_offset_lsb(x: u32, y: u32, channel: u32, seed: u64) -> f64 {
+#[cfg(test)]
+pub(crate) fn dither_offset_lsb(x: u32, y: u32, channel: u32, seed: u64) -> f64 {
     channel_dither_offset_lsb(dither_pixel_hash(x, y, seed), channel)
 }
 
@@ -201,12 +202,12 @@ const SRGB_TABLE_MARGIN: f64 = 1e-9;
 /// quantisation sum `255·encoded + 0.5 + offset` of `quantize_u8` at the
 /// interval ends, plus 1 so that every bracket is positive (see
 /// [`SrgbCodeTable::code`]).
-pub struct SrgbCodeTable {
+pub(crate) struct SrgbCodeTable {
     shifted_codes: Vec<f64>,
 }
 
 /// The table, built once per process (4097 `powf`).
-pub fn srgb_code_table() -> &'static SrgbCodeTable {
+pub(crate) fn srgb_code_table() -> &'static SrgbCodeTable {
     static TABLE: std::sync::OnceLock<SrgbCodeTable> = std::sync::OnceLock::new();
     TABLE.get_or_init(|| SrgbCodeTable {
         shifted_codes: (0..=SRGB_TABLE_INTERVALS)

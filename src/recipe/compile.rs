@@ -20,7 +20,7 @@ pub fn parse_material(path: &str, source: &str) -> Result<Material, RecipeError>
 }
 
 /// Turn a RON error into a [`RecipeError`] a person can act on.
-pub fn ron_error(path: &str, source: &str, e: ron::error::SpannedError) -> RecipeError {
+pub(crate) fn ron_error(path: &str, source: &str, e: ron::error::SpannedError) -> RecipeError {
     use ron::error::Error as E;
     let (line, col) = (e.span.start.line, e.span.start.col);
     let message = match &e.code {
@@ -129,7 +129,7 @@ pub fn load_material(spec: &str) -> Result<LayeredBrdf, RecipeError> {
 
 /// [`load_material`] without the compensation table, and whether the
 /// material asks for one (`multiple_scattering`), for callers that compute
-/// several tables together (see [`compile_material_without_table`]).
+/// several tables together (see `compile_material_without_table`).
 pub fn load_material_without_table(spec: &str) -> Result<(LayeredBrdf, bool), RecipeError> {
     let source = locate_material(spec)?;
     let material = parse_material(&source.path, &source.text)?;
@@ -196,7 +196,7 @@ pub fn compile_material(source: &MaterialSource, m: &Material) -> Result<Layered
 /// [`compile_material`] without the compensation table, for callers that
 /// compute the tables of several materials together
 /// ([`crate::recipe::TableCache::compensations`] with [`COMPENSATION_SEED`]).
-pub fn compile_material_without_table(
+pub(crate) fn compile_material_without_table(
     source: &MaterialSource,
     m: &Material,
 ) -> Result<LayeredBrdf, RecipeError> {

@@ -34,7 +34,7 @@ impl RecipeError {
     }
 
     /// An error at the first place `needle` is written in `source` as code
-    /// ([`find_in_code`]: not in a comment; a quoted needle as a whole string
+    /// (`find_in_code`: not in a comment; a quoted needle as a whole string
     /// literal, any other not inside one), else at its first occurrence
     /// anywhere, else about the whole file; for problems found after parsing.
     pub fn at_text(path: &str, source: &str, needle: &str, message: impl Into<String>) -> Self {
@@ -60,7 +60,7 @@ impl fmt::Display for RecipeError {
 impl std::error::Error for RecipeError {}
 
 /// 1-based line and column of the `nth` (0-based) occurrence of `needle`.
-pub fn find_position(source: &str, needle: &str, nth: usize) -> Option<(usize, usize)> {
+pub(crate) fn find_position(source: &str, needle: &str, nth: usize) -> Option<(usize, usize)> {
     let offset = source.match_indices(needle).nth(nth)?.0;
     Some(line_col_of_offset(source, offset))
 }
@@ -69,7 +69,7 @@ pub fn find_position(source: &str, needle: &str, nth: usize) -> Option<(usize, u
 /// literals blanked to spaces (the quotes kept), byte for byte, so that
 /// offsets (and the original text's line:col) stay valid: names and
 /// brackets in comments and strings do not count when searching it.
-pub fn blank_comments_and_strings(text: &str) -> Vec<u8> {
+pub(crate) fn blank_comments_and_strings(text: &str) -> Vec<u8> {
     let bytes = text.as_bytes();
     let n = bytes.len();
     let mut code = bytes.to_vec();
@@ -110,7 +110,7 @@ pub fn blank_comments_and_strings(text: &str) -> Vec<u8> {
 /// whole string literal, and preferably one that is a value (a reference
 /// to the name) rather than a map key (`"gold": …`, its definition); any
 /// other needle (`surface`) only outside string literals.
-pub fn find_in_code(source: &str, needle: &str) -> Option<usize> {
+pub(crate) fn find_in_code(source: &str, needle: &str) -> Option<usize> {
     let code = blank_comments_and_strings(source);
     let quoted = needle.len() >= 2 && needle.starts_with('"') && needle.ends_with('"');
     let mut key = None;
@@ -157,7 +157,7 @@ pub fn line_col_of_offset(source: &str, offset: usize) -> (usize, usize) {
 /// The name of the field whose value starts at or before (line, col): the
 /// last `identifier:` in the text up to that point. RON's type errors
 /// ("Expected float") do not name the field; this recovers it.
-pub fn field_before(source: &str, line: usize, col: usize) -> Option<String> {
+pub(crate) fn field_before(source: &str, line: usize, col: usize) -> Option<String> {
     let mut offset = 0;
     for (k, text) in source.split_inclusive('\n').enumerate() {
         if k + 1 == line {

@@ -2,7 +2,7 @@
 //! naming `gold` works from any folder.
 
 /// (name, RON source) of every file in `gem-recipes/materials/`.
-pub const BUILTIN_MATERIALS: &[(&str, &str)] = &[
+pub(crate) const BUILTIN_MATERIALS: &[(&str, &str)] = &[
     (
         "acrylic-lacquer",
         include_str!("../../gem-recipes/materials/acrylic-lacquer.ron"),

@@ -7,7 +7,7 @@ pub mod error;
 pub mod gem;
 pub mod library;
 pub mod material;
-pub mod ranges;
+pub(crate) mod ranges;
 pub mod table_cache;
 
 pub use compile::{load_material, locate_material, parse_material};

@@ -23,7 +23,7 @@ pub fn checked<'de, D: Deserializer<'de>>(
 }
 
 /// Parse an RGB triple, each component checked (public like [`checked`]).
-pub fn checked_rgb<'de, D: Deserializer<'de>>(
+pub(crate) fn checked_rgb<'de, D: Deserializer<'de>>(
     d: D,
     field: &str,
     allowed: &str,

@@ -32,7 +32,7 @@ use std::sync::{Mutex, OnceLock};
 
 /// Version of the on-disk format (and of the way tables are computed, as
 /// far as the program's identity does not already cover it).
-pub const DISK_FORMAT_VERSION: u32 = 1;
+pub(crate) const DISK_FORMAT_VERSION: u32 = 1;
 
 /// Compensation tables computed so far, in memory and optionally on disk.
 #[derive(Default)]
@@ -84,7 +84,10 @@ impl TableCache {
     /// ([`Compensation::compute_many_reusing`]), each distinct one once.
     /// Bare Lambert surfaces ([`needs_no_table`]) need no table and touch
     /// neither memory nor disk.
-    pub fn compensations(&self, requests: &[(&LayeredBrdf, u64)]) -> Vec<Option<Compensation>> {
+    pub(crate) fn compensations(
+        &self,
+        requests: &[(&LayeredBrdf, u64)],
+    ) -> Vec<Option<Compensation>> {
         let keys: Vec<Option<String>> = requests
             .iter()
             .map(|(brdf, seed)| (!needs_no_table(brdf)).then(|| material_key(brdf, *seed)))

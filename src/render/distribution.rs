@@ -296,16 +296,6 @@ impl Distribution2D {
         // p(v) p(u|v) = (I_row / I) (f / I_row) = f / I.
         row.func[row.bin(uv.x)] / self.marginal.integral
     }
-
-    /// Probability of the whole cell `(col, row)`: its weight over the sum
-    /// of all weights (what a histogram of samples should find there).
-    pub fn cell_probability(&self, col: usize, row: usize) -> f64 {
-        let (w, h) = (self.width(), self.height());
-        if col >= w || row >= h {
-            return 0.0;
-        }
-        self.conditional[row].func[col] / (self.marginal.integral * (w * h) as f64)
-    }
 }
 
 /// The bin `⌊scaled⌋` of `scaled = x n`, clamped into `0..n` (NaN and

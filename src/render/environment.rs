@@ -44,9 +44,9 @@ use crate::brdf::Rgb;
 use crate::sampling::sin_cos_turns;
 
 /// Largest accepted map width in texels (a 16K panorama).
-pub const MAX_MAP_WIDTH: usize = 16384;
+pub(crate) const MAX_MAP_WIDTH: usize = 16384;
 /// Largest accepted map height in texels.
-pub const MAX_MAP_HEIGHT: usize = 8192;
+pub(crate) const MAX_MAP_HEIGHT: usize = 8192;
 /// Width of the baked studio map: 0.35° texels keep soft-box edges crisp.
 pub const STUDIO_WIDTH: usize = 1024;
 /// Height of the baked studio map.
@@ -110,7 +110,7 @@ pub enum EnvironmentError {
         /// Height found.
         height: usize,
     },
-    /// A map beyond [`MAX_MAP_WIDTH`] × [`MAX_MAP_HEIGHT`].
+    /// A map beyond `MAX_MAP_WIDTH` × `MAX_MAP_HEIGHT`.
     #[error(
         "environment map {origin}: image is {width}×{height} texels, larger than the \
          {MAX_MAP_WIDTH}×{MAX_MAP_HEIGHT} limit; loading it would need about {mebibytes} MiB \
@@ -251,7 +251,7 @@ impl Environment {
     /// crate; alpha is ignored), scales it by `intensity` and turns it by
     /// `rotation_deg`. Every failure is an [`EnvironmentError`] naming the
     /// file: missing, unreadable, corrupt, wrong extension, empty, larger
-    /// than [`MAX_MAP_WIDTH`] × [`MAX_MAP_HEIGHT`], or a NaN, infinite or
+    /// than `MAX_MAP_WIDTH` × `MAX_MAP_HEIGHT`, or a NaN, infinite or
     /// negative texel.
     pub fn from_file(
         path: &Path,
@@ -477,7 +477,7 @@ impl EnvironmentMap {
 
     /// Map coordinates `(u, v) ∈ [0, 1)²` of a world direction (after
     /// undoing the rotation); `None` for a zero or non-finite direction.
-    pub fn direction_to_uv(&self, direction: DVec3) -> Option<DVec2> {
+    pub(crate) fn direction_to_uv(&self, direction: DVec3) -> Option<DVec2> {
         let len = direction.length();
         if !(len.is_finite() && len > 0.0) {
             return None;
@@ -490,13 +490,7 @@ impl EnvironmentMap {
         Some(DVec2::new(u, v))
     }
 
-    /// Unit world direction of map coordinates `uv` (θ = πv, φ = 2πu +
-    /// rotation).
-    pub fn uv_to_direction(&self, uv: DVec2) -> DVec3 {
-        self.uv_to_direction_and_sin_theta(uv).0
-    }
-
-    /// [`Self::uv_to_direction`] and sinθ, by the polynomial
+    /// The direction of map coordinates `uv` and its sinθ, by the polynomial
     /// [`sin_cos_turns`] (to within 3·10⁻¹⁴, several times cheaper than
     /// libm's `sin_cos`; one light sample of a map needs two).
     fn uv_to_direction_and_sin_theta(&self, uv: DVec2) -> (DVec3, f64) {
@@ -599,7 +593,7 @@ fn per_solid_angle(pdf_uv: f64, sin_theta: f64) -> f64 {
 
 /// Side in texels of the square blocks the environment is importance-
 /// sampled by: the largest power of two dividing both sides that keeps the
-/// sampling grid at least [`SAMPLING_GRID_WIDTH`] × [`SAMPLING_GRID_WIDTH`]/2.
+/// sampling grid at least `SAMPLING_GRID_WIDTH` × `SAMPLING_GRID_WIDTH`/2.
 /// A 1024 × 512 map (the studio) is sampled by 4 × 4 blocks: its 256 × 128
 /// grid's tables (≈ 0.6 MB) stay in cache where the per-texel ones (≈ 10 MB)
 /// made every light sample wait on memory (a fifth of a studio render).
@@ -619,7 +613,7 @@ pub fn sampling_block(width: usize, height: usize) -> usize {
 }
 
 /// Smallest sampling-grid width [`sampling_block`] coarsens to.
-pub const SAMPLING_GRID_WIDTH: usize = 256;
+pub(crate) const SAMPLING_GRID_WIDTH: usize = 256;
 
 /// Rec. 709 / sRGB luminance of linear RGB, the importance of a texel.
 pub fn luminance(c: Rgb) -> f64 {

@@ -1,7 +1,7 @@
 //! The film: every pixel's samples, filtered, averaged, with its AOVs.
 //!
 //! Pixels are independent: pixel (x, y) draws its samples from
-//! [`SampleStream`](crate::render::sampler::SampleStream)s keyed by (seed, pixel, sample), so rows can be
+//! `SampleStream`s keyed by (seed, pixel, sample), so rows can be
 //! rendered by any thread in any order and the result is the same bytes.
 //! The reconstruction filter is a tent of radius one pixel, applied by
 //! filter importance sampling (each sample's film position is drawn from

@@ -20,7 +20,7 @@ use crate::sampling::cosine_hemisphere;
 /// Length in texture space of one scene unit: recipes write cell sizes in
 /// centimetres of stone (a 10 mm stone is one texture unit long), scenes
 /// write stones in millimetres.
-pub const TEXTURE_UNITS_PER_SCENE_UNIT: f64 = 0.1;
+pub(crate) const TEXTURE_UNITS_PER_SCENE_UNIT: f64 = 0.1;
 
 /// Everything the integrator reads.
 pub struct RenderScene {
@@ -48,8 +48,8 @@ pub struct RenderScene {
 
 /// `material_id` AOV values: 0 is the background, 1 the ground, stones'
 /// materials count from 2.
-pub const MATERIAL_ID_GROUND: u32 = 1;
-/// See [`MATERIAL_ID_GROUND`].
+pub(crate) const MATERIAL_ID_GROUND: u32 = 1;
+/// See `MATERIAL_ID_GROUND`.
 pub const MATERIAL_ID_FIRST_STONE: u32 = 2;
 
 /// What the camera ray met first (the AOVs of one sample).
@@ -66,7 +66,7 @@ pub struct FirstHit {
     pub surface_cell: u32,
     /// True when a glitter flake was hit.
     pub glitter: bool,
-    /// See [`MATERIAL_ID_GROUND`].
+    /// See `MATERIAL_ID_GROUND`.
     pub material_id: u32,
     /// 1 if the ambient-occlusion ray escaped, 0 if it was blocked (its
     /// mean is the unoccluded, cosine-weighted fraction of the hemisphere);
@@ -130,10 +130,9 @@ pub struct RayCounts {
 }
 
 /// The power heuristic with exponent 2 for a strategy of density `pdf_a`
-/// against one of density `pdf_b` (Veach 1997, eq. 9.13). Inlined: the
-/// lane loops of [`crate::render::ground_paths`] compile it to a blend.
+/// against one of density `pdf_b` (Veach 1997, eq. 9.13).
 #[inline(always)]
-pub fn power_heuristic(pdf_a: f64, pdf_b: f64) -> f64 {
+pub(crate) fn power_heuristic(pdf_a: f64, pdf_b: f64) -> f64 {
     let a = pdf_a * pdf_a;
     let b = pdf_b * pdf_b;
     if a + b <= 0.0 {
@@ -456,7 +455,7 @@ impl RenderScene {
     /// ahead of time (see [`PixelSampler::refill`]).
     ///
     /// [`PixelSampler::refill`]: crate::render::sampler::PixelSampler::refill
-    pub fn first_vertex_pairs(&self) -> u32 {
+    pub(crate) fn first_vertex_pairs(&self) -> u32 {
         let pairs = 2 + self.lights.len() + usize::from(self.samples_environment());
         pairs.min(SOBOL_PAIRS as usize) as u32
     }

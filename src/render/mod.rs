@@ -13,6 +13,6 @@ pub mod film;
 pub mod integrator;
 pub mod lights;
 pub mod prepare;
-pub mod sampler;
-pub mod stone_grid;
+pub(crate) mod sampler;
+pub(crate) mod stone_grid;
 pub mod world;

@@ -117,7 +117,7 @@ pub fn stone_instances(scene: &Scene) -> Result<Vec<StoneInstance>, String> {
 
 /// The environment a scene describes, built (the studio baked, a file
 /// loaded and checked).
-pub fn environment_for_spec(spec: &EnvironmentSpec) -> Result<Environment, String> {
+pub(crate) fn environment_for_spec(spec: &EnvironmentSpec) -> Result<Environment, String> {
     match spec {
         EnvironmentSpec::Constant(radiance) => {
             Environment::try_constant(*radiance).map_err(|e| e.to_string())

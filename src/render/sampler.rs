@@ -1,7 +1,7 @@
 //! Per-pixel sample streams: Owen-scrambled Sobol points for the first
 //! dimensions, hashed random numbers after them.
 //!
-//! The first [`SOBOL_PAIRS`] pairs of dimensions of a pixel's samples (the
+//! The first `SOBOL_PAIRS` pairs of dimensions of a pixel's samples (the
 //! pixel footprint, the first light and BRDF choices) are the 2-D Sobol
 //! (0,2)-sequence, nested-uniform scrambled and with its index shuffled per
 //! pixel and per pair, after Burley, "Practical Hash-based Owen Scrambling"
@@ -11,22 +11,22 @@
 //! stream. Every number is a pure function of (seed, pixel, sample index,
 //! dimension): which thread renders the pixel does not matter.
 //!
-//! The Sobol points are made [`SAMPLE_BATCH`] samples at a time, every pair
-//! at once ([`PixelSampler::batch`]): integer arithmetic on sixteen lanes
+//! The Sobol points are made `SAMPLE_BATCH` samples at a time, every pair
+//! at once (`batch`): integer arithmetic on sixteen lanes
 //! that the compiler turns into vector instructions (AVX2, chosen at run
 //! time on x86-64), the same bits as one point at a time.
 
 use crate::sampling::{mix64, Rng};
 
 /// How many 2-D dimension pairs come from the scrambled Sobol sequence.
-pub const SOBOL_PAIRS: u32 = 6;
+pub(crate) const SOBOL_PAIRS: u32 = 6;
 
 /// The part of every sample stream of one pixel that does not depend on the
 /// sample index: the pixel's seed and the scrambling seeds of its Sobol
 /// pairs. Made once per pixel, so that the two hashes per pair are not
 /// redone for each of the pixel's samples.
 #[derive(Clone, Debug)]
-pub struct PixelSampler {
+pub(crate) struct PixelSampler {
     pixel_seed: u64,
     /// (index shuffle, x, y) scrambling seeds of each Sobol pair.
     pair_seeds: [[u32; 3]; SOBOL_PAIRS as usize],
@@ -50,6 +50,7 @@ impl PixelSampler {
     /// The Sobol points of the pixel's samples `first_sample` to
     /// `first_sample + SAMPLE_BATCH − 1` (wrapping), every pair of each:
     /// one vectorised pass instead of one scalar pass per point drawn.
+    #[cfg(test)]
     pub fn batch(&self, first_sample: u32) -> SampleBatch {
         let mut batch = SampleBatch::default();
         self.refill(&mut batch, first_sample, SAMPLE_BATCH, SOBOL_PAIRS);
@@ -67,7 +68,13 @@ impl PixelSampler {
     /// pay for 16 samples' points. Either way every number drawn is the
     /// same.
     #[inline(always)]
-    pub fn refill(&self, batch: &mut SampleBatch, first_sample: u32, lanes: u32, eager_pairs: u32) {
+    pub(crate) fn refill(
+        &self,
+        batch: &mut SampleBatch,
+        first_sample: u32,
+        lanes: u32,
+        eager_pairs: u32,
+    ) {
         let eager_pairs = eager_pairs.min(SOBOL_PAIRS);
         batch.pixel_seed = self.pixel_seed;
         batch.first_sample = first_sample;
@@ -86,12 +93,12 @@ impl PixelSampler {
 /// points for: sixteen 32-bit lanes, two AVX2 registers (rather than eight
 /// in one register, so that the fixed steps of a batch are shared by more
 /// samples).
-pub const SAMPLE_BATCH: u32 = 16;
+pub(crate) const SAMPLE_BATCH: u32 = 16;
 
 /// Every Sobol pair of [`SAMPLE_BATCH`] consecutive samples of one pixel
 /// (the default is all zeros, to be filled by [`PixelSampler::refill`]).
 #[derive(Clone, Debug, Default)]
-pub struct SampleBatch {
+pub(crate) struct SampleBatch {
     pixel_seed: u64,
     first_sample: u32,
     /// The pixel's scrambling seeds of each pair (for the pairs made when
@@ -106,7 +113,7 @@ pub struct SampleBatch {
 
 impl SampleBatch {
     /// Pair 0 (the pixel footprint) of every lane's sample.
-    pub fn footprints(&self) -> [[f64; 2]; SAMPLE_BATCH as usize] {
+    pub(crate) fn footprints(&self) -> [[f64; 2]; SAMPLE_BATCH as usize] {
         self.points.map(|pairs| pairs[0])
     }
 
@@ -145,7 +152,7 @@ impl SampleStream<'_> {
     /// The next two numbers in [0, 1). Inlined: a call's set-up (the
     /// result through memory, saved registers) is a tenth of its cost.
     #[inline(always)]
-    pub fn next_2d(&mut self) -> [f64; 2] {
+    pub(crate) fn next_2d(&mut self) -> [f64; 2] {
         let pair = self.next_pair;
         self.next_pair += 1;
         if pair < self.eager_pairs {
@@ -171,34 +178,35 @@ impl SampleStream<'_> {
     /// Passes over the next two numbers (those the caller already took
     /// from the batch, as the film does with the footprints).
     #[inline(always)]
-    pub fn skip_2d(&mut self) {
+    pub(crate) fn skip_2d(&mut self) {
         self.next_2d();
     }
 
     /// The next single number in [0, 1) (from the hashed tail, so a lone
     /// dimension never breaks the pairing of the Sobol dimensions).
-    pub fn next_1d(&mut self) -> f64 {
+    pub(crate) fn next_1d(&mut self) -> f64 {
         self.tail.next_f64()
     }
 
     /// An independent generator for optional work (ambient occlusion) whose
     /// numbers must not shift the main stream: turning the option on leaves
     /// the beauty image unchanged.
-    pub fn side_stream(&self, salt: u64) -> Rng {
+    pub(crate) fn side_stream(&self, salt: u64) -> Rng {
         Rng::new(mix64(self.pixel_seed ^ salt), u64::from(self.sample_index))
     }
 
     /// Three numbers for a BRDF sample: a Sobol pair and one more.
     /// Inlined like [`SampleStream::next_2d`].
     #[inline(always)]
-    pub fn next_3d(&mut self) -> [f64; 3] {
+    pub(crate) fn next_3d(&mut self) -> [f64; 3] {
         let [a, b] = self.next_2d();
         [a, b, self.next_1d()]
     }
 }
 
 /// Point `index` of the shuffled, scrambled 2-D Sobol sequence for `seed`.
-pub fn owen_sobol_2d(index: u32, seed: u64) -> [f64; 2] {
+#[cfg(test)]
+pub(crate) fn owen_sobol_2d(index: u32, seed: u64) -> [f64; 2] {
     let (x, y) = owen_sobol_point(index.reverse_bits(), scramble_seeds(seed));
     [to_unit(x), to_unit(y)]
 }
@@ -273,7 +281,8 @@ fn owen_sobol_point(reversed_index: u32, seeds: [u32; 3]) -> (u32, u32) {
 }
 
 /// The first Sobol dimension: the base-2 radical inverse (van der Corput).
-pub fn sobol_dimension_0(index: u32) -> u32 {
+#[cfg(test)]
+pub(crate) fn sobol_dimension_0(index: u32) -> u32 {
     index.reverse_bits()
 }
 
@@ -282,7 +291,8 @@ pub fn sobol_dimension_0(index: u32) -> u32 {
 /// rev(vᵢ) = (1 + x)ⁱ over GF(2) with bit k the coefficient of xᵏ. So
 /// rev(sobol₁(i)) = Σ iₖ (1 + x)ᵏ = `pascal(i)`: the binary Pascal
 /// matrix, five shift-and-XOR steps instead of a loop over 32 bits.
-pub fn sobol_dimension_1(index: u32) -> u32 {
+#[cfg(test)]
+pub(crate) fn sobol_dimension_1(index: u32) -> u32 {
     pascal(index).reverse_bits()
 }
 
@@ -319,7 +329,8 @@ fn sobol_dimension_1_by_bits(mut index: u32) -> u32 {
 
 /// Nested uniform (Owen) scrambling of a 32-bit fixed-point number: a hash
 /// that only mixes bits downward, applied to the reversed bits (Burley 2020).
-pub fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
+#[cfg(test)]
+pub(crate) fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
     laine_karras_permutation(x.reverse_bits(), seed).reverse_bits()
 }
 

@@ -27,7 +27,7 @@ const MAX_MEAN_STONES_PER_CELL: f64 = 4.0;
 
 /// Stones indexed by the cells of a uniform grid over x–y.
 #[derive(Clone, Debug)]
-pub struct StoneGrid {
+pub(crate) struct StoneGrid {
     /// x and y of the grid's corner (the minimum of the stones' union box).
     corner: [f64; 2],
     /// Cell side along x and along y.
@@ -51,7 +51,7 @@ impl StoneGrid {
     /// The grid over stones with (padded) world boxes `boxes` whose union
     /// is `union`, or `None` when they do not lie side by side in a thin
     /// slab (see the constants above).
-    pub fn for_tray(boxes: &[(DVec3, DVec3)], union: (DVec3, DVec3)) -> Option<Self> {
+    pub(crate) fn for_tray(boxes: &[(DVec3, DVec3)], union: (DVec3, DVec3)) -> Option<Self> {
         let extent = union.1 - union.0;
         if boxes.is_empty()
             || !extent.is_finite()

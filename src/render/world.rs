@@ -28,7 +28,7 @@ pub struct StoneInstance {
 
 impl StoneInstance {
     /// World-space axis-aligned box around the stone.
-    pub fn world_bounds(&self) -> (DVec3, DVec3) {
+    pub(crate) fn world_bounds(&self) -> (DVec3, DVec3) {
         let (lo, hi) = self.cabochon.bounds();
         let mut min = DVec3::splat(f64::INFINITY);
         let mut max = DVec3::splat(f64::NEG_INFINITY);
@@ -109,7 +109,7 @@ pub struct SurfaceHit {
 
 impl SurfaceHit {
     /// The index of the stone hit, `None` for the ground.
-    pub fn stone_index(&self) -> Option<usize> {
+    pub(crate) fn stone_index(&self) -> Option<usize> {
         match self.surface {
             Surface::Stone { index, .. } => Some(index),
             Surface::Ground => None,
@@ -232,7 +232,7 @@ impl Boundable for StoneBox {
 /// How far a new ray starts from the surface it leaves, in scene units
 /// (mm): far above the intersectors' 1e-9 × size accuracy, far below any
 /// visible detail.
-pub const RAY_OFFSET: f64 = 1e-5;
+pub(crate) const RAY_OFFSET: f64 = 1e-5;
 
 impl World {
     /// Indexes the stones (one box each): a grid over a tray of stones,
@@ -305,11 +305,6 @@ impl World {
         &self.stones
     }
 
-    /// The ground plane's height, if there is one.
-    pub fn ground_height(&self) -> Option<f64> {
-        self.ground_height
-    }
-
     /// The nearest surface along a unit-direction ray in (`t_min`, `t_max`).
     pub fn intersect(
         &self,
@@ -325,7 +320,7 @@ impl World {
     /// number `leaving` (`None` for a camera ray or one leaving the ground),
     /// pointing away from its geometric normal at the start (direction · n >
     /// 0, which the integrator checks). Every cabochon is convex (see
-    /// [`crate::geometry::outline`]): the plane tangent at the start point
+    /// `outline`): the plane tangent at the start point
     /// has the whole stone behind it, so such a ray cannot meet that stone
     /// again and it is not tested. A stone vertex's shadow ray and its next
     /// path segment each skip one stone intersection.
@@ -393,7 +388,7 @@ impl World {
     /// [`World::occluded`] for a shadow ray leaving the outside of stone
     /// number `leaving`, which cannot block it (see
     /// [`World::intersect_leaving`]).
-    pub fn occluded_leaving(
+    pub(crate) fn occluded_leaving(
         &self,
         origin: DVec3,
         direction: DVec3,

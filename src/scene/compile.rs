@@ -3,7 +3,7 @@
 //! quaternions computed, paths resolved, shapes validated).
 //!
 //! Rules that involve several fields or another module (camera position ≠
-//! look_at, 1 to [`MAX_STONES`] stones, Rect aim_at ≠ centre, the cabochon's
+//! look_at, 1 to `MAX_STONES` stones, Rect aim_at ≠ centre, the cabochon's
 //! own rules) are checked after parsing; their errors are located by a small
 //! walk over the RON text (`Locator`) at the field they concern.
 //!

@@ -31,14 +31,14 @@ use std::path::PathBuf;
 
 /// Most stones one scene may hold (a bound on memory and BVH build time
 /// for a hand-written file; a typo like `1e9` copies cannot slip through).
-pub const MAX_STONES: usize = 1024;
+pub(crate) const MAX_STONES: usize = 1024;
 
 /// A validated scene, ready for the renderer.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scene {
     /// The pinhole camera.
     pub camera: Camera,
-    /// The stones, 1 to [`MAX_STONES`].
+    /// The stones, 1 to `MAX_STONES`.
     pub stones: Vec<StonePlacement>,
     /// A horizontal ground plane, if any.
     pub ground: Option<Ground>,
@@ -85,13 +85,6 @@ pub struct StonePlacement {
     pub rotation: DQuat,
     /// Replaces the gem's own seed when `Some`.
     pub seed: Option<u64>,
-}
-
-impl StonePlacement {
-    /// Maps an object-space point to world space: rotate, then translate.
-    pub fn to_world(&self, object_point: DVec3) -> DVec3 {
-        self.rotation * object_point + self.position
-    }
 }
 
 /// A horizontal ground plane `z = height`.

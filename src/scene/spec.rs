@@ -18,7 +18,7 @@
 //!
 //! Every number is range-checked while parsing, so a bad value is reported
 //! at its own `file:line:col` with the field's name and allowed range (the
-//! same messages as [`crate::recipe::ranges`]). The shape's numbers are
+//! same messages as `ranges`). The shape's numbers are
 //! checked by [`crate::geometry::Cabochon::new`] when the scene is compiled
 //! ([`super::compile`]), the rules between fields (camera position ≠
 //! look_at, 1 to 1024 stones) there too.
@@ -36,7 +36,7 @@ use serde::{Deserialize, Deserializer};
 pub struct SceneSpec {
     /// Where the picture is taken from.
     pub camera: CameraSpec,
-    /// The stones, 1 to [`super::MAX_STONES`].
+    /// The stones, 1 to `MAX_STONES`.
     pub stones: Vec<StoneSpec>,
     /// A horizontal ground plane under the stones (default: none).
     #[serde(default)]
@@ -311,7 +311,7 @@ pub enum EnvironmentKind {
 /// Largest coordinate of a point in a scene, mm (100 m). The stones' BVH
 /// is built in f32 (obvhs), where 1e300 is infinite and its build panics;
 /// and a light's solid angle from this far stays representable.
-pub const MAX_COORDINATE_MM: f64 = 1e5;
+pub(crate) const MAX_COORDINATE_MM: f64 = 1e5;
 
 /// A point or vector: three finite numbers, each within ±`max_abs`.
 fn finite_vec3<'de, D: Deserializer<'de>>(

@@ -68,11 +68,11 @@ pub const STREAM_FILL: u64 = 2;
 /// Stream of a filled glitter cell's entry choice.
 pub const STREAM_GLITTER_ENTRY: u64 = 3;
 /// Stream of a facet cell's tilt (`cos θ` or the Box–Muller radius).
-pub const STREAM_TILT: u64 = 4;
+pub(crate) const STREAM_TILT: u64 = 4;
 /// Stream of a facet cell's azimuth.
-pub const STREAM_AZIMUTH: u64 = 5;
+pub(crate) const STREAM_AZIMUTH: u64 = 5;
 /// Stream of the Box–Muller angle of a Gaussian tilt.
-pub const STREAM_GAUSS: u64 = 6;
+pub(crate) const STREAM_GAUSS: u64 = 6;
 
 /// A reference inside the tree: a material (index into the gem's material
 /// list) or another node (index into [`Pattern::nodes`]).
@@ -144,17 +144,9 @@ impl<T: Copy> WeightedEntries<T> {
 
     /// The entry for a uniform `u ∈ [0, 1)`: the first `i` with `u < C[i]`.
     #[inline]
-    pub fn pick(&self, u: f64) -> T {
+    pub(crate) fn pick(&self, u: f64) -> T {
         let i = self.cumulative.partition_point(|c| *c <= u);
         self.items[i.min(self.items.len() - 1)]
-    }
-
-    /// Index form of [`WeightedEntries::pick`].
-    #[inline]
-    pub fn pick_index(&self, u: f64) -> usize {
-        self.cumulative
-            .partition_point(|c| *c <= u)
-            .min(self.items.len() - 1)
     }
 
     /// The entries in declaration order.
@@ -374,7 +366,7 @@ const RANGE_TOLERANCE: f64 = 1e-9;
 
 /// Checks that `ranges` partition `[lo, hi]` (contiguous, increasing, no
 /// gaps or overlaps, covering both ends); the error names the problem.
-pub fn check_partition(ranges: &[(f64, f64)], lo: f64, hi: f64) -> Result<(), PatternError> {
+pub(crate) fn check_partition(ranges: &[(f64, f64)], lo: f64, hi: f64) -> Result<(), PatternError> {
     let tol = RANGE_TOLERANCE * (hi - lo).abs().max(1.0);
     let close = |a: f64, b: f64| (a - b).abs() <= tol;
     let Some(first) = ranges.first() else {
@@ -423,7 +415,7 @@ pub fn check_partition(ranges: &[(f64, f64)], lo: f64, hi: f64) -> Result<(), Pa
 
 impl Switch {
     /// Builds a switch; the ranges must partition `function.range()`
-    /// ([`check_partition`]). The outer ends are snapped to the exact range.
+    /// (`check_partition`). The outer ends are snapped to the exact range.
     pub fn new(
         function: SwitchFunction,
         mut ranges: Vec<SwitchRange>,
@@ -459,7 +451,7 @@ impl Switch {
 
     /// Index of the range holding value `v` (clamped into the function's range).
     #[inline]
-    pub fn range_index(&self, v: f64) -> usize {
+    pub(crate) fn range_index(&self, v: f64) -> usize {
         let i = self.ranges.partition_point(|r| r.to <= v);
         i.min(self.ranges.len() - 1)
     }
@@ -467,7 +459,7 @@ impl Switch {
     /// Where the function is read for point `p`: `p` itself, or the feature
     /// point of its cell when switching per cell.
     #[inline]
-    pub fn sample_point(&self, p: DVec3) -> DVec3 {
+    pub(crate) fn sample_point(&self, p: DVec3) -> DVec3 {
         match &self.per_cell {
             Some(v) => v.nearest(p).feature_point,
             None => p,
@@ -481,7 +473,7 @@ impl Switch {
     }
 
     /// The entry selected when the function is read at `sample` (the
-    /// result of [`Switch::sample_point`]).
+    /// result of `sample_point`).
     #[inline]
     pub fn select_at_sample(&self, sample: DVec3) -> Entry {
         // A marble is often settled before its last octaves (`PhaseArcs`);
@@ -610,7 +602,7 @@ impl FacetBumpMap {
     /// The tilted normal of the facet cell with id `cell_id` (module
     /// documentation for the exact formulas).
     #[inline]
-    pub fn normal_of_cell(&self, cell_id: u64) -> FlakeNormal {
+    pub(crate) fn normal_of_cell(&self, cell_id: u64) -> FlakeNormal {
         let u1 = unit_f64(derive_stream(cell_id, STREAM_TILT));
         let phi = TAU * unit_f64(derive_stream(cell_id, STREAM_AZIMUTH));
         let theta = match self.tilt {
@@ -689,7 +681,7 @@ impl GlitterMap {
 
     /// Whether the glitter cell with id `cell_id` (feature point `site`) is filled.
     #[inline]
-    pub fn is_filled(&self, cell_id: u64, site: DVec3) -> bool {
+    pub(crate) fn is_filled(&self, cell_id: u64, site: DVec3) -> bool {
         let threshold = match &self.fill_modulation {
             None => self.fill_fraction,
             Some(f) => self.fill_fraction * f.value(site).clamp(0.0, 1.0),
@@ -699,7 +691,7 @@ impl GlitterMap {
 
     /// The glitter material of a filled cell.
     #[inline]
-    pub fn material_of_cell(&self, cell_id: u64) -> u32 {
+    pub(crate) fn material_of_cell(&self, cell_id: u64) -> u32 {
         self.entries
             .pick(unit_f64(derive_stream(cell_id, STREAM_GLITTER_ENTRY)))
     }
@@ -880,11 +872,6 @@ impl Pattern {
     /// The glitter layer, if any.
     pub fn glitter(&self) -> Option<&GlitterMap> {
         self.glitter.as_ref()
-    }
-
-    /// Number of materials the indices refer to.
-    pub fn material_count(&self) -> u32 {
-        self.material_count
     }
 
     /// The surface side alone (figure 4.6 ①, through switches): material,

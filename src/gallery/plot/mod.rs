@@ -53,7 +53,7 @@ pub struct PolarPanel {
 #[derive(Clone, Debug, PartialEq)]
 pub struct PolarPlotStyle {
     /// Width of one panel in pixels (its height follows from it), clamped
-    /// between [`MIN_PANEL_PX`] and [`MAX_PANEL_PX`]. Text is drawn twice as
+    /// between `MIN_PANEL_PX` and [`MAX_PANEL_PX`]. Text is drawn twice as
     /// large from 320 px up, so panels of 400 px read well on a screen.
     pub panel_size_px: u32,
     /// Title drawn above the legend, e.g. the material's name.
@@ -71,13 +71,13 @@ impl Default for PolarPlotStyle {
 }
 
 /// Smallest panel width in pixels; below it the labels would cover the plot.
-pub const MIN_PANEL_PX: u32 = 160;
+pub(crate) const MIN_PANEL_PX: u32 = 160;
 /// Largest panel width in pixels, bounding the image's memory.
 pub const MAX_PANEL_PX: u32 = 2048;
 /// Panels per row; more panels wrap onto further rows.
-pub const MAX_COLUMNS: usize = 8;
+pub(crate) const MAX_COLUMNS: usize = 8;
 /// Panels drawn at most; further panels are ignored to bound memory.
-pub const MAX_PANELS: usize = 64;
+pub(crate) const MAX_PANELS: usize = 64;
 
 /// Margin around the whole image, in pixels.
 const PAD: u32 = 12;
@@ -91,18 +91,18 @@ mod palette {
     use image::Rgb;
 
     pub const BACKGROUND: Rgb<u8> = Rgb([16, 18, 24]);
-    pub const HEMISPHERE: Rgb<u8> = Rgb([30, 33, 43]);
+    pub(crate) const HEMISPHERE: Rgb<u8> = Rgb([30, 33, 43]);
     pub const GRID: Rgb<u8> = Rgb([66, 71, 88]);
-    pub const NORMAL: Rgb<u8> = Rgb([105, 110, 128]);
-    pub const SURFACE: Rgb<u8> = Rgb([185, 185, 195]);
-    pub const LIGHT: Rgb<u8> = Rgb([180, 180, 180]);
-    pub const MIRROR: Rgb<u8> = Rgb([120, 122, 135]);
-    pub const TEXT: Rgb<u8> = Rgb([230, 230, 235]);
-    pub const DIM_TEXT: Rgb<u8> = Rgb([150, 156, 172]);
-    pub const WHITE: Rgb<u8> = Rgb([255, 255, 255]);
+    pub(crate) const NORMAL: Rgb<u8> = Rgb([105, 110, 128]);
+    pub(crate) const SURFACE: Rgb<u8> = Rgb([185, 185, 195]);
+    pub(crate) const LIGHT: Rgb<u8> = Rgb([180, 180, 180]);
+    pub(crate) const MIRROR: Rgb<u8> = Rgb([120, 122, 135]);
+    pub(crate) const TEXT: Rgb<u8> = Rgb([230, 230, 235]);
+    pub(crate) const DIM_TEXT: Rgb<u8> = Rgb([150, 156, 172]);
+    pub(crate) const WHITE: Rgb<u8> = Rgb([255, 255, 255]);
     /// Red, green and blue chosen so that each reads on the dark background
     /// (pure blue is too dark) and all three sum to white.
-    pub const CHANNELS: [Rgb<u8>; 3] =
+    pub(crate) const CHANNELS: [Rgb<u8>; 3] =
         [Rgb([255, 60, 60]), Rgb([40, 215, 60]), Rgb([80, 130, 255])];
 }
 

@@ -37,7 +37,7 @@ impl Layer {
     }
 
     /// Coverage at pixel (x, y), 0 outside the layer.
-    pub fn coverage(&self, x: u32, y: u32) -> f32 {
+    pub(crate) fn coverage(&self, x: u32, y: u32) -> f32 {
         if x >= self.width || y >= self.height {
             return 0.0;
         }
@@ -98,7 +98,7 @@ impl Layer {
     }
 
     /// Strokes the segment `a`–`b` with a line `width` pixels wide (round caps).
-    pub fn stroke_segment(&mut self, a: Point, b: Point, width: f64) {
+    pub(crate) fn stroke_segment(&mut self, a: Point, b: Point, width: f64) {
         let half = 0.5 * width;
         let pad = half + 1.0;
         let lo = (a.0.min(b.0) - pad, a.1.min(b.1) - pad);
@@ -107,7 +107,7 @@ impl Layer {
     }
 
     /// Strokes the open polyline through `points`.
-    pub fn stroke_polyline(&mut self, points: &[Point], width: f64) {
+    pub(crate) fn stroke_polyline(&mut self, points: &[Point], width: f64) {
         match points {
             [] => {}
             [p] => self.fill_disc(*p, 0.5 * width),
@@ -120,7 +120,7 @@ impl Layer {
     }
 
     /// Strokes `a`–`b` as dashes `dash` pixels long separated by `gap` pixels.
-    pub fn stroke_dashed(&mut self, a: Point, b: Point, width: f64, dash: f64, gap: f64) {
+    pub(crate) fn stroke_dashed(&mut self, a: Point, b: Point, width: f64, dash: f64, gap: f64) {
         let length = (b.0 - a.0).hypot(b.1 - a.1);
         let period = dash + gap;
         if !length.is_finite() || period <= 0.0 || dash <= 0.0 {
@@ -136,7 +136,7 @@ impl Layer {
     }
 
     /// Fills the disc of `radius` around `centre`.
-    pub fn fill_disc(&mut self, centre: Point, radius: f64) {
+    pub(crate) fn fill_disc(&mut self, centre: Point, radius: f64) {
         let pad = radius + 1.0;
         let lo = (centre.0 - pad, centre.1 - pad);
         let hi = (centre.0 + pad, centre.1 + pad);
@@ -145,7 +145,7 @@ impl Layer {
 
     /// Fills the upper half of the disc of `radius` around `centre` (the part
     /// with y < centre.y), i.e. the hemisphere of directions above a surface.
-    pub fn fill_upper_half_disc(&mut self, centre: Point, radius: f64) {
+    pub(crate) fn fill_upper_half_disc(&mut self, centre: Point, radius: f64) {
         let lo = (centre.0 - radius - 1.0, centre.1 - radius - 1.0);
         let hi = (centre.0 + radius + 1.0, centre.1);
         self.cover_box(lo, hi, false, |p| {
@@ -158,7 +158,7 @@ impl Layer {
     /// Fills the triangle `a`, `b`, `c` with 4×4 supersampling per pixel.
     /// Coverage is *summed* (clamped to 1) so that a fan of triangles sharing
     /// edges fills its region without seams.
-    pub fn fill_triangle(&mut self, a: Point, b: Point, c: Point) {
+    pub(crate) fn fill_triangle(&mut self, a: Point, b: Point, c: Point) {
         let lo = (a.0.min(b.0).min(c.0), a.1.min(b.1).min(c.1));
         let hi = (a.0.max(b.0).max(c.0), a.1.max(b.1).max(c.1));
         self.cover_box(lo, hi, true, |p| {
@@ -178,7 +178,7 @@ impl Layer {
 }
 
 /// Linear interpolation between two points.
-pub fn lerp_point(a: Point, b: Point, t: f64) -> Point {
+pub(crate) fn lerp_point(a: Point, b: Point, t: f64) -> Point {
     (a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t)
 }
 
@@ -206,7 +206,7 @@ fn inside_triangle(p: Point, a: Point, b: Point, c: Point) -> bool {
 
 /// Paints `layer` onto `img` with its top-left corner at `origin`, blending
 /// each pixel towards `colour` by its coverage (opaque ink).
-pub fn paint_over(img: &mut RgbImage, origin: (u32, u32), layer: &Layer, colour: Rgb<u8>) {
+pub(crate) fn paint_over(img: &mut RgbImage, origin: (u32, u32), layer: &Layer, colour: Rgb<u8>) {
     paint(img, origin, layer, |dst, a| {
         let mix = |d: u8, c: u8| f32::from(d) + (f32::from(c) - f32::from(d)) * a;
         Rgb(std::array::from_fn(|k| to_u8(mix(dst.0[k], colour.0[k]))))
@@ -215,7 +215,7 @@ pub fn paint_over(img: &mut RgbImage, origin: (u32, u32), layer: &Layer, colour:
 
 /// Paints `layer` onto `img` at `origin` by adding `colour` × coverage
 /// (saturating), like light: red + green reads as yellow, all three as white.
-pub fn paint_add(img: &mut RgbImage, origin: (u32, u32), layer: &Layer, colour: Rgb<u8>) {
+pub(crate) fn paint_add(img: &mut RgbImage, origin: (u32, u32), layer: &Layer, colour: Rgb<u8>) {
     paint(img, origin, layer, |dst, a| {
         Rgb(std::array::from_fn(|k| {
             to_u8(f32::from(dst.0[k]) + f32::from(colour.0[k]) * a)

@@ -8,14 +8,14 @@
 //! decades and says so in its label.
 
 /// Peak / median ratio above which a panel uses a logarithmic radius.
-pub const LOG_THRESHOLD: f64 = 50.0;
+pub(crate) const LOG_THRESHOLD: f64 = 50.0;
 
 /// Fewest and most decades a logarithmic panel spans.
 const LOG_DECADES: (f64, f64) = (3.0, 6.0);
 
 /// How values map to radius in one panel.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum RadialScale {
+pub(crate) enum RadialScale {
     /// radius ∝ value; rings every `step`, the outermost at `step × rings`.
     Linear {
         /// Value between neighbouring rings.
@@ -35,7 +35,7 @@ pub enum RadialScale {
 
 /// The scale of a panel together with the peak it was built for.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PanelScale {
+pub(crate) struct PanelScale {
     /// The value → radius mapping.
     pub radial: RadialScale,
     /// Largest value the scale was fitted to (0 when there was no data).
@@ -88,7 +88,7 @@ impl PanelScale {
     }
 
     /// The rings to draw: (fraction of the radius, label of its value).
-    pub fn rings(&self) -> Vec<(f64, String)> {
+    pub(crate) fn rings(&self) -> Vec<(f64, String)> {
         match self.radial {
             RadialScale::Linear { step, rings } => (1..=rings)
                 .map(|k| {
@@ -170,7 +170,7 @@ fn nice_ceil(x: f64, mantissas: &[f64]) -> f64 {
 
 /// Formats `v` with at most `sig` significant digits and no trailing zeros:
 /// plain decimals for 0.001 ≤ |v| < 100000, scientific ("1e-5") otherwise.
-pub fn format_value(v: f64, sig: usize) -> String {
+pub(crate) fn format_value(v: f64, sig: usize) -> String {
     if !v.is_finite() {
         return format!("{v}");
     }

@@ -11,7 +11,7 @@ use font8x8::{UnicodeFonts, BASIC_FONTS, GREEK_FONTS, LATIN_FONTS};
 use image::{Rgb, RgbImage};
 
 /// Width and height of one unscaled glyph cell, in pixels.
-pub const GLYPH_SIZE: u32 = 8;
+pub(crate) const GLYPH_SIZE: u32 = 8;
 
 /// θ drawn as a full-height 'O' with a bar. font8x8's θ is x-height and
 /// reads as 'e' at plot sizes, and "θi" is the label a reader looks for first.
@@ -19,7 +19,7 @@ const THETA: [u8; 8] = [0x1C, 0x36, 0x63, 0x7F, 0x63, 0x36, 0x1C, 0x00];
 
 /// The 8×8 bitmap of `ch` (each byte one row, bit 0 the leftmost pixel), or
 /// the bitmap of `?` when no table holds `ch`.
-pub fn glyph(ch: char) -> [u8; 8] {
+pub(crate) fn glyph(ch: char) -> [u8; 8] {
     if ch == 'θ' {
         return THETA;
     }
@@ -33,20 +33,20 @@ pub fn glyph(ch: char) -> [u8; 8] {
 
 /// Width in pixels of `text` drawn at `scale` (every glyph advances by one
 /// full cell; the font is monospaced), so callers can centre or right-align.
-pub fn text_width(text: &str, scale: u32) -> u32 {
+pub(crate) fn text_width(text: &str, scale: u32) -> u32 {
     let chars = u32::try_from(text.chars().count()).unwrap_or(u32::MAX);
     chars.saturating_mul(GLYPH_SIZE).saturating_mul(scale)
 }
 
 /// Height in pixels of one line of text at `scale`.
-pub fn text_height(scale: u32) -> u32 {
+pub(crate) fn text_height(scale: u32) -> u32 {
     GLYPH_SIZE.saturating_mul(scale)
 }
 
 /// A rectangle of the image that drawing may touch; everything outside it is
 /// left alone (used to keep a panel's labels inside that panel).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ClipRect {
+pub(crate) struct ClipRect {
     /// Leftmost column that may be written.
     pub left: u32,
     /// Topmost row that may be written.
@@ -59,7 +59,7 @@ pub struct ClipRect {
 
 impl ClipRect {
     /// The whole of `img`.
-    pub fn of_image(img: &RgbImage) -> Self {
+    pub(crate) fn of_image(img: &RgbImage) -> Self {
         Self {
             left: 0,
             top: 0,
@@ -87,7 +87,7 @@ impl ClipRect {
 /// Only set glyph pixels are written (the background shows through), and
 /// pixels falling outside the image are skipped, so labels near an edge are
 /// clipped instead of panicking. Returns the advance width in pixels.
-pub fn draw_text(
+pub(crate) fn draw_text(
     img: &mut RgbImage,
     x: i64,
     y: i64,
@@ -101,7 +101,7 @@ pub fn draw_text(
 
 /// Like [`draw_text`] with the top-left corner at `at`, but writes only
 /// pixels inside `clip`.
-pub fn draw_text_clipped(
+pub(crate) fn draw_text_clipped(
     img: &mut RgbImage,
     clip: ClipRect,
     at: (i64, i64),
@@ -124,7 +124,7 @@ pub fn draw_text_clipped(
 
 /// Draws `text` horizontally centred on `cx` with its top edge at `y`,
 /// writing only inside `clip`.
-pub fn draw_text_centred(
+pub(crate) fn draw_text_centred(
     img: &mut RgbImage,
     clip: ClipRect,
     (cx, y): (i64, i64),
