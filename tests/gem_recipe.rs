@@ -443,3 +443,20 @@ fn unknown_surface() {
         &["`surface` names `vein`", "did you mean `veins`", "allowed:"],
     );
 }
+
+#[test]
+fn a_name_in_the_wrong_role_is_placed_at_that_use() {
+    // `lilac` is a material, used rightly on the "small" line first; the
+    // error is about `map: "lilac"`, so it points there, at the name.
+    let wrong = r#"(from: 0.7, to: 1.0, map: "lilac")"#;
+    let text = GOOD.replacen(r#"(from: 0.7, to: 1.0, material: "lilac")"#, wrong, 1);
+    let line = line_of(&text, wrong);
+    let col = text
+        .lines()
+        .nth(line - 1)
+        .unwrap()
+        .find(r#""lilac")"#)
+        .unwrap()
+        + 1;
+    expect_error_at(&text, line, col, &["unknown map `lilac`", "allowed:"]);
+}

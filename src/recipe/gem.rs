@@ -616,6 +616,35 @@ impl<'a> Compiler<'a> {
         }
     }
 
+    /// An error about `name` where it is written as `role: "name"` (an
+    /// entry's `material:` or `map:`, outside comments), so that a name
+    /// used in the wrong role is found at that use and not at an earlier,
+    /// right one; else as [`Compiler::error_at`] finds the quoted name.
+    fn error_at_use(&self, role: &str, name: &str, message: String) -> RecipeError {
+        let quoted = format!("\"{name}\"");
+        let mut from = 0;
+        while let Some(found) = self.text[from..].find(role).map(|i| i + from) {
+            from = found + role.len();
+            let line_start = self.text[..found].rfind('\n').map_or(0, |i| i + 1);
+            let in_comment = self.text[line_start..found].contains("//");
+            let word_start = found == 0
+                || !self.text[..found]
+                    .chars()
+                    .next_back()
+                    .is_some_and(|c| c.is_alphanumeric() || c == '_');
+            let rest = self.text[from..].trim_start();
+            let Some(value) = rest.strip_prefix(':').map(str::trim_start) else {
+                continue;
+            };
+            if !in_comment && word_start && value.starts_with(&quoted) {
+                let offset = self.text.len() - value.len();
+                let (line, col) = line_col_of_offset(self.text, offset);
+                return RecipeError::at(self.path, line, col, message);
+            }
+        }
+        self.error_at(&quoted, message)
+    }
+
     fn material_index(&mut self, name: &str) -> Result<u32, RecipeError> {
         if let Some(i) = self.materials.iter().position(|(n, _)| n == name) {
             return Ok(i as u32);
@@ -637,8 +666,9 @@ impl<'a> Compiler<'a> {
             } else {
                 String::new()
             };
-            return Err(self.error_at(
-                &format!("\"{name}\""),
+            return Err(self.error_at_use(
+                "material",
+                name,
                 format!(
                     "unknown material `{name}`{hint}{also_map}; allowed: a name from `materials` ({}) or a library material ({})",
                     if inline.is_empty() { "none".to_string() } else { inline.join(", ") },
@@ -657,8 +687,9 @@ impl<'a> Compiler<'a> {
                 let hint = did_you_mean(name, self.map_names.iter().map(String::as_str))
                     .map(|s| format!(" (did you mean `{s}`?)"))
                     .unwrap_or_default();
-                Err(self.error_at(
-                    &format!("\"{name}\""),
+                Err(self.error_at_use(
+                    "map",
+                    name,
                     format!(
                         "unknown map `{name}`{hint}; allowed: a name from `maps` ({})",
                         if self.map_names.is_empty() {
