@@ -460,3 +460,49 @@ fn a_name_in_the_wrong_role_is_placed_at_that_use() {
         + 1;
     expect_error_at(&text, line, col, &["unknown map `lilac`", "allowed:"]);
 }
+
+#[test]
+fn translucent_body_fields_are_range_checked() {
+    for (body, needles) in [
+        (
+            "body: Translucent(ior: 0.5),",
+            &["`ior`", "1 <= ior <= 5"][..],
+        ),
+        (
+            "body: Translucent(ior: 1.5, absorption: (0.1, -1.0, 0.1)),",
+            &["`absorption`", "0 <= absorption <= 1000 (per mm)"][..],
+        ),
+        (
+            "body: Translucent(ior: 1.5, scatering: (1.0, 1.0, 1.0)),",
+            &["scatering"][..],
+        ),
+        (
+            "body: Translucent(absorption: (1.0, 1.0, 1.0)),",
+            &["ior"][..],
+        ),
+    ] {
+        expect_error(
+            r#"surface: "veins","#,
+            &format!("surface: \"veins\",\n    {body}"),
+            "body:",
+            needles,
+        );
+    }
+    let text = GOOD.replacen(
+        r#"surface: "veins","#,
+        "surface: \"veins\",\n    body: Translucent(ior: 1.54, absorption: (0.1, 0.2, 0.3)),",
+        1,
+    );
+    let gem = parse_gem("good.ron", &text).unwrap();
+    assert_eq!(
+        gem.body,
+        lapidary::recipe::gem::Body::Translucent {
+            ior: 1.54,
+            absorption_per_mm: lapidary::brdf::Rgb::new(0.1, 0.2, 0.3)
+        }
+    );
+    assert_eq!(
+        parse_gem("good.ron", GOOD).unwrap().body,
+        lapidary::recipe::gem::Body::Opaque
+    );
+}

@@ -15,7 +15,7 @@ use lapidary::recipe::compile::{
     compile_material, locate_material, names_a_file, parse_material, read_ron_file, MaterialSource,
 };
 use lapidary::recipe::error::{did_you_mean, line_col_of_offset, RecipeError};
-use lapidary::recipe::gem::{parse_gem, GemSource};
+use lapidary::recipe::gem::{parse_gem, Body, GemSource};
 use lapidary::recipe::library::{
     builtin_gem_names, builtin_gem_source, builtin_material_names, builtin_material_source,
 };
@@ -118,7 +118,7 @@ fn validate_gem(path: &str, text: &str) -> Result<String, RecipeError> {
     let gem = parse_gem(path, text)?;
     let plural = |n: usize, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
     Ok(format!(
-        "ok (gem \"{}\", {}, {}{})",
+        "ok (gem \"{}\", {}, {}{}{})",
         gem.name,
         plural(gem.materials.len(), "material"),
         plural(gem.map_names.len(), "map"),
@@ -126,6 +126,10 @@ fn validate_gem(path: &str, text: &str) -> Result<String, RecipeError> {
             ", glitter"
         } else {
             ""
+        },
+        match gem.body {
+            Body::Opaque => "",
+            Body::Translucent { .. } => ", translucent body",
         }
     ))
 }

@@ -43,7 +43,7 @@
 //! Seeds: every map derives its own seed from the gem seed and its *name*,
 //! so adding or renaming another map does not reshuffle this one.
 
-use crate::brdf::LayeredBrdf;
+use crate::brdf::{LayeredBrdf, Rgb};
 use crate::recipe::compile::{
     compile_material_without_table, locate_material, parse_material, ron_error, MaterialSource,
     COMPENSATION_SEED,
@@ -114,6 +114,57 @@ pub struct GemSpec {
     /// The glitter map over the surface (②, ④), if any.
     #[serde(default)]
     pub glitter: Option<GlitterSpec>,
+    /// What is under the surface: `Opaque` (the surface pattern, the
+    /// default) or a `Translucent` dielectric body.
+    #[serde(default)]
+    pub body: BodySpec,
+}
+
+/// A stone's body as written.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum BodySpec {
+    /// The surface model of the course notes: the pattern's layered BRDFs.
+    #[default]
+    Opaque,
+    /// A clear, absorbing dielectric body behind a polished surface: light
+    /// refracts in (Fresnel, total internal reflection on the way out) and
+    /// is absorbed along its path by Beer–Lambert (eq. 3.4). The surface
+    /// pattern is not used.
+    Translucent {
+        /// Refractive index of the body.
+        #[serde(deserialize_with = "ranges::body_ior")]
+        ior: f64,
+        /// Absorption coefficient per millimetre of path, per channel.
+        #[serde(default, deserialize_with = "ranges::body_absorption")]
+        absorption: [f64; 3],
+    },
+}
+
+/// A compiled stone body (see [`BodySpec`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Body {
+    /// Shaded by the pattern's layered BRDFs at the surface.
+    Opaque,
+    /// A smooth dielectric interface over an absorbing volume.
+    Translucent {
+        /// Refractive index of the body relative to the air around it.
+        ior: f64,
+        /// σa per millimetre (scene unit), per channel.
+        absorption_per_mm: Rgb,
+    },
+}
+
+impl From<&BodySpec> for Body {
+    fn from(spec: &BodySpec) -> Self {
+        match *spec {
+            BodySpec::Opaque => Body::Opaque,
+            BodySpec::Translucent { ior, absorption } => Body::Translucent {
+                ior,
+                absorption_per_mm: Rgb::from_array(absorption),
+            },
+        }
+    }
 }
 
 /// A named node: a Voronoi surface map or a function switch.
@@ -332,6 +383,8 @@ pub struct Gem {
     pub brdfs: Arc<[LayeredBrdf]>,
     /// Map name per node index.
     pub map_names: Vec<String>,
+    /// What is under the surface.
+    pub body: Body,
     /// The parsed recipe.
     pub spec: GemSpec,
 }
@@ -1045,6 +1098,7 @@ impl<'a> Compiler<'a> {
             description: spec.description.clone(),
             seed: spec.seed,
             host_ior: spec.host_ior,
+            body: Body::from(&spec.body),
             pattern,
             materials: self.materials,
             map_names: self.map_names,

@@ -9,8 +9,9 @@
 
 use glam::DVec3;
 
+use crate::brdf::fresnel;
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
-use crate::recipe::gem::Gem;
+use crate::recipe::gem::{Body, Gem};
 use crate::render::environment::Environment;
 use crate::render::lights::Light;
 use crate::render::sampler::{SampleStream, SOBOL_PAIRS};
@@ -307,6 +308,9 @@ impl RenderScene {
         // The stone the current segment leaves (outwards), which it cannot
         // meet again: every cabochon is convex.
         let mut leaving: Option<usize> = None;
+        // σa per mm of the translucent body the current segment runs
+        // through, if it runs inside one.
+        let mut inside: Option<Rgb> = None;
         let mut bounce = 0;
         loop {
             counts.traced += 1;
@@ -314,6 +318,10 @@ impl RenderScene {
                 .world
                 .intersect_leaving(origin, direction, 0.0, f64::INFINITY, leaving);
             let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
+            if let (Some(absorption), Some(hit)) = (inside, &hit) {
+                // Beer–Lambert along the segment inside the body (eq. 3.4).
+                throughput *= beer_lambert(absorption, hit.t);
+            }
             // An emitter in front of the surface (or of the sky).
             if let Some((light, t, emitted)) = self.nearest_light(origin, direction, t_hit) {
                 let weight = previous.map_or(1.0, |(p, brdf_pdf)| {
@@ -339,6 +347,39 @@ impl RenderScene {
                 // This last segment only collected MIS-weighted emission
                 // for the previous vertex's BRDF strategy.
                 break;
+            }
+            if let Some((ior, absorption)) = self.translucent_body(&hit) {
+                // A smooth dielectric interface: a delta lobe, so no light
+                // sampling here; the next segment's emitters count in full.
+                if bounce == 0 {
+                    let first = FirstHit {
+                        depth: hit.t,
+                        normal: hit.normal,
+                        albedo: Rgb::ONE,
+                        unoccluded: 1.0,
+                        surface_cell: 0,
+                        glitter: false,
+                        material_id: self.stone_material_id_base(&hit),
+                    };
+                    first_hits.add(&first, first_sample);
+                    first_recorded = true;
+                }
+                let crossing = cross_smooth_interface(direction, hit.normal, ior, stream.next_1d());
+                let stone = hit.stone_index();
+                // Which side the new segment starts on, and what it leaves.
+                let (side, now_inside) = match (crossing.refracted, crossing.from_outside) {
+                    (false, true) => (1.0, false),
+                    (false, false) => (-1.0, true),
+                    (true, true) => (-1.0, true),
+                    (true, false) => (1.0, false),
+                };
+                inside = now_inside.then_some(absorption);
+                leaving = if now_inside { None } else { stone };
+                origin = hit.point + hit.normal * (side * RAY_OFFSET);
+                direction = crossing.direction;
+                previous = None;
+                bounce += 1;
+                continue;
             }
             let wo_world = -direction;
             let Some(shading) = self.shade(&hit, wo_world) else {
@@ -436,6 +477,28 @@ impl RenderScene {
             first_hits.add(&nothing, first_sample);
         }
         radiance
+    }
+
+    /// The IOR and σa per mm of the stone hit, when its gem has a
+    /// translucent body.
+    #[inline(always)]
+    fn translucent_body(&self, hit: &SurfaceHit) -> Option<(f64, Rgb)> {
+        let index = hit.stone_index()?;
+        match self.gems[self.world.stones()[index].gem].body {
+            Body::Translucent {
+                ior,
+                absorption_per_mm,
+            } => Some((ior, absorption_per_mm)),
+            Body::Opaque => None,
+        }
+    }
+
+    /// The `material_id` AOV value of the gem of the stone hit (0 off the
+    /// stones).
+    fn stone_material_id_base(&self, hit: &SurfaceHit) -> u32 {
+        hit.stone_index().map_or(0, |index| {
+            self.material_id_bases[self.world.stones()[index].gem]
+        })
     }
 
     /// Whether next-event estimation samples the environment. A constant
@@ -565,9 +628,114 @@ impl RenderScene {
     }
 }
 
+/// exp(−σa·t) per channel: Beer–Lambert transmittance over a path of
+/// length `t` (eq. 3.4).
+fn beer_lambert(absorption: Rgb, t: f64) -> Rgb {
+    Rgb::new(
+        (-absorption.x * t).exp(),
+        (-absorption.y * t).exp(),
+        (-absorption.z * t).exp(),
+    )
+}
+
+/// Where a ray goes at a smooth dielectric interface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Crossing {
+    /// The new unit direction.
+    direction: DVec3,
+    /// True when it refracted through the interface, false when it
+    /// reflected (by the Fresnel draw, or by total internal reflection).
+    refracted: bool,
+    /// True when the ray arrived from the outside (against the normal).
+    from_outside: bool,
+}
+
+/// The ray `direction` (unit) meeting a smooth interface of outward unit
+/// `normal` between air (outside) and a body of index `ior`: reflected with
+/// the Fresnel reflectance F (eq. 3.1), which is 1 under total internal
+/// reflection, else refracted by Snell's law (eq. 3.2), chosen by `u` in
+/// [0, 1). Each choice is taken with its own probability, so the weight is
+/// 1 either way; the radiance scale (η²) of refraction cancels between the
+/// way in and the way out of the body.
+fn cross_smooth_interface(direction: DVec3, normal: DVec3, ior: f64, u: f64) -> Crossing {
+    let cos_outside = -direction.dot(normal);
+    let from_outside = cos_outside > 0.0;
+    // The normal on the side the ray comes from, the cosine to it and
+    // η = n_transmitted / n_incident.
+    let (facing, cos_i, eta) = if from_outside {
+        (normal, cos_outside, ior)
+    } else {
+        (-normal, -cos_outside, 1.0 / ior)
+    };
+    let reflected = || Crossing {
+        direction: (direction + 2.0 * cos_i * facing).normalize(),
+        refracted: false,
+        from_outside,
+    };
+    if u < fresnel::dielectric(cos_i, eta) {
+        return reflected();
+    }
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return reflected(); // total internal reflection
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    Crossing {
+        direction: (direction / eta + (cos_i / eta - cos_t) * facing).normalize(),
+        refracted: true,
+        from_outside,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_smooth_interface_refracts_by_snell_and_reflects_by_fresnel() {
+        let ior = 1.54;
+        let normal = DVec3::new(0.2, -0.1, 1.0).normalize();
+        for theta_deg in [0.0f64, 20.0, 45.0, 70.0, 85.0] {
+            let (sin, cos) = theta_deg.to_radians().sin_cos();
+            let (t, _) = normal.any_orthonormal_pair();
+            let towards = -(normal * cos + t * sin); // arriving from outside
+                                                     // u = 1 − ε always refracts (F < 1 from outside): Snell's law,
+                                                     // n₁ sinθ₁ = n₂ sinθ₂, in the plane of incidence.
+            let inward = cross_smooth_interface(towards, normal, ior, 1.0 - 1e-12);
+            assert!(inward.refracted && inward.from_outside);
+            let sin_t = inward.direction.cross(-normal).length();
+            assert!(
+                (sin - ior * sin_t).abs() < 1e-12,
+                "θ {theta_deg}: {sin} vs {}",
+                ior * sin_t
+            );
+            assert!(inward.direction.dot(normal) < 0.0, "goes in");
+            // Reflection frequency over u ∈ [0, 1) is F(θ) (eq. 3.1).
+            let n = 10_000;
+            let reflected = (0..n)
+                .filter(|i| {
+                    let u = (f64::from(*i) + 0.5) / f64::from(n);
+                    !cross_smooth_interface(towards, normal, ior, u).refracted
+                })
+                .count();
+            let f = fresnel::dielectric(cos, ior);
+            assert!(
+                (reflected as f64 / f64::from(n) - f).abs() < 2e-4,
+                "θ {theta_deg}"
+            );
+            // Back out along the reversed refracted ray: the same angle.
+            let out = cross_smooth_interface(-inward.direction, normal, ior, 1.0 - 1e-12);
+            assert!(out.refracted && !out.from_outside);
+            assert!((out.direction + towards).length() < 1e-12, "reversible");
+        }
+        // Beyond the critical angle, inside: always reflected, mirror-like.
+        let (t, _) = normal.any_orthonormal_pair();
+        let grazing = (t * 0.8 + normal * 0.6).normalize(); // 53° from the normal
+        let inside = cross_smooth_interface(grazing, normal, ior, 0.999);
+        assert!(!inside.refracted && !inside.from_outside);
+        let mirrored = grazing - 2.0 * grazing.dot(normal) * normal;
+        assert!((inside.direction - mirrored).length() < 1e-12);
+    }
 
     #[test]
     fn first_hit_sums_count_hits_only_and_keep_the_first_samples_ids() {
