@@ -40,6 +40,12 @@ LIGHT_RADIUS = 0.25
 LIGHT_RADIANCE = 500.0
 #: Constant environment radiance.
 ENVIRONMENT_RADIANCE = 0.2
+#: The clear variant (bench/peer-scene-clear.ron): the same cap, closed by
+#: its flat base and lifted this far above the ground, a smooth dielectric
+#: of this IOR over a purely absorbing medium with this σa per unit.
+CLEAR_LIFT = 0.1
+CLEAR_IOR = 1.5
+CLEAR_ABSORPTION = (0.3, 0.1, 0.6)
 
 
 def camera_origin():
@@ -116,7 +122,48 @@ def stone_mesh(mi, dr, nonlinear=True):
     return mesh
 
 
-def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True):
+def clear_stone_mesh(mi, dr):
+    """The cap closed by its flat base (z = 0), lifted by CLEAR_LIFT, as a
+    smooth `dielectric` around a `homogeneous`, purely absorbing medium.
+
+    The base is a separate fan of vertices with the normal −z, so the rim
+    stays a sharp edge as lapidary's analytic stone has it.
+    """
+    import numpy as np
+
+    pos, nrm, faces = ellipsoid_cap_mesh()
+    rim = pos[-192:].copy()  # the last ring: z ≈ c·cos(π/2) = 0
+    rim[:, 2] = 0.0
+    centre = len(pos)
+    base_pos = np.vstack([[0.0, 0.0, 0.0], rim])
+    base_nrm = np.tile([0.0, 0.0, -1.0], (len(base_pos), 1))
+    segments = len(rim)
+    cur = np.arange(segments)
+    nxt = (cur + 1) % segments
+    base_faces = np.stack([np.full(segments, centre), centre + 1 + nxt, centre + 1 + cur], axis=1)
+    pos = np.vstack([pos, base_pos])
+    pos[:, 2] += CLEAR_LIFT
+    nrm = np.vstack([nrm, base_nrm])
+    faces = np.concatenate([faces, base_faces]).astype(np.uint32)
+    props = mi.Properties()
+    props["bsdf"] = mi.load_dict({"type": "dielectric", "int_ior": CLEAR_IOR, "ext_ior": 1.0})
+    props["interior"] = mi.load_dict(
+        {
+            "type": "homogeneous",
+            "sigma_t": {"type": "rgb", "value": list(CLEAR_ABSORPTION)},
+            "albedo": {"type": "rgb", "value": [0.0, 0.0, 0.0]},
+        }
+    )
+    mesh = mi.Mesh("stone", len(pos), len(faces), props, has_vertex_normals=True)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = dr.ravel(mi.Point3f(pos[:, 0], pos[:, 1], pos[:, 2]))
+    params["vertex_normals"] = dr.ravel(mi.Normal3f(nrm[:, 0], nrm[:, 1], nrm[:, 2]))
+    params["faces"] = dr.ravel(mi.Vector3u(faces[:, 0], faces[:, 1], faces[:, 2]))
+    params.update()
+    return mesh
+
+
+def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True, clear=False):
     """The whole peer scene as a Mitsuba `load_dict` dictionary.
 
     `max_depth` follows Mitsuba's `path` convention: 1 = emitters seen
@@ -125,7 +172,7 @@ def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True):
     t = mi.ScalarTransform4f
     return {
         "type": "scene",
-        "integrator": {"type": "path", "max_depth": max_depth},
+        "integrator": {"type": "volpath" if clear else "path", "max_depth": max_depth},
         "sensor": {
             "type": "perspective",
             "fov": CAMERA_VERTICAL_FOV_DEG,
@@ -140,7 +187,7 @@ def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True):
                 "rfilter": {"type": "box"},
             },
         },
-        "stone": stone_mesh(mi, dr, nonlinear),
+        "stone": clear_stone_mesh(mi, dr) if clear else stone_mesh(mi, dr, nonlinear),
         "ground": {
             "type": "rectangle",  # [-1, 1]² in the xy plane, normal +z
             "to_world": t().scale([GROUND_SIDE / 2, GROUND_SIDE / 2, 1.0]),
@@ -167,7 +214,7 @@ def render(args):
     mi.set_variant("llvm_ad_rgb")
     dr.set_thread_count(args.threads)
     scene = mi.load_dict(
-        scene_dict(mi, dr, args.size, args.spp, args.max_depth, not args.linear)
+        scene_dict(mi, dr, args.size, args.spp, args.max_depth, not args.linear, args.clear)
     )
     image = mi.render(scene, spp=args.spp, seed=0)
     mi.util.write_bitmap(args.out, image)
@@ -236,6 +283,11 @@ def main(argv):
     r.add_argument("--threads", type=int, default=2)
     r.add_argument(
         "--linear", action="store_true", help="plastic nonlinear=false (check only)"
+    )
+    r.add_argument(
+        "--clear",
+        action="store_true",
+        help="the clear absorbing stone of bench/peer-scene-clear.ron (volpath)",
     )
     p = sub.add_parser("to-png", help="downsample + sRGB-encode an image")
     p.add_argument("src")
