@@ -498,7 +498,11 @@ fn translucent_body_fields_are_range_checked() {
         gem.body,
         lapidary::recipe::gem::Body::Translucent {
             ior: 1.54,
-            absorption_per_mm: lapidary::brdf::Rgb::new(0.1, 0.2, 0.3)
+            medium: lapidary::recipe::gem::Medium {
+                absorption_per_mm: lapidary::brdf::Rgb::new(0.1, 0.2, 0.3),
+                scattering_per_mm: lapidary::brdf::Rgb::ZERO,
+                anisotropy: 0.0,
+            }
         }
     );
     assert_eq!(

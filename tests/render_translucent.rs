@@ -38,7 +38,7 @@ fn render_body(
         ground_brdf: None,
         lights,
         environment,
-        max_bounces: 64,
+        max_bounces: 1024,
         ambient_occlusion: None,
     };
     render(
@@ -193,4 +193,92 @@ fn an_absorbing_body_in_a_white_furnace_never_exceeds_the_sky() {
         }
     }
     assert!(blue_darker > 50, "blue absorbed most ({blue_darker} px)");
+}
+
+/// Samples per pixel of the scattering furnace.
+const SCATTERING_FURNACE_SPP: u32 = 512;
+
+#[test]
+fn a_lossless_scattering_body_in_a_white_furnace_vanishes() {
+    // σa = 0 and σs different per channel (the spectral MIS weights must
+    // keep each channel unbiased), forward scattering: every path still
+    // ends in the white sky, so the stone's mean is the sky's.
+    let camera = PinholeCamera::new(
+        DVec3::new(0.0, -40.0, 30.0),
+        DVec3::ZERO,
+        DVec3::Z,
+        12.0,
+        24,
+        24,
+    );
+    let film = render_body(
+        "Translucent(ior: 1.54, scattering: (0.05, 0.2, 0.6), anisotropy: 0.6)",
+        CabochonParams::default(),
+        Environment::Constant(Rgb::ONE),
+        vec![],
+        &camera,
+        24,
+        SCATTERING_FURNACE_SPP,
+    );
+    let stone: Vec<[f32; 3]> = film
+        .rgb
+        .iter()
+        .zip(&film.alpha)
+        .filter(|(_, a)| **a == 1.0)
+        .map(|(rgb, _)| *rgb)
+        .collect();
+    assert!(
+        stone.len() > 150,
+        "the stone fills the middle ({})",
+        stone.len()
+    );
+    for c in 0..3 {
+        let mean = stone.iter().map(|p| f64::from(p[c])).sum::<f64>() / stone.len() as f64;
+        assert!(
+            (mean - 1.0).abs() < 0.01,
+            "channel {c}: mean over the stone {mean}"
+        );
+    }
+    assert_eq!(film.stats.bad_samples, 0);
+}
+
+#[test]
+fn scattering_sends_light_back_out_of_an_absorbing_body_but_never_above_the_sky() {
+    // Light scattered near the surface leaves before the body absorbs it:
+    // a milky stone is brighter than the same clear one, and still ≤ 1.
+    let camera = PinholeCamera::new(
+        DVec3::new(0.0, -40.0, 30.0),
+        DVec3::ZERO,
+        DVec3::Z,
+        12.0,
+        16,
+        16,
+    );
+    let mean_of = |body: &str| {
+        let film = render_body(
+            body,
+            CabochonParams::default(),
+            Environment::Constant(Rgb::ONE),
+            vec![],
+            &camera,
+            16,
+            64,
+        );
+        let stone: Vec<f64> = film
+            .rgb
+            .iter()
+            .zip(&film.alpha)
+            .filter(|(_, a)| **a == 1.0)
+            .map(|(rgb, _)| f64::from(rgb[1]))
+            .collect();
+        stone.iter().sum::<f64>() / stone.len() as f64
+    };
+    let clear = mean_of("Translucent(ior: 1.54, absorption: (0.3, 0.3, 0.3))");
+    let milky =
+        mean_of("Translucent(ior: 1.54, absorption: (0.3, 0.3, 0.3), scattering: (2.0, 2.0, 2.0))");
+    assert!(
+        clear < 0.5 && milky > clear + 0.05,
+        "clear {clear}, milky {milky}"
+    );
+    assert!(milky <= 1.0, "energy created: {milky}");
 }

@@ -127,10 +127,10 @@ pub enum BodySpec {
     /// The surface model of the course notes: the pattern's layered BRDFs.
     #[default]
     Opaque,
-    /// A clear, absorbing dielectric body behind a polished surface: light
-    /// refracts in (Fresnel, total internal reflection on the way out) and
-    /// is absorbed along its path by Beer–Lambert (eq. 3.4). The surface
-    /// pattern is not used.
+    /// A dielectric body behind a polished surface: light refracts in
+    /// (Fresnel, total internal reflection on the way out), is absorbed
+    /// along its path by Beer–Lambert (eq. 3.4) and scattered by a
+    /// Henyey–Greenstein phase function. The surface pattern is not used.
     Translucent {
         /// Refractive index of the body.
         #[serde(deserialize_with = "ranges::body_ior")]
@@ -138,6 +138,12 @@ pub enum BodySpec {
         /// Absorption coefficient per millimetre of path, per channel.
         #[serde(default, deserialize_with = "ranges::body_absorption")]
         absorption: [f64; 3],
+        /// Scattering coefficient per millimetre of path, per channel.
+        #[serde(default, deserialize_with = "ranges::body_scattering")]
+        scattering: [f64; 3],
+        /// Henyey–Greenstein g: the mean cosine of the scattering angle.
+        #[serde(default, deserialize_with = "ranges::anisotropy")]
+        anisotropy: f64,
     },
 }
 
@@ -146,22 +152,43 @@ pub enum BodySpec {
 pub enum Body {
     /// Shaded by the pattern's layered BRDFs at the surface.
     Opaque,
-    /// A smooth dielectric interface over an absorbing volume.
+    /// A smooth dielectric interface over an absorbing, scattering volume.
     Translucent {
         /// Refractive index of the body relative to the air around it.
         ior: f64,
-        /// σa per millimetre (scene unit), per channel.
-        absorption_per_mm: Rgb,
+        /// What happens along a path inside.
+        medium: Medium,
     },
+}
+
+/// A homogeneous participating medium, coefficients per millimetre (scene
+/// unit) per channel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Medium {
+    /// σa: absorption per mm.
+    pub absorption_per_mm: Rgb,
+    /// σs: scattering per mm.
+    pub scattering_per_mm: Rgb,
+    /// Henyey–Greenstein g, in [−0.99, 0.99].
+    pub anisotropy: f64,
 }
 
 impl From<&BodySpec> for Body {
     fn from(spec: &BodySpec) -> Self {
         match *spec {
             BodySpec::Opaque => Body::Opaque,
-            BodySpec::Translucent { ior, absorption } => Body::Translucent {
+            BodySpec::Translucent {
                 ior,
-                absorption_per_mm: Rgb::from_array(absorption),
+                absorption,
+                scattering,
+                anisotropy,
+            } => Body::Translucent {
+                ior,
+                medium: Medium {
+                    absorption_per_mm: Rgb::from_array(absorption),
+                    scattering_per_mm: Rgb::from_array(scattering),
+                    anisotropy,
+                },
             },
         }
     }

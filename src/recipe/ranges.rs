@@ -164,6 +164,18 @@ rgb_field!(
     "0 <= absorption <= 1000 (per mm)",
     |v| (0.0..=1000.0).contains(&v)
 );
+rgb_field!(
+    body_scattering,
+    "scattering",
+    "0 <= scattering <= 1000 (per mm)",
+    |v| (0.0..=1000.0).contains(&v)
+);
+scalar_field!(
+    anisotropy,
+    "anisotropy",
+    "-0.99 <= anisotropy <= 0.99",
+    |v| (-0.99..=0.99).contains(&v)
+);
 rgb_field!(stretch, "stretch", "stretch > 0", |v| v > 0.0);
 rgb_field!(direction, "direction", "finite, not all zero", |_| true);
 

@@ -11,7 +11,7 @@ use glam::DVec3;
 
 use crate::brdf::fresnel;
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
-use crate::recipe::gem::{Body, Gem};
+use crate::recipe::gem::{Body, Gem, Medium};
 use crate::render::environment::Environment;
 use crate::render::lights::Light;
 use crate::render::sampler::{SampleStream, SOBOL_PAIRS};
@@ -308,9 +308,12 @@ impl RenderScene {
         // The stone the current segment leaves (outwards), which it cannot
         // meet again: every cabochon is convex.
         let mut leaving: Option<usize> = None;
-        // σa per mm of the translucent body the current segment runs
+        // The medium of the translucent body the current segment runs
         // through, if it runs inside one.
-        let mut inside: Option<Rgb> = None;
+        let mut inside: Option<Medium> = None;
+        // The hero channel and relative densities, from the path's first
+        // flight through a scattering medium on.
+        let mut spectral: Option<SpectralPath> = None;
         let mut bounce = 0;
         loop {
             counts.traced += 1;
@@ -318,9 +321,36 @@ impl RenderScene {
                 .world
                 .intersect_leaving(origin, direction, 0.0, f64::INFINITY, leaving);
             let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
-            if let (Some(absorption), Some(hit)) = (inside, &hit) {
-                // Beer–Lambert along the segment inside the body (eq. 3.4).
-                throughput *= beer_lambert(absorption, hit.t);
+            if let (Some(medium), Some(hit)) = (inside, &hit) {
+                if medium.scattering_per_mm == Rgb::ZERO {
+                    // Beer–Lambert along the segment inside the body (eq. 3.4).
+                    throughput *= beer_lambert(medium.absorption_per_mm, hit.t);
+                } else {
+                    let spectral = spectral.get_or_insert_with(|| {
+                        SpectralPath::new(((stream.next_1d() * 3.0) as usize).min(2))
+                    });
+                    let flight =
+                        sample_free_flight(&medium, hit.t, spectral.hero, stream.next_1d());
+                    throughput *= spectral.weigh(&flight);
+                    if let Some(t) = flight.scatters_at {
+                        // A scattering vertex: the phase function over its
+                        // own density is 1, and no light is sampled from
+                        // inside the dielectric boundary.
+                        if bounce > self.max_bounces {
+                            break;
+                        }
+                        origin += direction * t;
+                        direction = sample_henyey_greenstein(
+                            direction,
+                            medium.anisotropy,
+                            stream.next_2d(),
+                        );
+                        leaving = None;
+                        previous = None;
+                        bounce += 1;
+                        continue;
+                    }
+                }
             }
             // An emitter in front of the surface (or of the sky).
             if let Some((light, t, emitted)) = self.nearest_light(origin, direction, t_hit) {
@@ -348,7 +378,7 @@ impl RenderScene {
                 // for the previous vertex's BRDF strategy.
                 break;
             }
-            if let Some((ior, absorption)) = self.translucent_body(&hit) {
+            if let Some((ior, medium)) = self.translucent_body(&hit) {
                 // A smooth dielectric interface: a delta lobe, so no light
                 // sampling here; the next segment's emitters count in full.
                 if bounce == 0 {
@@ -373,7 +403,7 @@ impl RenderScene {
                     (true, true) => (-1.0, true),
                     (true, false) => (1.0, false),
                 };
-                inside = now_inside.then_some(absorption);
+                inside = now_inside.then_some(medium);
                 leaving = if now_inside { None } else { stone };
                 origin = hit.point + hit.normal * (side * RAY_OFFSET);
                 direction = crossing.direction;
@@ -479,16 +509,13 @@ impl RenderScene {
         radiance
     }
 
-    /// The IOR and σa per mm of the stone hit, when its gem has a
-    /// translucent body.
+    /// The IOR and medium of the stone hit, when its gem has a translucent
+    /// body.
     #[inline(always)]
-    fn translucent_body(&self, hit: &SurfaceHit) -> Option<(f64, Rgb)> {
+    fn translucent_body(&self, hit: &SurfaceHit) -> Option<(f64, Medium)> {
         let index = hit.stone_index()?;
         match self.gems[self.world.stones()[index].gem].body {
-            Body::Translucent {
-                ior,
-                absorption_per_mm,
-            } => Some((ior, absorption_per_mm)),
+            Body::Translucent { ior, medium } => Some((ior, medium)),
             Body::Opaque => None,
         }
     }
@@ -638,6 +665,97 @@ fn beer_lambert(absorption: Rgb, t: f64) -> Rgb {
     )
 }
 
+/// What a free flight through a medium ended in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct FreeFlight {
+    /// The scattering event's distance along the ray, or None when the
+    /// flight reached the segment's end (the surface).
+    scatters_at: Option<f64>,
+    /// The path's value for the event per channel: σs·Tr(t) for a
+    /// scattering event, Tr(t_end) for reaching the surface.
+    value: Rgb,
+    /// Each channel's density (or probability, for reaching the surface)
+    /// of this event had it sampled the distance: σt·Tr(t), or Tr(t_end).
+    pdf: Rgb,
+}
+
+/// Samples a free-flight distance in a homogeneous medium along a segment
+/// of length `t_end` from channel `hero`'s exponential, σt e^(−σt t), by
+/// `u`. With RGB coefficients the path keeps every channel's density
+/// (`SpectralPath`), and the estimate is weighted by the balance
+/// heuristic over the three channels' whole-path densities ("hero
+/// wavelength" spectral MIS): unbiased in every channel, with weights
+/// bounded by 3 however many times the path scatters.
+fn sample_free_flight(medium: &Medium, t_end: f64, hero: usize, u: f64) -> FreeFlight {
+    let sigma_t = medium.absorption_per_mm + medium.scattering_per_mm;
+    let sigma = sigma_t[hero];
+    let t = if sigma > 0.0 {
+        -(1.0 - u).ln() / sigma
+    } else {
+        f64::INFINITY
+    };
+    if t < t_end {
+        let transmittance = beer_lambert(sigma_t, t);
+        FreeFlight {
+            scatters_at: Some(t),
+            value: medium.scattering_per_mm * transmittance,
+            pdf: sigma_t * transmittance,
+        }
+    } else {
+        let transmittance = beer_lambert(sigma_t, t_end);
+        FreeFlight {
+            scatters_at: None,
+            value: transmittance,
+            pdf: transmittance,
+        }
+    }
+}
+
+/// A path's hero channel and every channel's path density relative to the
+/// hero's (pbrt-v4's r_u), for spectral MIS through media.
+#[derive(Clone, Copy, Debug)]
+struct SpectralPath {
+    hero: usize,
+    relative_pdf: Rgb,
+}
+
+impl SpectralPath {
+    /// A path whose distances are sampled from channel `hero`.
+    fn new(hero: usize) -> Self {
+        Self {
+            hero,
+            relative_pdf: Rgb::ONE,
+        }
+    }
+
+    /// The factor that turns the throughput before `flight` into the
+    /// throughput after it: value / pdf_hero, re-weighted from the balance
+    /// heuristic's old denominator (the mean relative density) to its new.
+    fn weigh(&mut self, flight: &FreeFlight) -> Rgb {
+        let pdf_hero = flight.pdf[self.hero];
+        let before = self.relative_pdf.element_sum() / 3.0;
+        self.relative_pdf *= flight.pdf / pdf_hero;
+        let after = self.relative_pdf.element_sum() / 3.0;
+        flight.value * (before / (pdf_hero * after))
+    }
+}
+
+/// A direction scattered from the propagation direction `direction` (unit)
+/// by the Henyey–Greenstein phase function of mean cosine `g`, by inverting
+/// its CDF in cosθ; the phase function over its own density is 1.
+fn sample_henyey_greenstein(direction: DVec3, g: f64, u: [f64; 2]) -> DVec3 {
+    let cos_theta = if g.abs() < 1e-3 {
+        1.0 - 2.0 * u[0]
+    } else {
+        let s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u[0]);
+        ((1.0 + g * g - s * s) / (2.0 * g)).clamp(-1.0, 1.0)
+    };
+    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+    let phi = std::f64::consts::TAU * u[1];
+    let (t, b) = direction.any_orthonormal_pair();
+    (t * (sin_theta * phi.cos()) + b * (sin_theta * phi.sin()) + direction * cos_theta).normalize()
+}
+
 /// Where a ray goes at a smooth dielectric interface.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Crossing {
@@ -690,6 +808,97 @@ fn cross_smooth_interface(direction: DVec3, normal: DVec3, ior: f64, u: f64) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn henyey_greenstein_samples_have_mean_cosine_g() {
+        let direction = DVec3::new(0.3, -0.5, 0.8).normalize();
+        for g in [-0.9, -0.3, 0.0, 0.5, 0.95] {
+            let n = 200;
+            let mut sum = 0.0;
+            for i in 0..n {
+                for j in 0..n {
+                    let u = [
+                        (f64::from(i) + 0.5) / f64::from(n),
+                        (f64::from(j) + 0.5) / f64::from(n),
+                    ];
+                    let d = sample_henyey_greenstein(direction, g, u);
+                    assert!((d.length() - 1.0).abs() < 1e-12);
+                    sum += d.dot(direction);
+                }
+            }
+            let mean = sum / f64::from(n * n);
+            assert!((mean - g).abs() < 2e-3, "g {g}: mean cosine {mean}");
+        }
+    }
+
+    #[test]
+    fn free_flights_are_unbiased_per_channel() {
+        // One flight, its hero channel uniform: E[weight · 1(scatter)] =
+        // σs/σt · (1 − e^(−σt L)) and E[weight · 1(reach)] = e^(−σt L),
+        // channel by channel, one of them with σt = 0; draws stratified.
+        let medium = Medium {
+            absorption_per_mm: Rgb::new(0.2, 0.0, 1.5),
+            scattering_per_mm: Rgb::new(0.3, 0.0, 0.5),
+            anisotropy: 0.0,
+        };
+        let length = 1.7;
+        let n = 600;
+        let (mut scattered, mut reached) = (Rgb::ZERO, Rgb::ZERO);
+        for hero in 0..3 {
+            for i in 0..n {
+                let u = (f64::from(i) + 0.5) / f64::from(n);
+                let flight = sample_free_flight(&medium, length, hero, u);
+                let weight = SpectralPath::new(hero).weigh(&flight) / 3.0;
+                match flight.scatters_at {
+                    Some(t) => {
+                        assert!(t < length);
+                        scattered += weight;
+                    }
+                    None => reached += weight,
+                }
+            }
+        }
+        let count = f64::from(n);
+        let sigma_t = medium.absorption_per_mm + medium.scattering_per_mm;
+        for c in 0..3 {
+            let transmittance = (-sigma_t[c] * length).exp();
+            let scatter = if sigma_t[c] > 0.0 {
+                medium.scattering_per_mm[c] / sigma_t[c] * (1.0 - transmittance)
+            } else {
+                0.0
+            };
+            assert!(
+                (scattered[c] / count - scatter).abs() < 2e-3,
+                "channel {c} scatter"
+            );
+            assert!(
+                (reached[c] / count - transmittance).abs() < 2e-3,
+                "channel {c} reach"
+            );
+        }
+    }
+
+    #[test]
+    fn spectral_path_weights_stay_bounded_over_many_flights() {
+        // The balance heuristic over whole-path densities: with σa = 0 the
+        // weight of any path in any channel is at most 3.
+        let medium = Medium {
+            absorption_per_mm: Rgb::ZERO,
+            scattering_per_mm: Rgb::new(0.05, 0.2, 0.6),
+            anisotropy: 0.0,
+        };
+        let mut rng = crate::sampling::Rng::new(4, 2);
+        for _ in 0..2000 {
+            let mut path = SpectralPath::new(((rng.next_f64() * 3.0) as usize).min(2));
+            let mut weight = Rgb::ONE;
+            for _ in 0..40 {
+                let flight =
+                    sample_free_flight(&medium, 1.0 + rng.next_f64(), path.hero, rng.next_f64());
+                weight *= path.weigh(&flight);
+                assert!(weight.max_element() <= 3.0 + 1e-9, "{weight}");
+            }
+        }
+    }
 
     #[test]
     fn a_smooth_interface_refracts_by_snell_and_reflects_by_fresnel() {
