@@ -282,3 +282,35 @@ fn scattering_sends_light_back_out_of_an_absorbing_body_but_never_above_the_sky(
     );
     assert!(milky <= 1.0, "energy created: {milky}");
 }
+
+#[test]
+fn a_scattering_body_renders_the_same_bytes_on_any_thread_count() {
+    let camera = PinholeCamera::new(
+        DVec3::new(0.0, -40.0, 30.0),
+        DVec3::ZERO,
+        DVec3::Z,
+        12.0,
+        20,
+        20,
+    );
+    let film_on = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            render_body(
+                "Translucent(ior: 1.6, absorption: (0.1, 0.2, 0.3), scattering: (0.5, 0.3, 0.1), anisotropy: -0.3)",
+                CabochonParams::default(),
+                Environment::Constant(Rgb::new(0.8, 0.9, 1.0)),
+                vec![],
+                &camera,
+                20,
+                8,
+            )
+        })
+    };
+    let one = film_on(1);
+    assert_eq!(one, film_on(3));
+    assert!(one.alpha.iter().any(|a| *a == 1.0));
+}
