@@ -312,5 +312,5 @@ fn a_scattering_body_renders_the_same_bytes_on_any_thread_count() {
     };
     let one = film_on(1);
     assert_eq!(one, film_on(3));
-    assert!(one.alpha.iter().any(|a| *a == 1.0));
+    assert!(one.alpha.contains(&1.0));
 }
