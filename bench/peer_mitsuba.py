@@ -93,6 +93,18 @@ def ellipsoid_cap_mesh(rings=96, segments=192):
 # --- Mitsuba ------------------------------------------------------------------
 
 
+def mesh_of(mi, dr, pos, nrm, faces, props):
+    """A Mitsuba mesh named `stone` from numpy positions, vertex normals and
+    faces, with `props` (its BSDF, and its interior medium if any)."""
+    mesh = mi.Mesh("stone", len(pos), len(faces), props, has_vertex_normals=True)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = dr.ravel(mi.Point3f(pos[:, 0], pos[:, 1], pos[:, 2]))
+    params["vertex_normals"] = dr.ravel(mi.Normal3f(nrm[:, 0], nrm[:, 1], nrm[:, 2]))
+    params["faces"] = dr.ravel(mi.Vector3u(faces[:, 0], faces[:, 1], faces[:, 2]))
+    params.update()
+    return mesh
+
+
 def stone_mesh(mi, dr, nonlinear=True):
     """The cabochon as a Mitsuba mesh with the `plastic` BSDF of the issue.
 
@@ -113,13 +125,7 @@ def stone_mesh(mi, dr, nonlinear=True):
             "nonlinear": nonlinear,
         }
     )
-    mesh = mi.Mesh("stone", len(pos), len(faces), props, has_vertex_normals=True)
-    params = mi.traverse(mesh)
-    params["vertex_positions"] = dr.ravel(mi.Point3f(pos[:, 0], pos[:, 1], pos[:, 2]))
-    params["vertex_normals"] = dr.ravel(mi.Normal3f(nrm[:, 0], nrm[:, 1], nrm[:, 2]))
-    params["faces"] = dr.ravel(mi.Vector3u(faces[:, 0], faces[:, 1], faces[:, 2]))
-    params.update()
-    return mesh
+    return mesh_of(mi, dr, pos, nrm, faces, props)
 
 
 def clear_stone_mesh(mi, dr):
@@ -154,13 +160,7 @@ def clear_stone_mesh(mi, dr):
             "albedo": {"type": "rgb", "value": [0.0, 0.0, 0.0]},
         }
     )
-    mesh = mi.Mesh("stone", len(pos), len(faces), props, has_vertex_normals=True)
-    params = mi.traverse(mesh)
-    params["vertex_positions"] = dr.ravel(mi.Point3f(pos[:, 0], pos[:, 1], pos[:, 2]))
-    params["vertex_normals"] = dr.ravel(mi.Normal3f(nrm[:, 0], nrm[:, 1], nrm[:, 2]))
-    params["faces"] = dr.ravel(mi.Vector3u(faces[:, 0], faces[:, 1], faces[:, 2]))
-    params.update()
-    return mesh
+    return mesh_of(mi, dr, pos, nrm, faces, props)
 
 
 def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True, clear=False):

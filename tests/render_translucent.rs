@@ -49,6 +49,28 @@ fn render_body(
     )
 }
 
+/// A camera 50 mm from the origin, 37° above the ground, 12° field.
+fn three_quarter_camera(size: u32) -> PinholeCamera {
+    PinholeCamera::new(
+        DVec3::new(0.0, -40.0, 30.0),
+        DVec3::ZERO,
+        DVec3::Z,
+        12.0,
+        size,
+        size,
+    )
+}
+
+/// The pixels wholly on the stone.
+fn stone_pixels(film: &Film) -> Vec<[f32; 3]> {
+    film.rgb
+        .iter()
+        .zip(&film.alpha)
+        .filter(|(_, a)| **a == 1.0)
+        .map(|(rgb, _)| *rgb)
+        .collect()
+}
+
 #[test]
 fn light_through_a_flat_window_is_absorbed_by_beer_lambert() {
     // A round stone with a buffed (flat) top and a flat base, seen straight
@@ -123,14 +145,7 @@ fn a_lossless_body_in_a_white_furnace_vanishes() {
     // No absorption, a uniform white sky, nothing else: every path ends in
     // the sky with weight 1 (Fresnel picks reflection or refraction with
     // its own probability), so the stone cannot be told from the sky.
-    let camera = PinholeCamera::new(
-        DVec3::new(0.0, -40.0, 30.0),
-        DVec3::ZERO,
-        DVec3::Z,
-        12.0,
-        24,
-        24,
-    );
+    let camera = three_quarter_camera(24);
     let film = render_body(
         "Translucent(ior: 1.54)",
         CabochonParams::default(),
@@ -140,13 +155,7 @@ fn a_lossless_body_in_a_white_furnace_vanishes() {
         24,
         8,
     );
-    let on_stone: Vec<[f32; 3]> = film
-        .rgb
-        .iter()
-        .zip(&film.alpha)
-        .filter(|(_, a)| **a == 1.0)
-        .map(|(rgb, _)| *rgb)
-        .collect();
+    let on_stone: Vec<[f32; 3]> = stone_pixels(&film);
     assert!(
         on_stone.len() > 150,
         "the stone fills the middle ({})",
@@ -165,14 +174,7 @@ fn a_lossless_body_in_a_white_furnace_vanishes() {
 
 #[test]
 fn an_absorbing_body_in_a_white_furnace_never_exceeds_the_sky() {
-    let camera = PinholeCamera::new(
-        DVec3::new(0.0, -40.0, 30.0),
-        DVec3::ZERO,
-        DVec3::Z,
-        12.0,
-        16,
-        16,
-    );
+    let camera = three_quarter_camera(16);
     let film = render_body(
         "Translucent(ior: 1.7, absorption: (0.02, 0.1, 0.5))",
         CabochonParams::default(),
@@ -203,14 +205,7 @@ fn a_lossless_scattering_body_in_a_white_furnace_vanishes() {
     // σa = 0 and σs different per channel (the spectral MIS weights must
     // keep each channel unbiased), forward scattering: every path still
     // ends in the white sky, so the stone's mean is the sky's.
-    let camera = PinholeCamera::new(
-        DVec3::new(0.0, -40.0, 30.0),
-        DVec3::ZERO,
-        DVec3::Z,
-        12.0,
-        24,
-        24,
-    );
+    let camera = three_quarter_camera(24);
     let film = render_body(
         "Translucent(ior: 1.54, scattering: (0.05, 0.2, 0.6), anisotropy: 0.6)",
         CabochonParams::default(),
@@ -220,13 +215,7 @@ fn a_lossless_scattering_body_in_a_white_furnace_vanishes() {
         24,
         SCATTERING_FURNACE_SPP,
     );
-    let stone: Vec<[f32; 3]> = film
-        .rgb
-        .iter()
-        .zip(&film.alpha)
-        .filter(|(_, a)| **a == 1.0)
-        .map(|(rgb, _)| *rgb)
-        .collect();
+    let stone: Vec<[f32; 3]> = stone_pixels(&film);
     assert!(
         stone.len() > 150,
         "the stone fills the middle ({})",
@@ -246,14 +235,7 @@ fn a_lossless_scattering_body_in_a_white_furnace_vanishes() {
 fn scattering_sends_light_back_out_of_an_absorbing_body_but_never_above_the_sky() {
     // Light scattered near the surface leaves before the body absorbs it:
     // a milky stone is brighter than the same clear one, and still ≤ 1.
-    let camera = PinholeCamera::new(
-        DVec3::new(0.0, -40.0, 30.0),
-        DVec3::ZERO,
-        DVec3::Z,
-        12.0,
-        16,
-        16,
-    );
+    let camera = three_quarter_camera(16);
     let mean_of = |body: &str| {
         let film = render_body(
             body,
@@ -264,14 +246,8 @@ fn scattering_sends_light_back_out_of_an_absorbing_body_but_never_above_the_sky(
             16,
             64,
         );
-        let stone: Vec<f64> = film
-            .rgb
-            .iter()
-            .zip(&film.alpha)
-            .filter(|(_, a)| **a == 1.0)
-            .map(|(rgb, _)| f64::from(rgb[1]))
-            .collect();
-        stone.iter().sum::<f64>() / stone.len() as f64
+        let stone = stone_pixels(&film);
+        stone.iter().map(|p| f64::from(p[1])).sum::<f64>() / stone.len() as f64
     };
     let clear = mean_of("Translucent(ior: 1.54, absorption: (0.3, 0.3, 0.3))");
     let milky =
@@ -285,14 +261,7 @@ fn scattering_sends_light_back_out_of_an_absorbing_body_but_never_above_the_sky(
 
 #[test]
 fn a_scattering_body_renders_the_same_bytes_on_any_thread_count() {
-    let camera = PinholeCamera::new(
-        DVec3::new(0.0, -40.0, 30.0),
-        DVec3::ZERO,
-        DVec3::Z,
-        12.0,
-        20,
-        20,
-    );
+    let camera = three_quarter_camera(20);
     let film_on = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
