@@ -502,7 +502,8 @@ fn translucent_body_fields_are_range_checked() {
                 absorption_per_mm: lapidary::brdf::Rgb::new(0.1, 0.2, 0.3),
                 scattering_per_mm: lapidary::brdf::Rgb::ZERO,
                 anisotropy: 0.0,
-            }
+            },
+            inclusions: vec![],
         }
     );
     assert_eq!(

@@ -23,7 +23,9 @@ fn render_body(
     size: u32,
     spp: u32,
 ) -> Film {
-    let text = format!(r#"Gem(surface: "teflon", body: {body})"#);
+    let text = format!(
+        r#"Gem(surface: "teflon", materials: {{"white": Material(layers: [], base: Diffuse(colour: (1, 1, 1))), "black-flake": Material(layers: [], base: Black)}}, body: {body})"#
+    );
     let gem = compile_gem(&GemSource::new("test", &text), None, Tables::Skipped).unwrap();
     let stone = StoneInstance {
         cabochon: Cabochon::new(shape).unwrap(),
@@ -282,4 +284,96 @@ fn a_scattering_body_renders_the_same_bytes_on_any_thread_count() {
     let one = film_on(1);
     assert_eq!(one, film_on(3));
     assert!(one.alpha.contains(&1.0));
+}
+
+#[test]
+fn lossless_flakes_in_a_clear_body_vanish_in_a_white_furnace() {
+    // White Lambert platelets (albedo 1, either side) in a body that does
+    // not absorb: every path still ends in the white sky with weight 1.
+    let camera = three_quarter_camera(24);
+    let film = render_body(
+        "Translucent(ior: 1.53, inclusions: [Inclusions(shape: Triangle, size_mm: 0.3, \
+         size_spread: 0.3, density_per_mm3: 6.0, orientation: Isotropic, material: \"white\", seed: 2)])",
+        CabochonParams::default(),
+        Environment::Constant(Rgb::ONE),
+        vec![],
+        &camera,
+        24,
+        32,
+    );
+    let stone = stone_pixels(&film);
+    assert!(
+        stone.len() > 150,
+        "the stone fills the middle ({})",
+        stone.len()
+    );
+    let mean = stone.iter().map(|p| f64::from(p[1])).sum::<f64>() / stone.len() as f64;
+    assert!((mean - 1.0).abs() < 0.01, "mean over the stone {mean}");
+    assert!(
+        stone.iter().all(|p| p.iter().all(|c| *c <= 1.0 + 1e-6)),
+        "energy created"
+    );
+}
+
+#[test]
+fn dark_flakes_darken_a_clear_body_as_their_projected_area_says() {
+    // Black platelets absorb what meets them: through the flat window of
+    // the Beer–Lambert test (no absorption in the body) the soft box is
+    // dimmed by the chance of crossing no flake over the thickness L,
+    // about exp(−n · A/2 · L) for isotropic flakes of area A (the
+    // fraction of the window's light left is compared with it within 10 %,
+    // a cell holding exactly one flake being less random than Poisson).
+    let shape = CabochonParams {
+        outline: Outline::Round,
+        length: 10.0,
+        width: 10.0,
+        dome_height: 3.0,
+        girdle_height: 0.5,
+        buff_top: Some(0.6),
+        ..CabochonParams::default()
+    };
+    let (lo, hi) = Cabochon::new(shape).unwrap().bounds();
+    let thickness = hi.z - lo.z;
+    let box_below = Light::Rect {
+        centre: DVec3::new(0.0, 0.0, -5.0),
+        normal: DVec3::Z,
+        u_axis: DVec3::X,
+        v_axis: DVec3::Y,
+        width: 200.0,
+        height: 200.0,
+        radiance: Rgb::ONE,
+    };
+    let camera = PinholeCamera::new(
+        DVec3::new(0.0, 0.0, 60.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        2.0,
+        32,
+        32,
+    );
+    let mean_green = |body: &str| {
+        let film = render_body(
+            body,
+            shape,
+            Environment::Constant(Rgb::ZERO),
+            vec![box_below],
+            &camera,
+            32,
+            16,
+        );
+        film.rgb.iter().map(|p| f64::from(p[1])).sum::<f64>() / film.rgb.len() as f64
+    };
+    let (size_mm, density): (f64, f64) = (0.3, 4.0);
+    let clear = mean_green("Translucent(ior: 1.5)");
+    let flaked = mean_green(&format!(
+        "Translucent(ior: 1.5, inclusions: [Inclusions(shape: Disc, size_mm: {size_mm}, \
+         density_per_mm3: {density}, material: \"black-flake\")])"
+    ));
+    let area = std::f64::consts::PI * (size_mm / 2.0).powi(2);
+    let expected = (-density * area / 2.0 * thickness).exp();
+    let ratio = flaked / clear;
+    assert!(
+        (ratio - expected).abs() < 0.1 * expected,
+        "{ratio} of the light left, expected about {expected}"
+    );
 }

@@ -144,21 +144,105 @@ pub enum BodySpec {
         /// Henyey–Greenstein g: the mean cosine of the scattering angle.
         #[serde(default, deserialize_with = "ranges::anisotropy")]
         anisotropy: f64,
+        /// Populations of flakes (platelets) through the body.
+        #[serde(default)]
+        inclusions: Vec<InclusionsSpec>,
+    },
+}
+
+/// One population of flat crystals inside a translucent body, as written.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Inclusions")]
+pub struct InclusionsSpec {
+    /// The platelet's outline.
+    pub shape: FlakeShape,
+    /// Mean size (circumscribed diameter) in mm.
+    #[serde(deserialize_with = "ranges::flake_size_mm")]
+    pub size_mm: f64,
+    /// Each flake's size is the mean times a factor uniform in
+    /// [1 − spread, 1 + spread].
+    #[serde(default, deserialize_with = "ranges::size_spread")]
+    pub size_spread: f64,
+    /// Flakes per mm³ (one in each cell of a jittered grid of that density).
+    #[serde(deserialize_with = "ranges::density_per_mm3")]
+    pub density_per_mm3: f64,
+    /// How the flakes' normals are distributed.
+    #[serde(default)]
+    pub orientation: OrientationSpec,
+    /// The flakes' material: inline or built-in, as a map entry's.
+    pub material: String,
+    /// Seed of the population (with the gem's).
+    #[serde(default)]
+    pub seed: u64,
+}
+
+/// A platelet's outline, of circumscribed radius r in its own plane.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+pub enum FlakeShape {
+    /// A disc of radius r.
+    Disc,
+    /// A regular hexagon (hexagonal copper or mica platelets).
+    Hexagon,
+    /// An equilateral triangle (copper crystals in goldstone).
+    Triangle,
+    /// A 2:1 rectangle (hematite laths).
+    Rectangle,
+}
+
+/// How inclusion normals are oriented, as written.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum OrientationSpec {
+    /// Uniform over the sphere.
+    #[default]
+    Isotropic,
+    /// Within a cone about a direction of the stone (a cleavage plane's
+    /// normal): uniform in solid angle up to `spread_deg` from it.
+    Aligned {
+        /// The axis in the stone's object space (not all zero).
+        #[serde(deserialize_with = "ranges::direction")]
+        direction: [f64; 3],
+        /// Half-angle of the cone, degrees.
+        #[serde(default, deserialize_with = "ranges::spread_deg")]
+        spread_deg: f64,
     },
 }
 
 /// A compiled stone body (see [`BodySpec`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Body {
     /// Shaded by the pattern's layered BRDFs at the surface.
     Opaque,
-    /// A smooth dielectric interface over an absorbing, scattering volume.
+    /// A smooth dielectric interface over an absorbing, scattering volume
+    /// with flakes in it.
     Translucent {
         /// Refractive index of the body relative to the air around it.
         ior: f64,
         /// What happens along a path inside.
         medium: Medium,
+        /// The flake populations.
+        inclusions: Vec<Inclusions>,
     },
+}
+
+/// A compiled flake population (see [`InclusionsSpec`] and
+/// `crate::render::inclusions` for the flakes it stands for).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Inclusions {
+    /// The outline.
+    pub shape: FlakeShape,
+    /// Mean circumscribed radius, mm.
+    pub radius_mm: f64,
+    /// Relative spread of the radius.
+    pub size_spread: f64,
+    /// Side of the grid cell that holds one flake, mm: density^(−1/3).
+    pub cell_mm: f64,
+    /// Normals: None isotropic, else (unit axis, cos of the cone's half-angle).
+    pub aligned: Option<(glam::DVec3, f64)>,
+    /// Index of the flakes' material in [`Gem::brdfs`].
+    pub material: u32,
+    /// The population's own seed (the gem's and its own, mixed).
+    pub seed: u64,
 }
 
 /// A homogeneous participating medium, coefficients per millimetre (scene
@@ -171,27 +255,6 @@ pub struct Medium {
     pub scattering_per_mm: Rgb,
     /// Henyey–Greenstein g, in [−0.99, 0.99].
     pub anisotropy: f64,
-}
-
-impl From<&BodySpec> for Body {
-    fn from(spec: &BodySpec) -> Self {
-        match *spec {
-            BodySpec::Opaque => Body::Opaque,
-            BodySpec::Translucent {
-                ior,
-                absorption,
-                scattering,
-                anisotropy,
-            } => Body::Translucent {
-                ior,
-                medium: Medium {
-                    absorption_per_mm: Rgb::from_array(absorption),
-                    scattering_per_mm: Rgb::from_array(scattering),
-                    anisotropy,
-                },
-            },
-        }
-    }
 }
 
 /// A named node: a Voronoi surface map or a function switch.
@@ -1077,6 +1140,69 @@ impl<'a> Compiler<'a> {
         Ok(map)
     }
 
+    /// The compiled body; its inclusions' materials join the gem's.
+    fn body(&mut self, spec: &GemSpec) -> Result<Body, RecipeError> {
+        let BodySpec::Translucent {
+            ior,
+            absorption,
+            scattering,
+            anisotropy,
+            inclusions,
+        } = &spec.body
+        else {
+            return Ok(Body::Opaque);
+        };
+        let mut compiled = Vec::with_capacity(inclusions.len());
+        for (k, inclusion) in inclusions.iter().enumerate() {
+            let cell_mm = inclusion.density_per_mm3.powf(-1.0 / 3.0);
+            let largest = inclusion.size_mm * (1.0 + inclusion.size_spread);
+            if largest > 0.9 * cell_mm {
+                return Err(self.error_at(
+                    "size_mm",
+                    format!(
+                        "inclusions {}: flakes up to {largest:.4} mm do not fit the {cell_mm:.4} mm cells of density {} per mm³; allowed: size_mm × (1 + size_spread) ≤ 0.9 × density_per_mm3^(−1/3)",
+                        k + 1,
+                        inclusion.density_per_mm3
+                    ),
+                ));
+            }
+            let aligned = match &inclusion.orientation {
+                OrientationSpec::Isotropic => None,
+                OrientationSpec::Aligned {
+                    direction,
+                    spread_deg,
+                } => {
+                    let axis = DVec3::from_array(*direction);
+                    if axis.length_squared() == 0.0 {
+                        return Err(self.error_at(
+                            "Aligned",
+                            format!("inclusions {}: `direction` is zero; allowed: any non-zero direction", k + 1),
+                        ));
+                    }
+                    Some((axis.normalize(), spread_deg.to_radians().cos()))
+                }
+            };
+            compiled.push(Inclusions {
+                shape: inclusion.shape,
+                radius_mm: 0.5 * inclusion.size_mm,
+                size_spread: inclusion.size_spread,
+                cell_mm,
+                aligned,
+                material: self.material_index(&inclusion.material)?,
+                seed: derive_stream(seed_key(spec.seed ^ inclusion.seed), 16 + k as u64),
+            });
+        }
+        Ok(Body::Translucent {
+            ior: *ior,
+            medium: Medium {
+                absorption_per_mm: Rgb::from_array(*absorption),
+                scattering_per_mm: Rgb::from_array(*scattering),
+                anisotropy: *anisotropy,
+            },
+            inclusions: compiled,
+        })
+    }
+
     fn compile(mut self, spec: GemSpec) -> Result<Gem, RecipeError> {
         // Inline materials first, in name order, so their indices are stable.
         for name in self.spec.materials.keys() {
@@ -1117,6 +1243,7 @@ impl<'a> Compiler<'a> {
             Some(g) => Some(self.glitter(g)?),
             None => None,
         };
+        let body = self.body(&spec)?;
         let pattern = Pattern::new(nodes, root, glitter, self.materials.len() as u32)
             .map_err(|e| RecipeError::whole_file(self.path, e.to_string()))?;
         Ok(Gem {
@@ -1125,7 +1252,7 @@ impl<'a> Compiler<'a> {
             description: spec.description.clone(),
             seed: spec.seed,
             host_ior: spec.host_ior,
-            body: Body::from(&spec.body),
+            body,
             pattern,
             materials: self.materials,
             map_names: self.map_names,

@@ -176,6 +176,27 @@ scalar_field!(
     "-0.99 <= anisotropy <= 0.99",
     |v| (-0.99..=0.99).contains(&v)
 );
+scalar_field!(
+    flake_size_mm,
+    "size_mm",
+    "0.001 <= size_mm <= 10 (mm)",
+    |v| (0.001..=10.0).contains(&v)
+);
+scalar_field!(size_spread, "size_spread", "0 <= size_spread <= 0.9", |v| {
+    (0.0..=0.9).contains(&v)
+});
+scalar_field!(
+    density_per_mm3,
+    "density_per_mm3",
+    "0.001 <= density_per_mm3 <= 100000",
+    |v| (0.001..=100_000.0).contains(&v)
+);
+scalar_field!(
+    spread_deg,
+    "spread_deg",
+    "0 <= spread_deg <= 90 (degrees)",
+    |v| (0.0..=90.0).contains(&v)
+);
 rgb_field!(stretch, "stretch", "stretch > 0", |v| v > 0.0);
 rgb_field!(direction, "direction", "finite, not all zero", |_| true);
 

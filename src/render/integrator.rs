@@ -13,6 +13,7 @@ use crate::brdf::fresnel;
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem, Medium};
 use crate::render::environment::Environment;
+use crate::render::inclusions::FlakeHit;
 use crate::render::lights::Light;
 use crate::render::sampler::{SampleStream, SOBOL_PAIRS};
 use crate::render::world::{Surface, SurfaceHit, World, RAY_OFFSET};
@@ -310,7 +311,7 @@ impl RenderScene {
         let mut leaving: Option<usize> = None;
         // The medium of the translucent body the current segment runs
         // through, if it runs inside one.
-        let mut inside: Option<Medium> = None;
+        let mut inside: Option<(Medium, usize)> = None;
         // The hero channel and relative densities, from the path's first
         // flight through a scattering medium on.
         let mut spectral: Option<SpectralPath> = None;
@@ -321,16 +322,19 @@ impl RenderScene {
                 .world
                 .intersect_leaving(origin, direction, 0.0, f64::INFINITY, leaving);
             let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
-            if let (Some(medium), Some(hit)) = (inside, &hit) {
+            if let (Some((medium, stone)), Some(hit)) = (inside, &hit) {
+                // The segment ends at the first flake or at the surface.
+                let flake = self.nearest_flake(stone, origin, direction, hit.t);
+                let t_end = flake.map_or(hit.t, |(f, _)| f.t);
                 if medium.scattering_per_mm == Rgb::ZERO {
                     // Beer–Lambert along the segment inside the body (eq. 3.4).
-                    throughput *= beer_lambert(medium.absorption_per_mm, hit.t);
+                    throughput *= beer_lambert(medium.absorption_per_mm, t_end);
                 } else {
                     let spectral = spectral.get_or_insert_with(|| {
                         SpectralPath::new(((stream.next_1d() * 3.0) as usize).min(2))
                     });
                     let flight =
-                        sample_free_flight(&medium, hit.t, spectral.hero, stream.next_1d());
+                        sample_free_flight(&medium, t_end, spectral.hero, stream.next_1d());
                     throughput *= spectral.weigh(&flight);
                     if let Some(t) = flight.scatters_at {
                         // A scattering vertex: the phase function over its
@@ -350,6 +354,31 @@ impl RenderScene {
                         bounce += 1;
                         continue;
                     }
+                }
+                if let Some((flake, brdf)) = flake {
+                    // A flake reflects by its material's BRDF, from either
+                    // side; only its BRDF is sampled (no light reaches a
+                    // shadow ray through the smooth boundary).
+                    if bounce > self.max_bounces {
+                        break;
+                    }
+                    let normal = if flake.normal.dot(direction) < 0.0 {
+                        flake.normal
+                    } else {
+                        -flake.normal
+                    };
+                    let frame = Frame::new(normal);
+                    let wo = frame.to_local(-direction);
+                    let Some(sample) = brdf.at(wo).sample(stream.next_3d()) else {
+                        break;
+                    };
+                    throughput *= sample.weight();
+                    origin += direction * flake.t + normal * RAY_OFFSET;
+                    direction = frame.to_world(sample.wi);
+                    leaving = None;
+                    previous = None;
+                    bounce += 1;
+                    continue;
                 }
             }
             // An emitter in front of the surface (or of the sky).
@@ -403,7 +432,7 @@ impl RenderScene {
                     (true, true) => (-1.0, true),
                     (true, false) => (1.0, false),
                 };
-                inside = now_inside.then_some(medium);
+                inside = stone.filter(|_| now_inside).map(|index| (medium, index));
                 leaving = if now_inside { None } else { stone };
                 origin = hit.point + hit.normal * (side * RAY_OFFSET);
                 direction = crossing.direction;
@@ -514,10 +543,49 @@ impl RenderScene {
     #[inline(always)]
     fn translucent_body(&self, hit: &SurfaceHit) -> Option<(f64, Medium)> {
         let index = hit.stone_index()?;
-        match self.gems[self.world.stones()[index].gem].body {
-            Body::Translucent { ior, medium } => Some((ior, medium)),
+        match &self.gems[self.world.stones()[index].gem].body {
+            Body::Translucent { ior, medium, .. } => Some((*ior, *medium)),
             Body::Opaque => None,
         }
+    }
+
+    /// The nearest flake inside stone `stone` along the world ray for
+    /// 0 < t < `t_max`, with the normal in world space, and its material.
+    fn nearest_flake(
+        &self,
+        stone: usize,
+        origin: DVec3,
+        direction: DVec3,
+        t_max: f64,
+    ) -> Option<(FlakeHit, &LayeredBrdf)> {
+        let instance = &self.world.stones()[stone];
+        let gem = &self.gems[instance.gem];
+        let Body::Translucent { inclusions, .. } = &gem.body else {
+            return None;
+        };
+        if inclusions.is_empty() {
+            return None;
+        }
+        // A rotation keeps lengths: t is the same in object space.
+        let to_object = instance.rotation.inverse();
+        let o = to_object * (origin - instance.position);
+        let d = to_object * direction;
+        let mut best: Option<(FlakeHit, u32)> = None;
+        for population in inclusions {
+            let limit = best.map_or(t_max, |(hit, _)| hit.t);
+            if let Some(hit) = population.nearest(o, d, limit) {
+                best = Some((hit, population.material));
+            }
+        }
+        best.map(|(hit, material)| {
+            (
+                FlakeHit {
+                    t: hit.t,
+                    normal: instance.rotation * hit.normal,
+                },
+                &gem.brdfs[material as usize],
+            )
+        })
     }
 
     /// The `material_id` AOV value of the gem of the stone hit (0 off the

@@ -10,6 +10,7 @@ pub mod cpu;
 pub mod distribution;
 pub mod environment;
 pub mod film;
+pub(crate) mod inclusions;
 pub mod integrator;
 pub mod lights;
 pub mod prepare;
