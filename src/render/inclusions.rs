@@ -34,8 +34,9 @@ struct Flake {
 const MAX_CELLS_WALKED: u32 = 1 << 16;
 
 impl Inclusions {
-    /// The flake of `cell`.
-    fn flake(&self, cell: IVec3) -> Flake {
+    /// The hash of `cell`, and its flake's centre and radius: enough to
+    /// rule out a ray that passes farther than the radius from the centre.
+    fn centre_and_radius(&self, cell: IVec3) -> (u64, DVec3, f64) {
         let h = hash_cell(cell, self.seed);
         let u = |k: u64| unit_f64(derive_stream(h, k));
         let radius = self.radius_mm * (1.0 + self.size_spread * (2.0 * u(0) - 1.0));
@@ -45,6 +46,12 @@ impl Inclusions {
         let inside = |v: f64| margin + v * (1.0 - 2.0 * margin);
         let centre =
             (cell.as_dvec3() + DVec3::new(inside(u(1)), inside(u(2)), inside(u(3)))) * self.cell_mm;
+        (h, centre, radius)
+    }
+
+    /// The flake of the cell of hash `h`, given its centre and radius.
+    fn flake(&self, h: u64, centre: DVec3, radius: f64) -> Flake {
+        let u = |k: u64| unit_f64(derive_stream(h, k));
         let (cos_theta, phi) = match self.aligned {
             None => (1.0 - 2.0 * u(4), std::f64::consts::TAU * u(5)),
             Some((_, cos_max)) => (1.0 - u(4) * (1.0 - cos_max), std::f64::consts::TAU * u(5)),
@@ -137,7 +144,14 @@ impl Inclusions {
         direction: DVec3,
         t_max: f64,
     ) -> Option<FlakeHit> {
-        let flake = self.flake(cell);
+        let (h, centre, radius) = self.centre_and_radius(cell);
+        // The flake lies in the sphere of its radius about its centre.
+        let to_centre = centre - origin;
+        let closest = to_centre.dot(direction);
+        if to_centre.length_squared() - closest * closest > radius * radius {
+            return None;
+        }
+        let flake = self.flake(h, centre, radius);
         let along = direction.dot(flake.normal);
         if along == 0.0 {
             return None;
