@@ -51,6 +51,49 @@ fn render_body(
     )
 }
 
+/// A stone of `body` in a white sky, seen by [`three_quarter_camera`].
+fn in_white_furnace(body: &str, size: u32, spp: u32) -> Film {
+    let camera = three_quarter_camera(size);
+    render_body(
+        body,
+        CabochonParams::default(),
+        Environment::Constant(Rgb::ONE),
+        vec![],
+        &camera,
+        size,
+        spp,
+    )
+}
+
+/// A round stone with a buffed (flat) top and a flat base, and its
+/// thickness between the two, mm.
+fn flat_window() -> (CabochonParams, f64) {
+    let shape = CabochonParams {
+        outline: Outline::Round,
+        length: 10.0,
+        width: 10.0,
+        dome_height: 3.0,
+        girdle_height: 0.5,
+        buff_top: Some(0.6),
+        ..CabochonParams::default()
+    };
+    let (lo, hi) = Cabochon::new(shape).unwrap().bounds();
+    (shape, hi.z - lo.z)
+}
+
+/// A large one-sided soft box of `radiance` 5 mm under the stone, facing up.
+fn soft_box_below(radiance: Rgb) -> Light {
+    Light::Rect {
+        centre: DVec3::new(0.0, 0.0, -5.0),
+        normal: DVec3::Z,
+        u_axis: DVec3::X,
+        v_axis: DVec3::Y,
+        width: 200.0,
+        height: 200.0,
+        radiance,
+    }
+}
+
 /// A camera 50 mm from the origin, 37° above the ground, 12° field.
 fn three_quarter_camera(size: u32) -> PinholeCamera {
     PinholeCamera::new(
@@ -82,30 +125,12 @@ fn light_through_a_flat_window_is_absorbed_by_beer_lambert() {
     // time: L_box · (1 − F)² e / (1 − F² e²), with F = ((n − 1)/(n + 1))²
     // at normal incidence. Each interface is a Fresnel coin toss, so the
     // relative noise is about 0.3/√samples: 20 736 samples, ±0.2 %.
-    let shape = CabochonParams {
-        outline: Outline::Round,
-        length: 10.0,
-        width: 10.0,
-        dome_height: 3.0,
-        girdle_height: 0.5,
-        buff_top: Some(0.6),
-        ..CabochonParams::default()
-    };
-    let (lo, hi) = Cabochon::new(shape).unwrap().bounds();
-    let thickness = hi.z - lo.z;
+    let (shape, thickness) = flat_window();
     assert!(thickness > 2.0, "a thick window: {thickness}");
     let ior: f64 = 1.54;
     let absorption = [0.05, 0.2, 0.6];
     let radiance = 3.0;
-    let box_below = Light::Rect {
-        centre: DVec3::new(0.0, 0.0, -5.0),
-        normal: DVec3::Z,
-        u_axis: DVec3::X,
-        v_axis: DVec3::Y,
-        width: 200.0,
-        height: 200.0,
-        radiance: Rgb::splat(radiance),
-    };
+    let box_below = soft_box_below(Rgb::splat(radiance));
     let camera = PinholeCamera::new(DVec3::new(0.0, 0.0, 60.0), DVec3::ZERO, DVec3::Y, 0.5, 9, 9);
     let body = format!(
         "Translucent(ior: {ior}, absorption: ({}, {}, {}))",
@@ -147,16 +172,7 @@ fn a_lossless_body_in_a_white_furnace_vanishes() {
     // No absorption, a uniform white sky, nothing else: every path ends in
     // the sky with weight 1 (Fresnel picks reflection or refraction with
     // its own probability), so the stone cannot be told from the sky.
-    let camera = three_quarter_camera(24);
-    let film = render_body(
-        "Translucent(ior: 1.54)",
-        CabochonParams::default(),
-        Environment::Constant(Rgb::ONE),
-        vec![],
-        &camera,
-        24,
-        8,
-    );
+    let film = in_white_furnace("Translucent(ior: 1.54)", 24, 8);
     let on_stone: Vec<[f32; 3]> = stone_pixels(&film);
     assert!(
         on_stone.len() > 150,
@@ -176,16 +192,7 @@ fn a_lossless_body_in_a_white_furnace_vanishes() {
 
 #[test]
 fn an_absorbing_body_in_a_white_furnace_never_exceeds_the_sky() {
-    let camera = three_quarter_camera(16);
-    let film = render_body(
-        "Translucent(ior: 1.7, absorption: (0.02, 0.1, 0.5))",
-        CabochonParams::default(),
-        Environment::Constant(Rgb::ONE),
-        vec![],
-        &camera,
-        16,
-        8,
-    );
+    let film = in_white_furnace("Translucent(ior: 1.7, absorption: (0.02, 0.1, 0.5))", 16, 8);
     let mut blue_darker = 0;
     for (rgb, alpha) in film.rgb.iter().zip(&film.alpha) {
         assert!(
@@ -207,13 +214,8 @@ fn a_lossless_scattering_body_in_a_white_furnace_vanishes() {
     // σa = 0 and σs different per channel (the spectral MIS weights must
     // keep each channel unbiased), forward scattering: every path still
     // ends in the white sky, so the stone's mean is the sky's.
-    let camera = three_quarter_camera(24);
-    let film = render_body(
+    let film = in_white_furnace(
         "Translucent(ior: 1.54, scattering: (0.05, 0.2, 0.6), anisotropy: 0.6)",
-        CabochonParams::default(),
-        Environment::Constant(Rgb::ONE),
-        vec![],
-        &camera,
         24,
         SCATTERING_FURNACE_SPP,
     );
@@ -237,17 +239,8 @@ fn a_lossless_scattering_body_in_a_white_furnace_vanishes() {
 fn scattering_sends_light_back_out_of_an_absorbing_body_but_never_above_the_sky() {
     // Light scattered near the surface leaves before the body absorbs it:
     // a milky stone is brighter than the same clear one, and still ≤ 1.
-    let camera = three_quarter_camera(16);
     let mean_of = |body: &str| {
-        let film = render_body(
-            body,
-            CabochonParams::default(),
-            Environment::Constant(Rgb::ONE),
-            vec![],
-            &camera,
-            16,
-            64,
-        );
+        let film = in_white_furnace(body, 16, 64);
         let stone = stone_pixels(&film);
         stone.iter().map(|p| f64::from(p[1])).sum::<f64>() / stone.len() as f64
     };
@@ -323,26 +316,8 @@ fn dark_flakes_darken_a_clear_body_as_their_projected_area_says() {
     // about exp(−n · A/2 · L) for isotropic flakes of area A (the
     // fraction of the window's light left is compared with it within 10 %,
     // a cell holding exactly one flake being less random than Poisson).
-    let shape = CabochonParams {
-        outline: Outline::Round,
-        length: 10.0,
-        width: 10.0,
-        dome_height: 3.0,
-        girdle_height: 0.5,
-        buff_top: Some(0.6),
-        ..CabochonParams::default()
-    };
-    let (lo, hi) = Cabochon::new(shape).unwrap().bounds();
-    let thickness = hi.z - lo.z;
-    let box_below = Light::Rect {
-        centre: DVec3::new(0.0, 0.0, -5.0),
-        normal: DVec3::Z,
-        u_axis: DVec3::X,
-        v_axis: DVec3::Y,
-        width: 200.0,
-        height: 200.0,
-        radiance: Rgb::ONE,
-    };
+    let (shape, thickness) = flat_window();
+    let box_below = soft_box_below(Rgb::ONE);
     let camera = PinholeCamera::new(
         DVec3::new(0.0, 0.0, 60.0),
         DVec3::ZERO,
