@@ -5,7 +5,8 @@ use lapidary::brdf::albedo::{albedo_angles_deg, directional_albedo, in_plane};
 use lapidary::brdf::reference::{reference_albedo_with, reference_slice, WalkTables};
 use lapidary::brdf::LayeredBrdf;
 use lapidary::gallery::plot::{polar_plot, PolarPanel, PolarPlotStyle};
-use lapidary::recipe::compile::{load_material_without_table, COMPENSATION_SEED};
+use lapidary::recipe::compile::load_material_with;
+use lapidary::recipe::gem::Tables;
 use lapidary::sampling::direction_from_degrees;
 
 /// Fixed seed of every estimate this command prints: same output each run.
@@ -16,13 +17,13 @@ const ALBEDO_STD_ERROR: f64 = 0.0025;
 const PLOT_INCIDENCE_DEG: [f64; 4] = [0.0, 30.0, 60.0, 75.0];
 
 fn load(args: &BrdfArgs) -> Result<LayeredBrdf, String> {
-    let (mut brdf, wants_table) =
-        load_material_without_table(&args.material).map_err(|e| e.to_string())?;
-    if wants_table && !args.single_crossing {
-        let cache = super::table_cache_from_env();
-        brdf.compensation = cache.compensation(&brdf, COMPENSATION_SEED);
-    }
-    Ok(brdf)
+    let cache = super::table_cache_from_env();
+    let tables = if args.single_crossing {
+        Tables::Skipped
+    } else {
+        Tables::Computed(&cache)
+    };
+    load_material_with(&args.material, tables).map_err(|e| e.to_string())
 }
 
 /// Run `lapidary brdf`.

@@ -31,7 +31,7 @@ use crate::gallery::plot::text::{draw_text_centred, text_height, text_width, Cli
 use crate::gallery::plot::{polar_plot, PolarPanel, PolarPlotStyle};
 use crate::geometry::{Base, CabochonParams, Outline};
 use crate::output::tonemap::DisplayTransform;
-use crate::recipe::compile::{load_material_without_table, COMPENSATION_SEED};
+use crate::recipe::compile::load_material_with;
 use crate::recipe::error::RecipeError;
 use crate::recipe::gem::{compile_gem, Gem, GemSource, Tables};
 use crate::recipe::library::builtin_material_names;
@@ -231,12 +231,17 @@ pub(crate) fn compile_gem_draft_or_final(
     draft: bool,
     cache: &TableCache,
 ) -> Result<Gem, FigureError> {
-    let tables = if draft {
+    let tables = tables_for(draft, cache);
+    Ok(compile_gem(source, None, tables)?)
+}
+
+/// The tables of a draft (none) or of a final picture (through `cache`).
+fn tables_for(draft: bool, cache: &TableCache) -> Tables<'_> {
+    if draft {
         Tables::Skipped
     } else {
         Tables::Computed(cache)
-    };
-    Ok(compile_gem(source, None, tables)?)
+    }
 }
 
 /// Loads and compiles library material (or material file) `spec`; with
@@ -246,11 +251,8 @@ pub(crate) fn compile_material_spec(
     draft: bool,
     cache: &TableCache,
 ) -> Result<LayeredBrdf, FigureError> {
-    let (mut brdf, wants_table) = load_material_without_table(spec)?;
-    if wants_table && !draft {
-        brdf.compensation = cache.compensation(&brdf, COMPENSATION_SEED);
-    }
-    Ok(brdf)
+    let tables = tables_for(draft, cache);
+    Ok(load_material_with(spec, tables)?)
 }
 
 /// Renders built-in gem `name` on the default scene's cabochon in the

@@ -5,6 +5,7 @@
 use crate::brdf::fresnel;
 use crate::brdf::{Base, Interface, LayeredBrdf, Microfacet, Rgb};
 use crate::recipe::error::{did_you_mean, field_before, find_position, RecipeError};
+use crate::recipe::gem::Tables;
 use crate::recipe::library::{builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
 use std::path::Path;
@@ -135,6 +136,16 @@ pub fn load_material_without_table(spec: &str) -> Result<(LayeredBrdf, bool), Re
     let material = parse_material(&source.path, &source.text)?;
     let brdf = compile_material_without_table(&source, &material)?;
     Ok((brdf, material.multiple_scattering))
+}
+
+/// [`load_material`] with its compensation table from `tables` (through
+/// the cache, or none with [`Tables::Skipped`]).
+pub fn load_material_with(spec: &str, tables: Tables<'_>) -> Result<LayeredBrdf, RecipeError> {
+    let (mut brdf, wants_table) = load_material_without_table(spec)?;
+    if let (true, Tables::Computed(cache)) = (wants_table, tables) {
+        brdf.compensation = cache.compensation(&brdf, COMPENSATION_SEED);
+    }
+    Ok(brdf)
 }
 
 /// The IOR of a built-in varnish (a library material of one layer).

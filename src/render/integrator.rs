@@ -425,13 +425,10 @@ impl RenderScene {
                 }
                 let crossing = cross_smooth_interface(direction, hit.normal, ior, stream.next_1d());
                 let stone = hit.stone_index();
-                // Which side the new segment starts on, and what it leaves.
-                let (side, now_inside) = match (crossing.refracted, crossing.from_outside) {
-                    (false, true) => (1.0, false),
-                    (false, false) => (-1.0, true),
-                    (true, true) => (-1.0, true),
-                    (true, false) => (1.0, false),
-                };
+                // Refracting in from outside, or reflecting from inside,
+                // the new segment runs inside; it starts on that side.
+                let now_inside = crossing.refracted == crossing.from_outside;
+                let side = if now_inside { -1.0 } else { 1.0 };
                 inside = stone.filter(|_| now_inside).map(|index| (medium, index));
                 leaving = if now_inside { None } else { stone };
                 origin = hit.point + hit.normal * (side * RAY_OFFSET);

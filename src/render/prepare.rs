@@ -45,26 +45,31 @@ pub fn prepare_scene(
             }
         };
     }
+    // Each recipe read once; `source_of_key[k]` is key k's in `sources`.
     let mut sources: Vec<(Option<&str>, GemSource)> = Vec::new();
+    let mut source_of_key = Vec::with_capacity(keys.len());
     for (recipe, _) in &keys {
-        if !sources.iter().any(|(r, _)| r == recipe) {
-            let source = match recipe {
-                Some(name) => GemSource::load(name).map_err(|e| e.to_string())?,
-                None => default_gem.clone(),
-            };
-            report(&format!(
-                "compiling gem {}",
-                source.path.strip_prefix("builtin:").unwrap_or(&source.path)
-            ));
-            sources.push((*recipe, source));
-        }
+        let index = match sources.iter().position(|(r, _)| r == recipe) {
+            Some(index) => index,
+            None => {
+                let source = match recipe {
+                    Some(name) => GemSource::load(name).map_err(|e| e.to_string())?,
+                    None => default_gem.clone(),
+                };
+                report(&format!(
+                    "compiling gem {}",
+                    source.path.strip_prefix("builtin:").unwrap_or(&source.path)
+                ));
+                sources.push((*recipe, source));
+                sources.len() - 1
+            }
+        };
+        source_of_key.push(index);
     }
     let requests: Vec<(&GemSource, Option<u64>)> = keys
         .iter()
-        .map(|(recipe, seed)| {
-            let source = sources.iter().find(|(r, _)| r == recipe).map(|(_, s)| s);
-            (source.expect("every recipe was loaded"), *seed)
-        })
+        .zip(&source_of_key)
+        .map(|((_, seed), &index)| (&sources[index].1, *seed))
         .collect();
     let mut ground = match &scene.ground {
         Some(ground) => {
