@@ -7,12 +7,14 @@
 
 pub mod camera;
 pub mod cpu;
+pub(crate) mod dielectric;
 pub mod distribution;
 pub mod environment;
 pub mod film;
 pub(crate) mod inclusions;
 pub mod integrator;
 pub mod lights;
+pub(crate) mod medium;
 pub mod prepare;
 pub(crate) mod sampler;
 pub(crate) mod stone_grid;
