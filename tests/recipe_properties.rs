@@ -333,6 +333,7 @@ fn default_scene_without_ground(gem: Gem) -> (Scene, RenderScene) {
         environment: studio().clone(),
         max_bounces: 4,
         ambient_occlusion: None,
+        connect_through_surfaces: true,
     };
     (scene, render_scene)
 }

@@ -39,6 +39,7 @@ fn render_single_material(material: &str, sky: f64, size: u32, spp: u32, threads
         environment: Environment::Constant(Rgb::splat(sky)),
         max_bounces: 4,
         ambient_occlusion: None,
+        connect_through_surfaces: true,
     };
     let camera = PinholeCamera::new(
         DVec3::new(0.0, 0.0, 60.0),

@@ -55,6 +55,7 @@ fn floor_radiance(lights: Vec<Light>, stones: Vec<StoneInstance>, spp: u32) -> f
         environment: Environment::constant(Rgb::ZERO),
         max_bounces: 0,
         ambient_occlusion: None,
+        connect_through_surfaces: true,
     };
     // Narrow field: the 3 × 3 block sees the floor within 0.01 of the origin.
     let camera = PinholeCamera::new(

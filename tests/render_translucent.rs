@@ -42,6 +42,7 @@ fn render_body(
         environment,
         max_bounces: 1024,
         ambient_occlusion: None,
+        connect_through_surfaces: true,
     };
     render(
         &scene,

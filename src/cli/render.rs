@@ -241,6 +241,9 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         &report,
     )?;
     render_scene.ambient_occlusion = args.ao;
+    // `LAPIDARY_MNEE=off` leaves light through smooth translucent surfaces
+    // to path sampling alone, to measure what the connections gain.
+    render_scene.connect_through_surfaces = std::env::var("LAPIDARY_MNEE").as_deref() != Ok("off");
     let camera = camera_for(&scene, width, height);
     let settings = FilmSettings {
         code_path: super::code_path_from_env(),

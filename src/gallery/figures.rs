@@ -399,6 +399,7 @@ impl Studio {
             environment: self.environment.clone(),
             max_bounces: self.max_bounces,
             ambient_occlusion: None,
+            connect_through_surfaces: true,
         };
         let camera = camera_for(&self.scene, side_px, side_px);
         Ok(develop(

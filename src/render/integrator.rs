@@ -16,8 +16,9 @@ use crate::render::environment::Environment;
 use crate::render::inclusions::FlakeHit;
 use crate::render::lights::Light;
 use crate::render::medium::{
-    beer_lambert, sample_free_flight, sample_henyey_greenstein, SpectralPath,
+    beer_lambert, henyey_greenstein, sample_free_flight, sample_henyey_greenstein, SpectralPath,
 };
+use crate::render::refracted_light::ConnectedVertex;
 use crate::render::sampler::{SampleStream, SOBOL_PAIRS};
 use crate::render::world::{Surface, SurfaceHit, World, RAY_OFFSET};
 use crate::sampling::cosine_hemisphere;
@@ -49,6 +50,12 @@ pub struct RenderScene {
     /// cosine-distributed ray of that length per sample, as the appendix
     /// shader's `gather` does (written to the `ao` AOV).
     pub ambient_occlusion: Option<f64>,
+    /// Light reaches flakes and scattering vertices inside smooth
+    /// translucent bodies by manifold next-event estimation through the
+    /// surface (see `refracted_light`), as well as by path sampling. True
+    /// for every render; false leaves those paths to sampling alone, which
+    /// converges far more slowly under small lights (for comparisons).
+    pub connect_through_surfaces: bool,
 }
 
 /// `material_id` AOV values: 0 is the background, 1 the ground, stones'
@@ -318,9 +325,14 @@ impl RenderScene {
         // The hero channel and relative densities, from the path's first
         // flight through a scattering medium on.
         let mut spectral: Option<SpectralPath> = None;
+        // The vertex inside a smooth body whose lights were connected
+        // through its surface (`refracted_light`), while the path's sampled
+        // continuation may still meet a light the same way.
+        let mut connected: Option<ConnectedVertex> = None;
         let mut bounce = 0;
         loop {
             counts.traced += 1;
+            let arriving = connected.take();
             let hit = self
                 .world
                 .intersect_leaving(origin, direction, 0.0, f64::INFINITY, leaving);
@@ -347,11 +359,31 @@ impl RenderScene {
                             break;
                         }
                         origin += direction * t;
-                        direction = sample_henyey_greenstein(
+                        let g = medium.anisotropy;
+                        let connects = self.connect_through_surfaces && bounce < self.max_bounces;
+                        if connects {
+                            let incoming = direction;
+                            radiance += throughput
+                                * self.refracted_light(
+                                    stone,
+                                    origin,
+                                    |wi| {
+                                        let phase = henyey_greenstein(wi.dot(incoming), g);
+                                        (Rgb::splat(phase), phase)
+                                    },
+                                    || stream.next_2d(),
+                                    &mut counts.shadow,
+                                );
+                        }
+                        let incoming = direction;
+                        direction = sample_henyey_greenstein(direction, g, stream.next_2d());
+                        connected = connects.then_some(ConnectedVertex {
+                            point: origin,
                             direction,
-                            medium.anisotropy,
-                            stream.next_2d(),
-                        );
+                            pdf: henyey_greenstein(direction.dot(incoming), g),
+                            stone,
+                            exited: false,
+                        });
                         leaving = None;
                         previous = None;
                         bounce += 1;
@@ -372,12 +404,38 @@ impl RenderScene {
                     };
                     let frame = Frame::new(normal);
                     let wo = frame.to_local(-direction);
-                    let Some(sample) = brdf.at(wo).sample(stream.next_3d()) else {
+                    let brdf_at = brdf.at(wo);
+                    origin += direction * flake.t + normal * RAY_OFFSET;
+                    let connects = self.connect_through_surfaces && bounce < self.max_bounces;
+                    if connects {
+                        radiance += throughput
+                            * self.refracted_light(
+                                stone,
+                                origin,
+                                |wi| {
+                                    let local = frame.to_local(wi);
+                                    if local.z <= 0.0 {
+                                        return (Rgb::ZERO, 0.0);
+                                    }
+                                    let (f, pdf) = brdf_at.eval_and_pdf(local);
+                                    (f * local.z, pdf)
+                                },
+                                || stream.next_2d(),
+                                &mut counts.shadow,
+                            );
+                    }
+                    let Some(sample) = brdf_at.sample(stream.next_3d()) else {
                         break;
                     };
                     throughput *= sample.weight();
-                    origin += direction * flake.t + normal * RAY_OFFSET;
                     direction = frame.to_world(sample.wi);
+                    connected = connects.then_some(ConnectedVertex {
+                        point: origin,
+                        direction,
+                        pdf: sample.pdf,
+                        stone,
+                        exited: false,
+                    });
                     leaving = None;
                     previous = None;
                     bounce += 1;
@@ -386,17 +444,33 @@ impl RenderScene {
             }
             // An emitter in front of the surface (or of the sky).
             if let Some((light, t, emitted)) = self.nearest_light(origin, direction, t_hit) {
-                let weight = previous.map_or(1.0, |(p, brdf_pdf)| {
-                    power_heuristic(brdf_pdf, light.pdf(p, direction, t))
-                });
+                let weight = match (previous, arriving.filter(|vertex| vertex.exited)) {
+                    (_, Some(vertex)) => {
+                        let connection_pdf =
+                            self.connection_pdf(&vertex, light, origin, direction, t);
+                        power_heuristic(vertex.pdf, connection_pdf)
+                    }
+                    (Some((p, brdf_pdf)), None) => {
+                        power_heuristic(brdf_pdf, light.pdf(p, direction, t))
+                    }
+                    (None, None) => 1.0,
+                };
                 radiance += throughput * emitted * weight;
                 if t.is_finite() {
                     break;
                 }
             }
             let Some(hit) = hit else {
-                let (sky, weight) = match previous {
-                    Some((_, brdf_pdf)) if self.samples_environment() => {
+                let exited_from = arriving.filter(|vertex| vertex.exited);
+                let (sky, weight) = match (previous, exited_from) {
+                    (_, Some(vertex)) if self.samples_environment() => {
+                        let connection_pdf = self.environment_connection_pdf(&vertex, direction);
+                        (
+                            self.environment.radiance(direction),
+                            power_heuristic(vertex.pdf, connection_pdf),
+                        )
+                    }
+                    (Some((_, brdf_pdf)), _) if self.samples_environment() => {
                         let (sky, light_pdf) = self.environment.radiance_and_pdf(direction);
                         (sky, power_heuristic(brdf_pdf, light_pdf))
                     }
@@ -434,6 +508,14 @@ impl RenderScene {
                 let side = if now_inside { -1.0 } else { 1.0 };
                 inside = stone.filter(|_| now_inside).map(|index| (medium, index));
                 leaving = if now_inside { None } else { stone };
+                // Leaving straight from a connected vertex: what the next
+                // segment meets may be a connection's path.
+                connected = arriving
+                    .filter(|vertex| !vertex.exited && crossing.refracted && !now_inside)
+                    .map(|vertex| ConnectedVertex {
+                        exited: true,
+                        ..vertex
+                    });
                 origin = hit.point + hit.normal * (side * RAY_OFFSET);
                 direction = crossing.direction;
                 previous = None;
@@ -549,9 +631,17 @@ impl RenderScene {
         }
     }
 
+    /// The IOR of stone `stone`'s body (1 for an opaque one).
+    pub(crate) fn body_ior(&self, stone: usize) -> f64 {
+        match &self.gems[self.world.stones()[stone].gem].body {
+            Body::Translucent { ior, .. } => *ior,
+            Body::Opaque => 1.0,
+        }
+    }
+
     /// The nearest flake inside stone `stone` along the world ray for
     /// 0 < t < `t_max`, with the normal in world space, and its material.
-    fn nearest_flake(
+    pub(crate) fn nearest_flake(
         &self,
         stone: usize,
         origin: DVec3,
@@ -602,7 +692,7 @@ impl RenderScene {
     /// base, the lobe for the coats) is already the ideal density, while a
     /// light sample would spend a BRDF evaluation and a shadow ray on
     /// directions half of which point below the surface.
-    fn samples_environment(&self) -> bool {
+    pub(crate) fn samples_environment(&self) -> bool {
         !matches!(self.environment, Environment::Constant(_))
     }
 

@@ -208,6 +208,17 @@ impl LightSpec {
         }
     }
 
+    /// The outward unit normal of the light's emitting surface at `point`
+    /// on it: the sphere's radial direction, the soft box's face; None for
+    /// a point light and the sun, which have no surface.
+    pub(crate) fn surface_normal(&self, point: DVec3) -> Option<DVec3> {
+        match *self {
+            Light::Sphere { centre, .. } => (point - centre).try_normalize(),
+            Light::Rect { normal, .. } => Some(normal),
+            Light::Point { .. } | Light::Sun { .. } => None,
+        }
+    }
+
     /// Solid-angle pdf with which [`Light::sample`] from `point` would pick
     /// `direction`, given that the direction meets the light at distance `t`.
     pub fn pdf(&self, point: DVec3, direction: DVec3, t: f64) -> f64 {

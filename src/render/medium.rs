@@ -93,6 +93,14 @@ impl SpectralPath {
     }
 }
 
+/// The Henyey–Greenstein phase function of mean cosine `g` at the cosine
+/// between the propagation directions before and after scattering:
+/// (1 − g²) / (4π (1 + g² − 2g·cosθ)^(3/2)), per steradian.
+pub(crate) fn henyey_greenstein(cos_theta: f64, g: f64) -> f64 {
+    let denominator = 1.0 + g * g - 2.0 * g * cos_theta;
+    (1.0 - g * g) / (4.0 * std::f64::consts::PI * denominator * denominator.sqrt())
+}
+
 /// A direction scattered from the propagation direction `direction` (unit)
 /// by the Henyey–Greenstein phase function of mean cosine `g`, by inverting
 /// its CDF in cosθ; the phase function over its own density is 1.
@@ -112,6 +120,23 @@ pub(crate) fn sample_henyey_greenstein(direction: DVec3, g: f64, u: [f64; 2]) ->
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn henyey_greenstein_is_normalised_with_mean_cosine_g() {
+        for g in [-0.9, -0.3, 0.0, 0.5, 0.95] {
+            // ∫ p dω = 2π ∫ p(μ) dμ over μ ∈ [−1, 1], midpoint rule.
+            let n = 200_000;
+            let (mut total, mut mean) = (0.0, 0.0);
+            for i in 0..n {
+                let mu = -1.0 + 2.0 * (f64::from(i) + 0.5) / f64::from(n);
+                let p = henyey_greenstein(mu, g) * std::f64::consts::TAU * 2.0 / f64::from(n);
+                total += p;
+                mean += p * mu;
+            }
+            assert!((total - 1.0).abs() < 1e-4, "g {g}: ∫p = {total}");
+            assert!((mean - g).abs() < 1e-4, "g {g}: ∫p·cos = {mean}");
+        }
+    }
 
     #[test]
     fn henyey_greenstein_samples_have_mean_cosine_g() {

@@ -100,6 +100,7 @@ pub fn prepare_scene(
         environment: environment?,
         max_bounces,
         ambient_occlusion: None,
+        connect_through_surfaces: true,
     })
 }
 

@@ -1,0 +1,287 @@
+//! Next-event estimation from inside a translucent body: light reaches a
+//! flake or a scattering vertex through the body's smooth surface by one
+//! refraction, a specular chain that a shadow ray cannot follow. Each light
+//! is sampled as seen from the vertex, and [`manifold::connect`] finds the
+//! refracted path to the sampled point (manifold next-event estimation).
+//!
+//! A path "vertex → refraction → light" can come from either strategy: the
+//! connection, or sampling the vertex (flake BRDF or phase function) and
+//! refracting out. The two are weighted by the power heuristic (Veach 1997,
+//! eq. 9.13) on their densities of the direction at the vertex; the
+//! connection's density is the light's sampling density carried back
+//! through the solver's Jacobian. A sampled path counts in full when the
+//! solver, started from the light point it met, would not find it (a
+//! second solution), so the sum stays unbiased
+//! ([`RenderScene::connection_pdf`]).
+
+use glam::DVec3;
+
+use crate::brdf::Rgb;
+use crate::recipe::gem::Body;
+use crate::render::integrator::{power_heuristic, RenderScene};
+use crate::render::lights::Light;
+use crate::render::manifold::{self, Boundary, Exit, Target};
+use crate::render::medium::beer_lambert;
+use crate::render::world::{StoneInstance, RAY_OFFSET};
+
+/// Two unit directions closer than this are the same solution.
+const SAME_SOLUTION: f64 = 1e-6;
+
+/// A stone's surface, in world space, as [`manifold`] traces it.
+struct StoneBoundary<'a>(&'a StoneInstance);
+
+impl Boundary for StoneBoundary<'_> {
+    fn exit(&self, origin: DVec3, direction: DVec3) -> Option<Exit> {
+        let stone = self.0;
+        let to_object = stone.rotation.inverse();
+        let o = to_object * (origin - stone.position);
+        let d = to_object * direction;
+        let hit = stone.cabochon.intersect(o, d, 0.0, f64::INFINITY)?;
+        (!hit.entering).then(|| Exit {
+            t: hit.t,
+            point: origin + direction * hit.t,
+            normal: (stone.rotation * hit.normal).normalize(),
+        })
+    }
+}
+
+/// A vertex inside a smooth translucent body from which lights were
+/// connected, and the direction its sampled continuation took: a path that
+/// leaves the body straight from it and meets a light is one the
+/// connection could also have made.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct ConnectedVertex {
+    /// The vertex (offset off a flake).
+    pub point: DVec3,
+    /// The sampled continuation's unit direction.
+    pub direction: DVec3,
+    /// Its solid-angle density.
+    pub pdf: f64,
+    /// The stone it lies in.
+    pub stone: usize,
+    /// Whether the continuation has left the body by refraction (and meets
+    /// nothing but what lies outside next).
+    pub exited: bool,
+}
+
+/// Where a light sample lies, as the solver's target, and what the light
+/// gives the connection.
+struct LightPoint {
+    target: Target,
+    /// The emitting surface's outward normal at a target point.
+    normal: Option<DVec3>,
+    /// Radiance (area lights, the sun) or intensity (a point light): what
+    /// multiplies dω/d(measure) to give radiance·dω.
+    emitted: Rgb,
+    /// The target's density in its measure (area on the light, solid
+    /// angle for the sun); None for a point light, which only a connection
+    /// reaches.
+    pdf: Option<f64>,
+}
+
+impl RenderScene {
+    /// Light from every light reaching `point` inside stone `stone`'s
+    /// translucent body (attenuated by its extinction) through one refraction
+    /// of its smooth surface, times `vertex(direction)`'s value: the
+    /// flake's f·cosθ or the phase function towards a unit direction in
+    /// world space (zero where the vertex sends no light), weighted against
+    /// sampling that direction with `vertex`'s density. One light point per
+    /// light from `next_2d`.
+    pub(crate) fn refracted_light(
+        &self,
+        stone: usize,
+        point: DVec3,
+        vertex: impl Fn(DVec3) -> (Rgb, f64),
+        mut next_2d: impl FnMut() -> [f64; 2],
+        shadow_rays: &mut u64,
+    ) -> Rgb {
+        let instance = &self.world.stones()[stone];
+        let Body::Translucent { ior, medium, .. } = &self.gems[instance.gem].body else {
+            return Rgb::ZERO;
+        };
+        let (ior, extinction_per_mm) = (*ior, medium.absorption_per_mm + medium.scattering_per_mm);
+        let boundary = StoneBoundary(instance);
+        let mut total = Rgb::ZERO;
+        let mut emitters = self
+            .lights
+            .iter()
+            .map(|light| (light_point(light, point, next_2d()), Some(light)))
+            .collect::<Vec<_>>();
+        if self.samples_environment() {
+            let sampled = self.environment.sample(next_2d()).map(|sample| LightPoint {
+                target: Target::Direction(sample.direction),
+                normal: None,
+                emitted: sample.radiance,
+                pdf: Some(sample.pdf),
+            });
+            emitters.push((sampled, None));
+        }
+        for (sampled, _) in emitters {
+            let Some(sampled) = sampled else {
+                continue;
+            };
+            let Some(path) = manifold::connect(&boundary, ior, point, sampled.target) else {
+                continue;
+            };
+            // An area light emits from the side the refracted ray arrives at.
+            let cos_light = sampled
+                .normal
+                .map_or(1.0, |n| -n.dot(path.outside_direction));
+            if cos_light <= 0.0 {
+                continue;
+            }
+            let (value, vertex_pdf) = vertex(path.inside_direction);
+            if value.max_element() <= 0.0 {
+                continue;
+            }
+            // Inside, the path must meet no flake and not scatter.
+            if self
+                .nearest_flake(stone, point, path.inside_direction, path.exit.t)
+                .is_some()
+            {
+                continue;
+            }
+            *shadow_rays += 1;
+            let start = path.exit.point + path.exit.normal * RAY_OFFSET;
+            let reach = if path.outside_length.is_finite() {
+                path.outside_length * (1.0 - 1e-7) - RAY_OFFSET
+            } else {
+                f64::INFINITY
+            };
+            if self
+                .world
+                .occluded_leaving(start, path.outside_direction, reach, Some(stone))
+            {
+                continue;
+            }
+            let jacobian = path.inside_solid_angle_per_target_measure;
+            let (scale, weight) = match sampled.pdf {
+                Some(pdf) => {
+                    let direction_pdf = pdf / (jacobian * cos_light);
+                    (1.0 / pdf, power_heuristic(direction_pdf, vertex_pdf))
+                }
+                None => (1.0, 1.0),
+            };
+            total += value
+                * beer_lambert(extinction_per_mm, path.exit.t)
+                * sampled.emitted
+                * (path.transmittance * cos_light * jacobian * scale * weight);
+        }
+        total
+    }
+
+    /// The density with which [`RenderScene::refracted_light`] from
+    /// `vertex` makes the path that left its body and met `light` along
+    /// the ray from `origin` along `direction` at distance `t` (infinite
+    /// for the sun), as a solid-angle density of the direction at the
+    /// vertex; 0 when it cannot: the light would not sample the point met,
+    /// or the solver started from it finds another direction.
+    pub(crate) fn connection_pdf(
+        &self,
+        vertex: &ConnectedVertex,
+        light: &Light,
+        origin: DVec3,
+        direction: DVec3,
+        t: f64,
+    ) -> f64 {
+        let y = origin + direction * t;
+        let Some(sampled) = light_point_pdf(light, vertex.point, y, direction) else {
+            return 0.0;
+        };
+        let target = if t.is_finite() {
+            Target::Point(y)
+        } else {
+            Target::Direction(direction)
+        };
+        let boundary = StoneBoundary(&self.world.stones()[vertex.stone]);
+        let ior = self.body_ior(vertex.stone);
+        match manifold::connect(&boundary, ior, vertex.point, target) {
+            Some(path) if (path.inside_direction - vertex.direction).length() < SAME_SOLUTION => {
+                let cos_light = light
+                    .surface_normal(y)
+                    .map_or(1.0, |n| -n.dot(path.outside_direction));
+                sampled / (path.inside_solid_angle_per_target_measure * cos_light)
+            }
+            _ => 0.0,
+        }
+    }
+}
+
+impl RenderScene {
+    /// [`RenderScene::connection_pdf`] for a path that left its body and
+    /// escaped along `direction` to a light-sampled environment.
+    pub(crate) fn environment_connection_pdf(
+        &self,
+        vertex: &ConnectedVertex,
+        direction: DVec3,
+    ) -> f64 {
+        let boundary = StoneBoundary(&self.world.stones()[vertex.stone]);
+        let ior = self.body_ior(vertex.stone);
+        match manifold::connect(&boundary, ior, vertex.point, Target::Direction(direction)) {
+            Some(path) if (path.inside_direction - vertex.direction).length() < SAME_SOLUTION => {
+                self.environment.pdf(direction) / path.inside_solid_angle_per_target_measure
+            }
+            _ => 0.0,
+        }
+    }
+}
+
+/// A point (or direction) on `light` sampled as seen from `point` in a
+/// straight line, with its value over its density in the measure the
+/// solver's Jacobian converts from.
+fn light_point(light: &Light, point: DVec3, u: [f64; 2]) -> Option<LightPoint> {
+    let sample = light.sample(point, u)?;
+    if sample.pdf <= 0.0 {
+        return None;
+    }
+    if sample.is_delta {
+        // A point light: its intensity, I = (I/d²)·d².
+        let d = sample.distance;
+        return Some(LightPoint {
+            target: Target::Point(point + sample.direction * d),
+            normal: None,
+            emitted: sample.radiance * (d * d),
+            pdf: None,
+        });
+    }
+    if !sample.distance.is_finite() {
+        // The sun: a direction, its density per solid angle.
+        return Some(LightPoint {
+            target: Target::Direction(sample.direction),
+            normal: None,
+            emitted: sample.radiance,
+            pdf: Some(sample.pdf),
+        });
+    }
+    let y = point + sample.direction * sample.distance;
+    let normal = light.surface_normal(y)?;
+    // Solid angle at the vertex to area on the light: dω = cos·dA / d².
+    let cos = -normal.dot(sample.direction);
+    if cos <= 0.0 {
+        return None;
+    }
+    Some(LightPoint {
+        target: Target::Point(y),
+        normal: Some(normal),
+        emitted: sample.radiance,
+        pdf: Some(sample.pdf * cos / (sample.distance * sample.distance)),
+    })
+}
+
+/// The density with which [`light_point`] from `point` picks the point `y`
+/// of `light` (reached along unit `direction`; the sun's direction when
+/// `y` is at infinity), in the same measure; None when it never would.
+fn light_point_pdf(light: &Light, point: DVec3, y: DVec3, direction: DVec3) -> Option<f64> {
+    if !y.is_finite() {
+        let pdf = light.pdf(point, direction, f64::INFINITY);
+        return (pdf > 0.0).then_some(pdf);
+    }
+    let to_light = y - point;
+    let distance = to_light.length();
+    let towards = to_light / distance;
+    // Sampled from the vertex in a straight line: only the part of the
+    // light that faces it.
+    let cos = -light.surface_normal(y)?.dot(towards);
+    let pdf = light.pdf(point, towards, distance);
+    (cos > 0.0 && pdf > 0.0).then(|| pdf * cos / (distance * distance))
+}
