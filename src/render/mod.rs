@@ -19,3 +19,6 @@ pub mod prepare;
 pub(crate) mod sampler;
 pub(crate) mod stone_grid;
 pub mod world;
+
+#[cfg(test)]
+mod snell_tests;
