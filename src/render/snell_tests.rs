@@ -285,7 +285,7 @@ fn a_flake_under_a_flat_window_appears_where_snells_law_puts_it() {
     );
 
     let light = light_on_the_reflection(position, entry, flake);
-    let image = flake_only(&scene(gem, light.clone()), &scene(clear, light), &camera);
+    let image = flake_only(&scene(gem, light), &scene(clear, light), &camera);
     let seen = highlight_centre(&image);
     let error = (seen.0 - predicted.0).hypot(seen.1 - predicted.1);
     assert!(
@@ -311,7 +311,7 @@ fn seen_from_near_the_vertical_a_flake_lies_at_its_depth_over_n() {
     let entry = snell_entry(position, flake, z_top);
     let camera = camera(position, flake.with_z(z_top), 0.006);
     let light = light_on_the_reflection(position, entry, flake);
-    let image = flake_only(&scene(gem, light.clone()), &scene(clear, light), &camera);
+    let image = flake_only(&scene(gem, light), &scene(clear, light), &camera);
     let (x, y) = highlight_centre(&image);
     let ray = camera.ray(x, y);
     let on_window = ray.origin + ray.direction * ((z_top - ray.origin.z) / ray.direction.z);
