@@ -306,6 +306,19 @@ fn typo_in_a_top_level_field_name() {
 }
 
 #[test]
+fn the_retired_host_ior_field() {
+    // An older recipe's `host_ior` (parsed, never used): refused at its
+    // line, naming what replaced it.
+    bad_gem(
+        "host-ior",
+        "seed: 3,",
+        "seed: 3,\n    host_ior: 1.56,",
+        "host_ior",
+        &["`host_ior` is retired", "body: Translucent(ior: …)"],
+    );
+}
+
+#[test]
 fn typo_in_a_layer_field_name() {
     bad_gem(
         "typo-layer-field",

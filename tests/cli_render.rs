@@ -133,6 +133,7 @@ fn an_exr_reads_back_with_rgba_and_every_aov_layer() {
         "depth.Z",
         "surface_cell",
         "glitter",
+        "inclusion",
         "material_id",
     ] {
         assert!(
@@ -153,6 +154,60 @@ fn an_exr_reads_back_with_rgba_and_every_aov_layer() {
         .unwrap();
     assert!(ids.contains(&1), "no ground pixel");
     assert!(ids.iter().any(|id| *id >= 2), "no stone pixel");
+    // The default gem is opaque: no inclusions anywhere.
+    assert!(exr_f32(&image, "inclusion").iter().all(|c| *c == 0.0));
+}
+
+#[test]
+fn the_inclusion_layer_shows_where_a_translucent_stone_has_flakes() {
+    // The benchmark's goldstone glass (copper platelets at depth) in the
+    // studio scene: the layer is the fraction of samples that refracted
+    // in and met a flake first, > 0 on the stone and 0 on the ground.
+    let dir = scratch("inclusion");
+    let exr = dir.join("goldstone.exr");
+    let recipe = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("bench/translucent-goldstone.ron");
+    let out = lapidary(&[
+        "render",
+        recipe.to_str().unwrap(),
+        "-o",
+        exr.to_str().unwrap(),
+        "--size",
+        "24",
+        "--spp",
+        "4",
+        "-q",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let image = lapidary::output::exr::read_exr(&exr).unwrap();
+    let coverage = exr_f32(&image, "inclusion");
+    let ids = match &image
+        .channels
+        .iter()
+        .find(|c| c.name == "material_id")
+        .unwrap()
+        .data
+    {
+        lapidary::output::exr::ChannelData::U32(v) => v.clone(),
+        lapidary::output::exr::ChannelData::F32(_) => panic!("material_id must be U32"),
+    };
+    assert!(coverage.iter().all(|c| (0.0..=1.0).contains(c)));
+    // The first sample of a pixel with id 1 or 0 missed the stone; its
+    // other samples may not have (a pixel on the outline), so only the
+    // pixels away from the stone are checked for 0: the frame's corners.
+    let size = 24;
+    for corner in [0, size - 1, size * (size - 1), size * size - 1] {
+        assert!(ids[corner] < 2, "corner {corner} is on the stone");
+        assert_eq!(coverage[corner], 0.0, "corner {corner}");
+    }
+    let on_stone: Vec<f32> = coverage
+        .iter()
+        .zip(&ids)
+        .filter(|(_, id)| **id >= 2)
+        .map(|(c, _)| *c)
+        .collect();
+    assert!(!on_stone.is_empty(), "no stone pixel");
+    let mean = on_stone.iter().sum::<f32>() / on_stone.len() as f32;
+    assert!(mean > 0.2, "mean coverage over the stone {mean}");
 }
 
 #[test]

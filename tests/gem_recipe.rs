@@ -462,6 +462,34 @@ fn a_name_in_the_wrong_role_is_placed_at_that_use() {
 }
 
 #[test]
+fn the_retired_host_ior_is_refused_with_its_replacement_named() {
+    // Anywhere among the gem's fields, whatever its value: the message
+    // names the body's `ior` instead of listing the fields.
+    for value in ["1.56", "9.0"] {
+        expect_error(
+            r#"surface: "veins","#,
+            &format!("host_ior: {value},\n    surface: \"veins\","),
+            "host_ior",
+            &["`host_ior` is retired", "body: Translucent(ior: …)"],
+        );
+    }
+    // Another structure's unknown `host_ior` is an ordinary typo.
+    let err = parse_gem(
+        "bad.ron",
+        &GOOD.replacen(
+            r#"surface: "veins","#,
+            "surface: \"veins\",\n    body: Translucent(ior: 1.5, host_ior: 1.5),",
+            1,
+        ),
+    )
+    .expect_err("unknown field");
+    assert!(
+        err.to_string().contains("unknown field `host_ior`"),
+        "{err}"
+    );
+}
+
+#[test]
 fn translucent_body_fields_are_range_checked() {
     for (body, needles) in [
         (

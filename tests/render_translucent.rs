@@ -353,3 +353,94 @@ fn dark_flakes_darken_a_clear_body_as_their_projected_area_says() {
         "{ratio} of the light left, expected about {expected}"
     );
 }
+
+#[test]
+fn the_inclusion_layer_covers_flakes_met_first_inside_and_nothing_else() {
+    // Dense white flakes (about 0.6 crossings per mm of path: 20 per mm³
+    // of area 1.5·√3·0.15² mm², halved for isotropic ones) in a clear
+    // body: most camera rays that refract in meet one before leaving, so
+    // the layer is well above 0 on the stone, and exactly 0 off it. The
+    // same stone opaque, or translucent without flakes, has none anywhere.
+    let camera = three_quarter_camera(24);
+    let layer = |body: &str| {
+        let film = render_body(
+            body,
+            CabochonParams::default(),
+            Environment::Constant(Rgb::ONE),
+            vec![],
+            &camera,
+            24,
+            16,
+        );
+        assert_eq!(film.inclusion.len(), film.alpha.len());
+        film
+    };
+    let flaked = layer(
+        "Translucent(ior: 1.53, inclusions: [Inclusions(shape: Hexagon, size_mm: 0.3, \
+         density_per_mm3: 20.0, orientation: Isotropic, material: \"white\", seed: 4)])",
+    );
+    let mut on_stone = Vec::new();
+    for (coverage, alpha) in flaked.inclusion.iter().zip(&flaked.alpha) {
+        assert!((0.0..=1.0).contains(coverage), "{coverage}");
+        if *alpha == 0.0 {
+            assert_eq!(*coverage, 0.0, "coverage off the stone");
+        } else if *alpha == 1.0 {
+            on_stone.push(f64::from(*coverage));
+        }
+    }
+    assert!(on_stone.len() > 150, "the stone fills the middle");
+    let mean = on_stone.iter().sum::<f64>() / on_stone.len() as f64;
+    // Fresnel reflects a few percent of the camera rays at the surface,
+    // and a ray near the rim crosses little glass: well below 1, well
+    // above 0.
+    assert!(
+        mean > 0.5 && mean < 0.98,
+        "mean coverage on the stone {mean}"
+    );
+    for body in ["Opaque", "Translucent(ior: 1.53)"] {
+        let film = layer(body);
+        assert!(film.alpha.contains(&1.0), "{body}: the stone is seen");
+        assert!(
+            film.inclusion.iter().all(|c| *c == 0.0),
+            "{body}: inclusion coverage without inclusions"
+        );
+    }
+}
+
+#[test]
+fn the_inclusion_layer_counts_only_flakes_met_before_any_scattering() {
+    // The same flakes in a body that scatters 20 times per mm, far more
+    // often than a ray meets a flake (0.6 per mm): the first event inside
+    // is a flake for about 0.6 / 20.6 of the rays, the others scatter
+    // first and are not counted, although they go on to meet flakes.
+    let camera = three_quarter_camera(16);
+    let mean_coverage = |body: &str| {
+        let film = render_body(
+            body,
+            CabochonParams::default(),
+            Environment::Constant(Rgb::ONE),
+            vec![],
+            &camera,
+            16,
+            16,
+        );
+        let stone: Vec<f64> = film
+            .inclusion
+            .iter()
+            .zip(&film.alpha)
+            .filter(|(_, a)| **a == 1.0)
+            .map(|(c, _)| f64::from(*c))
+            .collect();
+        stone.iter().sum::<f64>() / stone.len() as f64
+    };
+    let flakes = "inclusions: [Inclusions(shape: Hexagon, size_mm: 0.3, density_per_mm3: 20.0, \
+                  orientation: Isotropic, material: \"white\", seed: 4)]";
+    let clear = mean_coverage(&format!("Translucent(ior: 1.53, {flakes})"));
+    let milky = mean_coverage(&format!(
+        "Translucent(ior: 1.53, scattering: (20, 20, 20), {flakes})"
+    ));
+    assert!(
+        milky < 0.25 * clear,
+        "coverage {milky} with scattering, {clear} without"
+    );
+}

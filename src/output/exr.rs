@@ -1,4 +1,5 @@
-//! OpenEXR files of linear film and AOVs (albedo, normal, depth, cell ids).
+//! OpenEXR files of linear film and AOVs (albedo, normal, depth, cell ids,
+//! glitter and inclusion coverage, material ids, ambient occlusion).
 //!
 //! One part, one layer, any number of channels with dotted names (`R`, `G`,
 //! `B`, `A`, `albedo.R`, `normal.X`, `depth.Z`, `surface_cell` as U32): the
@@ -323,6 +324,7 @@ pub fn film_channels(film: Film, with_ao: bool) -> Vec<ExrChannel> {
         data: ChannelData::U32(film.surface_cell),
     });
     channels.push(f32_channel("glitter", film.glitter));
+    channels.push(f32_channel("inclusion", film.inclusion));
     channels.push(ExrChannel {
         name: "material_id".to_string(),
         data: ChannelData::U32(film.material_id),

@@ -100,9 +100,6 @@ pub struct GemSpec {
     /// Seed of every texture of the stone.
     #[serde(default)]
     pub seed: u64,
-    /// IOR of the host mineral, for a translucent stone's volume (1–5).
-    #[serde(default, deserialize_with = "ranges::host_ior")]
-    pub host_ior: Option<f64>,
     /// Inline materials by name (library names work without this).
     #[serde(default)]
     pub materials: BTreeMap<String, Material>,
@@ -461,8 +458,6 @@ pub struct Gem {
     pub description: String,
     /// The recipe seed (or the seed that replaced it).
     pub seed: u64,
-    /// Host IOR, if given.
-    pub host_ior: Option<f64>,
     /// The flat pattern tree (figure 4.6) in texture space.
     pub pattern: Pattern,
     /// `(name, material)` per material index, as written.
@@ -687,8 +682,22 @@ fn compile_gem_material(
 
 /// Gem recipe `text` (from `path`) read into its spec, not yet compiled.
 fn parse_gem_spec(path: &str, text: &str) -> Result<GemSpec, RecipeError> {
-    ron::from_str::<GemSpec>(text).map_err(|e| ron_error(path, text, e))
+    ron::from_str::<GemSpec>(text).map_err(|e| match &e.code {
+        ron::error::Error::NoSuchStructField { found, outer, .. }
+            if found == "host_ior" && outer.as_deref() == Some("Gem") =>
+        {
+            let (line, col) = (e.span.start.line, e.span.start.col);
+            RecipeError::at(path, line, col, HOST_IOR_RETIRED)
+        }
+        _ => ron_error(path, text, e),
+    })
 }
+
+/// The message for a recipe that still sets `host_ior`, a field that was
+/// parsed and never used: the index of a stone that refracts is its body's.
+const HOST_IOR_RETIRED: &str = "`host_ior` is retired (it was never used): a translucent \
+     stone's index of refraction is written `body: Translucent(ior: …)`; an opaque stone's \
+     layers carry their own `ior`. Delete the `host_ior` line";
 
 /// Compiles `spec`'s pattern and material list (BRDFs empty), read by
 /// [`parse_gem_spec`] from `text` at `path` (both for error messages), with
@@ -1251,7 +1260,6 @@ impl<'a> Compiler<'a> {
             name: spec.name.clone(),
             description: spec.description.clone(),
             seed: spec.seed,
-            host_ior: spec.host_ior,
             body,
             pattern,
             materials: self.materials,

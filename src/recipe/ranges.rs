@@ -154,8 +154,6 @@ scalar_field!(lacunarity, "lacunarity", "1 <= lacunarity <= 8", |v| (1.0
     .contains(&v));
 scalar_field!(gain, "gain", "0 <= gain <= 1", |v| (0.0..=1.0).contains(&v));
 scalar_field!(range_end, "from/to", "a finite number", |_| true);
-optional_scalar_field!(host_ior, "host_ior", "1 <= host_ior <= 5", |v| (1.0..=5.0)
-    .contains(&v));
 scalar_field!(body_ior, "ior", "1 <= ior <= 5", |v| (1.0..=5.0)
     .contains(&v));
 rgb_field!(

@@ -49,9 +49,9 @@ impl FilmSettings {
 }
 
 /// Bytes of film memory per pixel (RGBA, albedo, normal, depth, cell,
-/// glitter, material id, ambient occlusion as f32/u32, plus the 8-bit
-/// image); the output encoders need about as much again at the end.
-pub const FILM_BYTES_PER_PIXEL: u64 = 4 * (4 + 3 + 3 + 1 + 1 + 1 + 1 + 1) + 3;
+/// glitter, inclusion, material id, ambient occlusion as f32/u32, plus the
+/// 8-bit image); the output encoders need about as much again at the end.
+pub const FILM_BYTES_PER_PIXEL: u64 = 4 * (4 + 3 + 3 + 1 + 1 + 1 + 1 + 1 + 1) + 3;
 
 /// The rendered film: linear radiance and the AOVs, row-major from the top.
 #[derive(Clone, Debug, PartialEq)]
@@ -76,6 +76,10 @@ pub struct Film {
     pub surface_cell: Vec<u32>,
     /// Fraction of samples that hit a glitter flake.
     pub glitter: Vec<f32>,
+    /// Fraction of samples whose camera ray refracted into a translucent
+    /// stone and met an inclusion (a flake) before scattering or reaching
+    /// the surface again; 0 off such stones.
+    pub inclusion: Vec<f32>,
     /// Material id of the pixel's first sample (0 background, 1 ground,
     /// 2… the stones' materials).
     pub material_id: Vec<u32>,
@@ -106,6 +110,7 @@ struct RowOut<'a> {
     depth: &'a mut [f32],
     surface_cell: &'a mut [u32],
     glitter: &'a mut [f32],
+    inclusion: &'a mut [f32],
     material_id: &'a mut [u32],
     ao: &'a mut [f32],
 }
@@ -286,6 +291,7 @@ fn render_row_portable(
         };
         row.surface_cell[x] = first.surface_cell;
         row.glitter[x] = (f64::from(first.glints) / n) as f32;
+        row.inclusion[x] = (f64::from(first.inclusions) / n) as f32;
         row.material_id[x] = first.material_id;
         row.ao[x] = (first.unoccluded / n) as f32;
     }
@@ -327,6 +333,7 @@ pub fn render_cancellable(
         depth: vec![0.0; pixels],
         surface_cell: vec![0; pixels],
         glitter: vec![0.0; pixels],
+        inclusion: vec![0.0; pixels],
         material_id: vec![0; pixels],
         ao: vec![0.0; pixels],
         stats: RenderStats::default(),
@@ -342,6 +349,7 @@ pub fn render_cancellable(
         film.depth.par_chunks_mut(w),
         film.surface_cell.par_chunks_mut(w),
         film.glitter.par_chunks_mut(w),
+        film.inclusion.par_chunks_mut(w),
         film.material_id.par_chunks_mut(w),
         film.ao.par_chunks_mut(w),
     );
@@ -349,7 +357,21 @@ pub fn render_cancellable(
         .into_par_iter()
         .enumerate()
         .map(
-            |(y, (rgb, alpha, albedo, normal, depth, surface_cell, glitter, material_id, ao))| {
+            |(
+                y,
+                (
+                    rgb,
+                    alpha,
+                    albedo,
+                    normal,
+                    depth,
+                    surface_cell,
+                    glitter,
+                    inclusion,
+                    material_id,
+                    ao,
+                ),
+            )| {
                 if cancel.load(Ordering::Relaxed) {
                     return RenderStats::default();
                 }
@@ -361,6 +383,7 @@ pub fn render_cancellable(
                     depth,
                     surface_cell,
                     glitter,
+                    inclusion,
                     material_id,
                     ao,
                 };

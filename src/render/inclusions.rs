@@ -36,7 +36,7 @@ const MAX_CELLS_WALKED: u32 = 1 << 16;
 impl Inclusions {
     /// The hash of `cell`, and its flake's centre and radius: enough to
     /// rule out a ray that passes farther than the radius from the centre.
-    fn centre_and_radius(&self, cell: IVec3) -> (u64, DVec3, f64) {
+    pub(super) fn centre_and_radius(&self, cell: IVec3) -> (u64, DVec3, f64) {
         let h = hash_cell(cell, self.seed);
         let u = |k: u64| unit_f64(derive_stream(h, k));
         let radius = self.radius_mm * (1.0 + self.size_spread * (2.0 * u(0) - 1.0));

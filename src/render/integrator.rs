@@ -98,6 +98,11 @@ pub struct FirstHitSums {
     pub hits: u32,
     /// Samples whose first hit was a glitter flake.
     pub glints: u32,
+    /// Samples whose camera ray refracted into a translucent stone and met
+    /// a flake before anything else inside (scattering, the surface): the
+    /// `inclusion` AOV. Not in [`FirstHit`]: the first hit is the stone's
+    /// surface, known before the flake is.
+    pub inclusions: u32,
     /// Σ finite albedo estimates over the samples that hit something.
     pub albedo: Rgb,
     /// Σ shading normal over the samples that hit something.
@@ -391,6 +396,9 @@ impl RenderScene {
                     }
                 }
                 if let Some((flake, brdf)) = flake {
+                    // Only a camera ray refracted in runs inside at bounce
+                    // 1, and it did not scatter: its first event inside.
+                    first_hits.inclusions += u32::from(bounce == 1);
                     // A flake reflects by its material's BRDF, from either
                     // side; only its BRDF is sampled (no light reaches a
                     // shadow ray through the smooth boundary).

@@ -21,3 +21,6 @@ pub(crate) mod refracted_light;
 pub(crate) mod sampler;
 pub(crate) mod stone_grid;
 pub mod world;
+
+#[cfg(test)]
+mod snell_tests;
