@@ -168,8 +168,11 @@ fn the_albedo_by_quadrature_matches_the_sampled_one() {
         for inside in [false, true] {
             for theta in [20.0, 70.0] {
                 let wo = view(theta, inside);
-                let integral =
-                    integrate_pdf_sphere(|wi| interface.eval_and_pdf(wo, wi).0 * wi.z.abs(), 16, 32);
+                let integral = integrate_pdf_sphere(
+                    |wi| interface.eval_and_pdf(wo, wi).0 * wi.z.abs(),
+                    16,
+                    32,
+                );
                 let (sampled, _) = albedo(&interface, wo, 400_000, 7);
                 assert!(integral <= 1.0 + 1e-6, "{integral}");
                 assert!(
