@@ -127,8 +127,9 @@ pub enum BodySpec {
     /// The surface model of the course notes: the pattern's layered BRDFs.
     #[default]
     Opaque,
-    /// A dielectric body behind a polished surface: light refracts in
-    /// (Fresnel, total internal reflection on the way out), is absorbed
+    /// A dielectric body behind a polished surface, smooth or rough
+    /// (`roughness_deg`): light refracts in (Fresnel, total internal
+    /// reflection on the way out), is absorbed
     /// along its path by Beer–Lambert (eq. 3.4) and scattered by a
     /// Henyey–Greenstein phase function. The surface pattern is not used.
     Translucent {
