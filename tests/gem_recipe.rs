@@ -508,6 +508,18 @@ fn translucent_body_fields_are_range_checked() {
             "body: Translucent(absorption: (1.0, 1.0, 1.0)),",
             &["ior"][..],
         ),
+        (
+            "body: Translucent(ior: 1.5, roughness_deg: 50.0),",
+            &["`roughness_deg`", "0 <= roughness_deg <= 45 (degrees)"][..],
+        ),
+        (
+            "body: Translucent(ior: 1.5, roughness_deg: -1.0),",
+            &["`roughness_deg`", "0 <= roughness_deg <= 45 (degrees)"][..],
+        ),
+        (
+            "body: Translucent(ior: 1.5, roughness_deg: NaN),",
+            &["`roughness_deg`", "0 <= roughness_deg <= 45 (degrees)"][..],
+        ),
     ] {
         expect_error(
             r#"surface: "veins","#,
@@ -526,6 +538,7 @@ fn translucent_body_fields_are_range_checked() {
         gem.body,
         lapidary::recipe::gem::Body::Translucent {
             ior: 1.54,
+            roughness_deg: 0.0,
             medium: lapidary::recipe::gem::Medium {
                 absorption_per_mm: lapidary::brdf::Rgb::new(0.1, 0.2, 0.3),
                 scattering_per_mm: lapidary::brdf::Rgb::ZERO,
@@ -538,4 +551,16 @@ fn translucent_body_fields_are_range_checked() {
         parse_gem("good.ron", GOOD).unwrap().body,
         lapidary::recipe::gem::Body::Opaque
     );
+    // The polish of the surface, when written, reaches the compiled body.
+    let rough = GOOD.replacen(
+        r#"surface: "veins","#,
+        "surface: \"veins\",\n    body: Translucent(ior: 1.54, roughness_deg: 12.5),",
+        1,
+    );
+    let lapidary::recipe::gem::Body::Translucent { roughness_deg, .. } =
+        parse_gem("good.ron", &rough).unwrap().body
+    else {
+        panic!("not translucent");
+    };
+    assert_eq!(roughness_deg, 12.5);
 }

@@ -124,8 +124,9 @@ pub enum BodySpec {
     /// The surface model of the course notes: the pattern's layered BRDFs.
     #[default]
     Opaque,
-    /// A dielectric body behind a polished surface: light refracts in
-    /// (Fresnel, total internal reflection on the way out), is absorbed
+    /// A dielectric body behind a polished surface, smooth or rough
+    /// (`roughness_deg`): light refracts in (Fresnel, total internal
+    /// reflection on the way out), is absorbed
     /// along its path by Beer–Lambert (eq. 3.4) and scattered by a
     /// Henyey–Greenstein phase function. The surface pattern is not used.
     Translucent {
@@ -141,6 +142,10 @@ pub enum BodySpec {
         /// Henyey–Greenstein g: the mean cosine of the scattering angle.
         #[serde(default, deserialize_with = "ranges::anisotropy")]
         anisotropy: f64,
+        /// Polish of the surface: the average micro-facet slope in degrees
+        /// (0, the default, is a smooth surface; at most 45°).
+        #[serde(default, deserialize_with = "ranges::body_roughness_deg")]
+        roughness_deg: f64,
         /// Populations of flakes (platelets) through the body.
         #[serde(default)]
         inclusions: Vec<InclusionsSpec>,
@@ -210,11 +215,14 @@ pub enum OrientationSpec {
 pub enum Body {
     /// Shaded by the pattern's layered BRDFs at the surface.
     Opaque,
-    /// A smooth dielectric interface over an absorbing, scattering volume
-    /// with flakes in it.
+    /// A dielectric interface, smooth or rough, over an absorbing,
+    /// scattering volume with flakes in it.
     Translucent {
         /// Refractive index of the body relative to the air around it.
         ior: f64,
+        /// Average micro-facet slope of the surface in degrees; 0 is a
+        /// smooth (delta) interface.
+        roughness_deg: f64,
         /// What happens along a path inside.
         medium: Medium,
         /// The flake populations.
@@ -1156,6 +1164,7 @@ impl<'a> Compiler<'a> {
             absorption,
             scattering,
             anisotropy,
+            roughness_deg,
             inclusions,
         } = &spec.body
         else {
@@ -1203,6 +1212,7 @@ impl<'a> Compiler<'a> {
         }
         Ok(Body::Translucent {
             ior: *ior,
+            roughness_deg: *roughness_deg,
             medium: Medium {
                 absorption_per_mm: Rgb::from_array(*absorption),
                 scattering_per_mm: Rgb::from_array(*scattering),

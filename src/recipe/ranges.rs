@@ -175,6 +175,12 @@ scalar_field!(
     |v| (-0.99..=0.99).contains(&v)
 );
 scalar_field!(
+    body_roughness_deg,
+    "roughness_deg",
+    "0 <= roughness_deg <= 45 (degrees)",
+    |v| (0.0..=45.0).contains(&v)
+);
+scalar_field!(
     flake_size_mm,
     "size_mm",
     "0.001 <= size_mm <= 10 (mm)",

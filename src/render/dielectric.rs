@@ -1,9 +1,15 @@
 //! The boundary of a translucent body: a dielectric interface between air
-//! and the stone (eqs. 3.1–3.2).
+//! and the stone (eqs. 3.1–3.2), polished smooth (a delta lobe,
+//! `cross_smooth_interface`) or rough ([`RoughInterface`], the microfacet
+//! model of Walter, Marschner, Li and Torrance 2007, "Microfacet models
+//! for refraction through rough surfaces", with the GGX distribution of
+//! the layered BRDFs' `brdf::Microfacet`).
 
 use glam::DVec3;
 
-use crate::brdf::fresnel;
+use crate::brdf::fresnel::{self, Snell};
+use crate::brdf::microfacet::{reflect, refract};
+use crate::brdf::{Microfacet, MicrofacetModel};
 
 /// Where a ray goes at a smooth dielectric interface.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -56,6 +62,169 @@ pub(crate) fn cross_smooth_interface(
         direction: (direction / eta + (cos_i / eta - cos_t) * facing).normalize(),
         refracted: true,
         from_outside,
+    }
+}
+
+/// A rough dielectric interface between air (outside, index 1) and a body
+/// of index `ior` (inside): GGX micro-facets of average slope
+/// `roughness_deg` (α = tan m, as the layered BRDFs' lobes), each a smooth
+/// Fresnel interface, with Smith shadowing (Walter et al. 2007).
+///
+/// Directions are in a local frame whose z axis is the OUTWARD normal, both
+/// unit and pointing away from the surface: `wo` towards the previous
+/// vertex of the path (the camera's side), `wi` towards where light comes
+/// from; z < 0 is inside the body. A path from the camera carries radiance
+/// divided by n² (the basic radiance that a smooth interface passes with
+/// weight 1), so the transmission term is Walter's eq. 21 with the roles of
+/// i and o exchanged, i = `wo`, o = `wi`; it obeys the generalised
+/// reciprocity f(wo, wi)/n(wi)² = f(wi, wo)/n(wo)², and its sampling weight
+/// is Walter's eq. 41, free of η.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RoughInterface {
+    /// The micro-facet distribution (GGX with Smith G).
+    lobe: Microfacet,
+    /// Index of the body relative to the air around it (> 1).
+    ior: f64,
+}
+
+/// A direction drawn by [`RoughInterface::sample`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InterfaceSample {
+    /// The sampled direction `wi` (local frame, unit).
+    pub wi: DVec3,
+    /// f(wo, wi)·|cosθi| / pdf (Walter eq. 41: |wo·m| G / (|cosθo| cosθm)).
+    pub weight: f64,
+    /// The density of `wi` per unit solid angle, Fresnel choice included.
+    pub pdf: f64,
+    /// True when `wi` is on the other side of the surface than `wo`.
+    pub refracted: bool,
+}
+
+impl RoughInterface {
+    /// The interface of a body of index `ior` (> 1: at 1 there is no
+    /// interface and transmission is a delta) polished to an average
+    /// micro-facet slope of `roughness_deg` (clamped as `Microfacet::new`
+    /// does, to at least 0.01°).
+    pub fn new(ior: f64, roughness_deg: f64) -> Self {
+        debug_assert!(ior > 1.0, "a rough interface needs ior > 1, got {ior}");
+        RoughInterface {
+            lobe: Microfacet::new(MicrofacetModel::Ggx, roughness_deg),
+            ior,
+        }
+    }
+
+    /// The indices on the side of `wo` and on the other side.
+    #[inline]
+    fn indices(&self, wo_z: f64) -> (f64, f64) {
+        if wo_z > 0.0 {
+            (1.0, self.ior)
+        } else {
+            (self.ior, 1.0)
+        }
+    }
+
+    /// The BSDF f(wo, wi) (per steradian, without the cosine) and the
+    /// density with which [`RoughInterface::sample`] draws `wi`, both 0
+    /// where the pair cannot occur.
+    ///
+    /// Reflection (same side): F(wo·h)·D(h)·G / (4 |cosθo| |cosθi|) with
+    /// h ∝ wo + wi (Walter eq. 20); pdf = F·D(h) cosθh / (4 |wo·h|)
+    /// (eqs. 13–14 times the Fresnel choice). Transmission: with ηo, ηi
+    /// the indices on the sides of wo and wi and the generalised half vector
+    /// h ∝ −(ηo wo + ηi wi) (eq. 16),
+    /// f = |wo·h| |wi·h| / (|cosθo| |cosθi|) · ηi² (1 − F) G D / (ηo wo·h + ηi wi·h)²
+    /// (eq. 21, i = wo) and pdf = (1 − F)·D(h) cosθh · ηi² |wi·h| / (ηo wo·h + ηi wi·h)²
+    /// (eq. 17's Jacobian).
+    pub fn eval_and_pdf(&self, wo: DVec3, wi: DVec3) -> (f64, f64) {
+        let (cos_o, cos_i) = (wo.z, wi.z);
+        if cos_o == 0.0 || cos_i == 0.0 {
+            return (0.0, 0.0);
+        }
+        let (eta_o, eta_i) = self.indices(cos_o);
+        let same_side = cos_o * cos_i > 0.0;
+        let sum = if same_side {
+            wo + wi
+        } else {
+            -(eta_o * wo + eta_i * wi)
+        };
+        let h = sum.normalize_or_zero();
+        // The micro-normal in the upper hemisphere, where D lives.
+        let h = if h.z < 0.0 { -h } else { h };
+        if h == DVec3::ZERO {
+            return (0.0, 0.0);
+        }
+        let d = self.lobe.d(h);
+        // G = 0 unless wo and wi each lie on the side of h that they lie
+        // on of the surface (Walter eq. 7's χ⁺ factors).
+        let g = self.lobe.g(wo, wi, h);
+        if d == 0.0 || g == 0.0 {
+            return (0.0, 0.0);
+        }
+        let (oh, ih) = (wo.dot(h), wi.dot(h));
+        let f = fresnel::dielectric(oh, eta_i / eta_o);
+        if same_side {
+            let value = f * d * g / (4.0 * cos_o.abs() * cos_i.abs());
+            let pdf = f * d * h.z / (4.0 * oh.abs());
+            (value, pdf)
+        } else {
+            let denominator = eta_o * oh + eta_i * ih;
+            let jacobian = eta_i * eta_i * ih.abs() / (denominator * denominator);
+            let value = (1.0 - f) * d * g * oh.abs() * jacobian / (cos_o.abs() * cos_i.abs());
+            let pdf = (1.0 - f) * d * h.z * jacobian;
+            (value, pdf)
+        }
+    }
+
+    /// Draws `wi` for `wo` from `u` in [0, 1)³: a micro-normal m with
+    /// density D(m) cosθm from `u[0]`, `u[1]` (Walter eq. 35, via
+    /// `Microfacet::sample_normal`), then reflection about m with
+    /// probability F(wo·m) (1 under total internal reflection) chosen by
+    /// `u[2]`, else refraction through m by Snell's law. None when m faces
+    /// away from `wo` or the new direction falls on the wrong side of the
+    /// surface (a path the model's G would give 0).
+    pub fn sample(&self, wo: DVec3, u: [f64; 3]) -> Option<InterfaceSample> {
+        if wo.z == 0.0 {
+            return None;
+        }
+        let side = wo.z.signum();
+        let (eta_o, eta_i) = self.indices(wo.z);
+        let m = self.lobe.sample_normal(u[0], u[1]);
+        // The micro-normal on wo's side and the cosine to it.
+        let facing = m * side;
+        let cos = wo.dot(facing);
+        if cos <= 0.0 {
+            return None;
+        }
+        let eta = eta_i / eta_o;
+        let snell = Snell::at(cos, eta);
+        let f = fresnel::dielectric_from_snell(cos, snell, eta);
+        let refracted = u[2] >= f;
+        let wi = if refracted {
+            refract(wo, facing, eta)?
+        } else {
+            reflect(wo, facing)
+        };
+        if (wi.z * side > 0.0) == refracted || wi.z == 0.0 {
+            return None;
+        }
+        let g = self.lobe.g(wo, wi, m);
+        if g == 0.0 {
+            return None;
+        }
+        let d = self.lobe.d(m);
+        let pdf = if refracted {
+            let ih = wi.dot(m);
+            let denominator = eta_o * wo.dot(m) + eta_i * ih;
+            (1.0 - f) * d * m.z * eta_i * eta_i * ih.abs() / (denominator * denominator)
+        } else {
+            f * d * m.z / (4.0 * cos)
+        };
+        Some(InterfaceSample {
+            wi,
+            weight: cos * g / (wo.z.abs() * m.z),
+            pdf,
+            refracted,
+        })
     }
 }
 

@@ -11,7 +11,7 @@ use glam::DVec3;
 
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem, Medium};
-use crate::render::dielectric::cross_smooth_interface;
+use crate::render::dielectric::{cross_smooth_interface, RoughInterface};
 use crate::render::environment::Environment;
 use crate::render::inclusions::FlakeHit;
 use crate::render::lights::Light;
@@ -365,7 +365,9 @@ impl RenderScene {
                         }
                         origin += direction * t;
                         let g = medium.anisotropy;
-                        let connects = self.connect_through_surfaces && bounce < self.max_bounces;
+                        let connects = self.connect_through_surfaces
+                            && bounce < self.max_bounces
+                            && self.smooth_body_ior(stone).is_some();
                         if connects {
                             let incoming = direction;
                             radiance += throughput
@@ -414,7 +416,9 @@ impl RenderScene {
                     let wo = frame.to_local(-direction);
                     let brdf_at = brdf.at(wo);
                     origin += direction * flake.t + normal * RAY_OFFSET;
-                    let connects = self.connect_through_surfaces && bounce < self.max_bounces;
+                    let connects = self.connect_through_surfaces
+                        && bounce < self.max_bounces
+                        && self.smooth_body_ior(stone).is_some();
                     if connects {
                         radiance += throughput
                             * self.refracted_light(
@@ -492,9 +496,10 @@ impl RenderScene {
                 // for the previous vertex's BRDF strategy.
                 break;
             }
-            if let Some((ior, medium)) = self.translucent_body(&hit) {
+            if let Some((ior, medium, rough)) = self.translucent_body(&hit) {
                 // A smooth dielectric interface: a delta lobe, so no light
                 // sampling here; the next segment's emitters count in full.
+                // A rough one is sampled like an opaque vertex (below).
                 if bounce == 0 {
                     let first = FirstHit {
                         depth: hit.t,
@@ -508,8 +513,34 @@ impl RenderScene {
                     first_hits.add(&first, first_sample);
                     first_recorded = true;
                 }
-                let crossing = cross_smooth_interface(direction, hit.normal, ior, stream.next_1d());
                 let stone = hit.stone_index();
+                if let Some(interface) = rough {
+                    let frame = Frame::new(hit.normal);
+                    let wo = frame.to_local(-direction);
+                    let outwards = hit.point + hit.normal * RAY_OFFSET;
+                    radiance += throughput
+                        * self.direct_at_interface(
+                            &interface, frame, wo, outwards, stone, stream, counts,
+                        );
+                    let Some(sample) = interface.sample(wo, stream.next_3d()) else {
+                        break;
+                    };
+                    throughput *= sample.weight;
+                    // Into the body: reflected from inside or refracted
+                    // from outside (the sample's side is wi's sign of z).
+                    let now_inside = sample.wi.z < 0.0;
+                    let side = if now_inside { -1.0 } else { 1.0 };
+                    inside = stone.filter(|_| now_inside).map(|index| (medium, index));
+                    leaving = if now_inside { None } else { stone };
+                    origin = hit.point + hit.normal * (side * RAY_OFFSET);
+                    direction = frame.to_world(sample.wi);
+                    // Light was sampled only outwards: an emitter met
+                    // there is weighed against it; none shines inside.
+                    previous = (!now_inside).then_some((origin, sample.pdf));
+                    bounce += 1;
+                    continue;
+                }
+                let crossing = cross_smooth_interface(direction, hit.normal, ior, stream.next_1d());
                 // Refracting in from outside, or reflecting from inside,
                 // the new segment runs inside; it starts on that side.
                 let now_inside = crossing.refracted == crossing.from_outside;
@@ -629,22 +660,98 @@ impl RenderScene {
     }
 
     /// The IOR and medium of the stone hit, when its gem has a translucent
-    /// body.
+    /// body, and its surface's micro-facets when it is rough (None: a
+    /// smooth interface; also at IOR 1, where there is no interface to be
+    /// rough).
     #[inline(always)]
-    fn translucent_body(&self, hit: &SurfaceHit) -> Option<(f64, Medium)> {
+    fn translucent_body(&self, hit: &SurfaceHit) -> Option<(f64, Medium, Option<RoughInterface>)> {
         let index = hit.stone_index()?;
         match &self.gems[self.world.stones()[index].gem].body {
-            Body::Translucent { ior, medium, .. } => Some((*ior, *medium)),
+            Body::Translucent {
+                ior,
+                medium,
+                roughness_deg,
+                ..
+            } => {
+                let rough = (*roughness_deg > 0.0 && *ior > 1.0)
+                    .then(|| RoughInterface::new(*ior, *roughness_deg));
+                Some((*ior, *medium, rough))
+            }
             Body::Opaque => None,
         }
     }
 
-    /// The IOR of stone `stone`'s body (1 for an opaque one).
-    pub(crate) fn body_ior(&self, stone: usize) -> f64 {
+    /// The IOR of stone `stone`'s translucent body when its surface is
+    /// smooth (as [`RenderScene::translucent_body`] decides), where lights
+    /// are connected through it; None for an opaque or rough one.
+    pub(crate) fn smooth_body_ior(&self, stone: usize) -> Option<f64> {
         match &self.gems[self.world.stones()[stone].gem].body {
-            Body::Translucent { ior, .. } => *ior,
-            Body::Opaque => 1.0,
+            Body::Translucent {
+                ior, roughness_deg, ..
+            } if *roughness_deg == 0.0 || *ior <= 1.0 => Some(*ior),
+            _ => None,
         }
+    }
+
+    /// Next-event estimation at a rough interface vertex: one sample of
+    /// every light, then of the environment, as at an opaque vertex
+    /// ([`RenderScene::direct`]'s power heuristic), for the directions
+    /// outwards (`frame.n` is the outward normal): reflection when the
+    /// path arrived from outside, transmission out when from inside (no
+    /// light shines inside a body). `point` is offset outwards; shadow rays
+    /// leave the stone `stone` and treat every other stone as opaque.
+    #[allow(clippy::too_many_arguments)]
+    fn direct_at_interface(
+        &self,
+        interface: &RoughInterface,
+        frame: Frame,
+        wo: DVec3,
+        point: DVec3,
+        stone: Option<usize>,
+        stream: &mut SampleStream,
+        counts: &mut RayCounts,
+    ) -> Rgb {
+        let mut sum = Rgb::ZERO;
+        let mut one = |direction: DVec3, distance: f64, incoming: Rgb, pdf: f64, is_delta: bool| {
+            let wi = frame.to_local(direction);
+            if pdf <= 0.0 || wi.z <= 0.0 || incoming.max_element() <= 0.0 {
+                return;
+            }
+            let (f, bsdf_pdf) = interface.eval_and_pdf(wo, wi);
+            if f <= 0.0 {
+                return;
+            }
+            counts.shadow += 1;
+            let reach = if distance.is_finite() {
+                distance * (1.0 - 1e-7) - RAY_OFFSET
+            } else {
+                f64::INFINITY
+            };
+            if self.world.occluded_leaving(point, direction, reach, stone) {
+                return;
+            }
+            // cosθ·w/pdf with the power heuristic (eq. 9.13), as in `direct`.
+            let scale = if is_delta {
+                wi.z / pdf
+            } else {
+                wi.z * pdf / (pdf * pdf + bsdf_pdf * bsdf_pdf)
+            };
+            sum += incoming * (f * scale);
+        };
+        for light in &self.lights {
+            let u = stream.next_2d();
+            if let Some(s) = light.sample(point, u) {
+                one(s.direction, s.distance, s.radiance, s.pdf, s.is_delta);
+            }
+        }
+        if let Some(s) = self
+            .samples_environment()
+            .then(|| self.environment.sample(stream.next_2d()))
+            .flatten()
+        {
+            one(s.direction, f64::INFINITY, s.radiance, s.pdf, false);
+        }
+        sum
     }
 
     /// The nearest flake inside stone `stone` along the world ray for

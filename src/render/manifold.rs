@@ -66,15 +66,19 @@ pub(crate) struct Connection {
 }
 
 /// Newton steps before a solve gives up.
-const MAX_STEPS: usize = 24;
+const MAX_STEPS: usize = 12;
 /// Halvings of a Newton step that does not reduce the residual.
-const MAX_HALVINGS: usize = 10;
+const MAX_HALVINGS: usize = 4;
 /// Finite-difference step in the direction's tangent coordinates
-/// (radians): central differences err by O(h²) relative.
+/// (radians).
 const JACOBIAN_STEP: f64 = 1e-6;
-/// Residual at which a solve has converged, relative to the distance from
-/// the inner point to a target point (and absolute for directions).
-const TOLERANCE: f64 = 1e-9;
+/// Length of the Snell residual (n·ωᵢ − ωₒ) × N at which a solve has
+/// converged: about the angle, in radians, by which the refracted ray
+/// misses the target.
+const TOLERANCE: f64 = 1e-11;
+/// Unit directions closer than this agree (a solution's refracted ray and
+/// the direction to its target).
+const SAME_DIRECTION: f64 = 1e-7;
 
 /// The refracted ray of the ray from `origin` (inside a body of index
 /// `ior`) along unit `direction`: the exit and the direction in air, or
@@ -161,83 +165,106 @@ impl Residual {
 }
 
 /// Finds the refraction path from `origin` (inside a body of index `ior`)
-/// to `target` by Newton's method from the straight line, or None when it
-/// does not converge (no solution near the start, total internal
-/// reflection on the way, or a grazing exit).
+/// to `target` by Gauss–Newton from the straight line, or None when it
+/// does not converge to a physical refraction (no solution near the
+/// start, a grazing exit, or a stencil across a crease of the surface).
+///
+/// The unknown is the direction at the origin; the residual is Snell's
+/// law at the exit point that direction reaches, written as the
+/// generalised half vector n·ωᵢ − ωₒ being parallel to the normal
+/// (ωᵢ along the ray inside, ωₒ from the exit towards the target): the
+/// cross product (n·ωᵢ − ωₒ) × N. Unlike the refracted ray's miss
+/// distance it is defined at every exit point, total internal reflection
+/// included, so a start whose straight line cannot leave the body still
+/// converges.
 pub(crate) fn connect(
     boundary: &impl Boundary,
     ior: f64,
     origin: DVec3,
     target: Target,
 ) -> Option<Connection> {
-    let (start, scale) = match target {
-        Target::Point(y) => {
-            let to = y - origin;
-            let length = to.length();
-            (to / length, length)
-        }
-        Target::Direction(d) => (d, 1.0),
+    let start = match target {
+        Target::Point(y) => (y - origin).normalize(),
+        Target::Direction(d) => d,
     };
     if !start.is_finite() {
         return None;
     }
     let chart = Chart::around(start);
-    let residual = Residual::new(target, start);
-    let evaluate = |a: f64, b: f64| {
+    let evaluate = |a: f64, b: f64| -> Option<DVec3> {
         let direction = chart.direction(a, b);
-        let (exit, out) = shoot(boundary, ior, origin, direction)?;
-        residual.of(&exit, out)
+        let exit = boundary.exit(origin, direction)?;
+        let out = match target {
+            Target::Point(y) => (y - exit.point).normalize(),
+            Target::Direction(d) => d,
+        };
+        Some((direction * ior - out).cross(exit.normal))
     };
-    let norm = |r: [f64; 2]| r[0].hypot(r[1]);
-    let tolerance = TOLERANCE * scale;
+    // Gauss–Newton on the normal equations of the 3 × 2 system J·δ = −r,
+    // J by finite differences at the start and then by Broyden's rank-one
+    // updates (one trace per step instead of three).
     let (mut a, mut b) = (0.0, 0.0);
     let mut r = evaluate(a, b)?;
-    let mut converged = false;
+    let h = JACOBIAN_STEP;
+    let mut ja = (evaluate(h, 0.0)? - r) / h;
+    let mut jb = (evaluate(0.0, h)? - r) / h;
     for _ in 0..MAX_STEPS {
-        if norm(r) <= tolerance {
-            converged = true;
+        if r.length() <= TOLERANCE {
             break;
         }
-        let h = JACOBIAN_STEP;
-        let ra = evaluate(a + h, b)?;
-        let rb = evaluate(a, b + h)?;
-        let j = [
-            [(ra[0] - r[0]) / h, (rb[0] - r[0]) / h],
-            [(ra[1] - r[1]) / h, (rb[1] - r[1]) / h],
-        ];
-        let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
+        let (aa, ab, bb) = (ja.dot(ja), ja.dot(jb), jb.dot(jb));
+        let (ra, rb) = (ja.dot(r), jb.dot(r));
+        let det = aa * bb - ab * ab;
         if det.abs() <= f64::MIN_POSITIVE || !det.is_finite() {
             return None;
         }
-        let da = -(j[1][1] * r[0] - j[0][1] * r[1]) / det;
-        let db = -(-j[1][0] * r[0] + j[0][0] * r[1]) / det;
+        let da = -(bb * ra - ab * rb) / det;
+        let db = -(aa * rb - ab * ra) / det;
         // Damped: halve the step until the residual falls.
         let mut step = 1.0;
         let mut accepted = None;
         for _ in 0..MAX_HALVINGS {
-            let (na, nb) = (a + step * da, b + step * db);
-            if let Some(nr) = evaluate(na, nb) {
-                if norm(nr) < norm(r) {
-                    accepted = Some((na, nb, nr));
+            let (sa, sb) = (step * da, step * db);
+            if let Some(nr) = evaluate(a + sa, b + sb) {
+                if nr.length() < r.length() {
+                    accepted = Some((sa, sb, nr));
                     break;
                 }
             }
             step *= 0.5;
         }
-        let (na, nb, nr) = accepted?;
-        (a, b, r) = (na, nb, nr);
+        let (sa, sb, nr) = accepted?;
+        // Broyden: J += (Δr − J·Δp)·Δpᵀ / |Δp|².
+        let miss = (nr - r - ja * sa - jb * sb) / (sa * sa + sb * sb);
+        ja += miss * sa;
+        jb += miss * sb;
+        (a, b, r) = (a + sa, b + sb, nr);
     }
-    if !converged && norm(r) > tolerance {
+    if r.length() > TOLERANCE {
         return None;
     }
+    // A physical refraction: leaving the body, on towards the target (the
+    // cross product also vanishes for the half vector's other sign).
     let inside_direction = chart.direction(a, b);
     let (exit, out) = shoot(boundary, ior, origin, inside_direction)?;
+    let outside_length = match target {
+        Target::Point(y) => {
+            let to = y - exit.point;
+            let length = to.length();
+            if (to / length - out).length() > SAME_DIRECTION {
+                return None;
+            }
+            length
+        }
+        Target::Direction(d) => {
+            if (d - out).length() > SAME_DIRECTION {
+                return None;
+            }
+            f64::INFINITY
+        }
+    };
     let inside_solid_angle_per_target_measure =
         1.0 / spread(boundary, ior, origin, inside_direction, target, out)?;
-    let outside_length = match target {
-        Target::Point(y) => (y - exit.point).length(),
-        Target::Direction(_) => f64::INFINITY,
-    };
     let cos_inside = inside_direction.dot(exit.normal);
     Some(Connection {
         inside_direction,
@@ -251,8 +278,8 @@ pub(crate) fn connect(
 
 /// |d(target measure) / dω| at the solution: the area swept across the
 /// refracted ray at the target point per solid angle at the origin, or
-/// the solid angle swept by the refracted direction; central differences
-/// in a chart centred on the solution, measured across the refracted ray.
+/// the solid angle swept by the refracted direction, by differences in a
+/// chart centred on the solution, measured across the refracted ray.
 fn spread(
     boundary: &impl Boundary,
     ior: f64,
@@ -276,9 +303,11 @@ fn spread(
         let (exit, out) = shoot(boundary, ior, origin, chart.direction(a, b))?;
         residual.of(&exit, out)
     };
-    let (pa, ma, pb, mb) = (at(h, 0.0)?, at(-h, 0.0)?, at(0.0, h)?, at(0.0, -h)?);
-    let ja = [(pa[0] - ma[0]) / (2.0 * h), (pa[1] - ma[1]) / (2.0 * h)];
-    let jb = [(pb[0] - mb[0]) / (2.0 * h), (pb[1] - mb[1]) / (2.0 * h)];
+    // Forward differences from the solution, whose residual is 0 in this
+    // measure up to the solve's tolerance: O(h) relative error, 10⁻⁶.
+    let (centre, pa, pb) = (at(0.0, 0.0)?, at(h, 0.0)?, at(0.0, h)?);
+    let ja = [(pa[0] - centre[0]) / h, (pa[1] - centre[1]) / h];
+    let jb = [(pb[0] - centre[0]) / h, (pb[1] - centre[1]) / h];
     let det = (ja[0] * jb[1] - ja[1] * jb[0]).abs();
     (det > 0.0 && det.is_finite()).then_some(det)
 }

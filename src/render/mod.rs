@@ -7,7 +7,7 @@
 
 pub mod camera;
 pub mod cpu;
-pub(crate) mod dielectric;
+pub mod dielectric;
 pub mod distribution;
 pub mod environment;
 pub mod film;

@@ -14,7 +14,7 @@
 //! second solution), so the sum stays unbiased
 //! ([`RenderScene::connection_pdf`]).
 
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
 use crate::brdf::Rgb;
 use crate::recipe::gem::Body;
@@ -27,20 +27,34 @@ use crate::render::world::{StoneInstance, RAY_OFFSET};
 /// Two unit directions closer than this are the same solution.
 const SAME_SOLUTION: f64 = 1e-6;
 
-/// A stone's surface, in world space, as [`manifold`] traces it.
-struct StoneBoundary<'a>(&'a StoneInstance);
+/// A stone's surface, in world space, as [`manifold`] traces it: its
+/// placement as matrices, made once per connection (a solve traces it a
+/// dozen times).
+struct StoneBoundary<'a> {
+    stone: &'a StoneInstance,
+    to_object: DMat3,
+    to_world: DMat3,
+}
+
+impl<'a> StoneBoundary<'a> {
+    fn new(stone: &'a StoneInstance) -> Self {
+        Self {
+            stone,
+            to_object: DMat3::from_quat(stone.rotation.inverse()),
+            to_world: DMat3::from_quat(stone.rotation),
+        }
+    }
+}
 
 impl Boundary for StoneBoundary<'_> {
     fn exit(&self, origin: DVec3, direction: DVec3) -> Option<Exit> {
-        let stone = self.0;
-        let to_object = stone.rotation.inverse();
-        let o = to_object * (origin - stone.position);
-        let d = to_object * direction;
-        let hit = stone.cabochon.intersect(o, d, 0.0, f64::INFINITY)?;
+        let o = self.to_object * (origin - self.stone.position);
+        let d = self.to_object * direction;
+        let hit = self.stone.cabochon.intersect(o, d, 0.0, f64::INFINITY)?;
         (!hit.entering).then(|| Exit {
             t: hit.t,
             point: origin + direction * hit.t,
-            normal: (stone.rotation * hit.normal).normalize(),
+            normal: (self.to_world * hit.normal).normalize(),
         })
     }
 }
@@ -96,11 +110,13 @@ impl RenderScene {
         shadow_rays: &mut u64,
     ) -> Rgb {
         let instance = &self.world.stones()[stone];
-        let Body::Translucent { ior, medium, .. } = &self.gems[instance.gem].body else {
+        let (Some(ior), Body::Translucent { medium, .. }) =
+            (self.smooth_body_ior(stone), &self.gems[instance.gem].body)
+        else {
             return Rgb::ZERO;
         };
-        let (ior, extinction_per_mm) = (*ior, medium.absorption_per_mm + medium.scattering_per_mm);
-        let boundary = StoneBoundary(instance);
+        let extinction_per_mm = medium.absorption_per_mm + medium.scattering_per_mm;
+        let boundary = StoneBoundary::new(instance);
         let mut total = Rgb::ZERO;
         let mut emitters = self
             .lights
@@ -193,8 +209,10 @@ impl RenderScene {
         } else {
             Target::Direction(direction)
         };
-        let boundary = StoneBoundary(&self.world.stones()[vertex.stone]);
-        let ior = self.body_ior(vertex.stone);
+        let boundary = StoneBoundary::new(&self.world.stones()[vertex.stone]);
+        let Some(ior) = self.smooth_body_ior(vertex.stone) else {
+            return 0.0;
+        };
         match manifold::connect(&boundary, ior, vertex.point, target) {
             Some(path) if (path.inside_direction - vertex.direction).length() < SAME_SOLUTION => {
                 let cos_light = light
@@ -215,8 +233,10 @@ impl RenderScene {
         vertex: &ConnectedVertex,
         direction: DVec3,
     ) -> f64 {
-        let boundary = StoneBoundary(&self.world.stones()[vertex.stone]);
-        let ior = self.body_ior(vertex.stone);
+        let boundary = StoneBoundary::new(&self.world.stones()[vertex.stone]);
+        let Some(ior) = self.smooth_body_ior(vertex.stone) else {
+            return 0.0;
+        };
         match manifold::connect(&boundary, ior, vertex.point, Target::Direction(direction)) {
             Some(path) if (path.inside_direction - vertex.direction).length() < SAME_SOLUTION => {
                 self.environment.pdf(direction) / path.inside_solid_angle_per_target_measure

@@ -122,6 +122,7 @@ fn scene(gem: Gem, light: Light) -> RenderScene {
         environment: Environment::Constant(Rgb::ZERO),
         max_bounces: 8,
         ambient_occlusion: None,
+        connect_through_surfaces: true,
     }
 }
 
