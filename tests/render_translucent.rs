@@ -685,9 +685,9 @@ fn light_connected_through_the_surface_adds_up_to_what_path_sampling_finds() {
     for extra in ["", "scattering: (0.15, 0.15, 0.15), anisotropy: 0.4,"] {
         let mut scene = glints_under_a_sphere(extra, 6.0);
         let mask = mirror_image(glints_under_a_sphere(extra, 6.0), &camera, 40);
-        let connected = render_scene(&scene, &camera, 40, 1024, 1);
+        let connected = render_scene(&scene, &camera, 40, 4096, 1);
         scene.connect_through_surfaces = false;
-        let sampled = render_scene(&scene, &camera, 40, 1024, 2);
+        let sampled = render_scene(&scene, &camera, 40, 4096, 2);
         let pixels = glint_pixels(&mask, &[&connected, &sampled]);
         let mean = |v: &Vec<f64>| v.iter().sum::<f64>() / v.len() as f64;
         let (connected, sampled) = (mean(&pixels[0]), mean(&pixels[1]));

@@ -6,15 +6,22 @@ use std::time::Instant;
 
 use image::RgbImage;
 use lapidary::gallery::figures::{
-    encode_png_compact, figure_3_2, figure_4_11, figure_4_3, gem_sheet, render_gem, FigureError,
-    GallerySettings,
+    encode_png_compact, figure_3_2, figure_4_11, figure_4_3, figure_4_5b, gem_sheet, render_gem,
+    turntable_strip, FigureError, GallerySettings,
 };
 use lapidary::recipe::error::did_you_mean;
 use lapidary::recipe::library::builtin_gem_names;
 use lapidary::recipe::TableCache;
 
 /// The non-gem outputs, by the name `--only` knows them (file = name.png).
-const FIGURES: [&str; 4] = ["gallery", "figure-4-11", "figure-3-2", "figure-4-3"];
+const FIGURES: [&str; 6] = [
+    "gallery",
+    "figure-4-11",
+    "figure-3-2",
+    "figure-4-3",
+    "figure-4-5b",
+    "turntable-goldstone",
+];
 
 /// Arguments of `lapidary gallery`.
 #[derive(clap::Args, Debug)]
@@ -35,8 +42,8 @@ pub struct GalleryArgs {
     #[arg(long, value_name = "N", default_value_t = 256)]
     spp: u32,
     /// Write only these outputs: built-in gem names and `gallery`,
-    /// `figure-4-11`, `figure-3-2`, `figure-4-3` (the contact sheet still
-    /// renders every gem).
+    /// `figure-4-11`, `figure-3-2`, `figure-4-3`, `figure-4-5b`,
+    /// `turntable-goldstone` (the contact sheet still renders every gem).
     #[arg(long, value_name = "NAME", num_args = 1..)]
     only: Vec<String>,
     /// Worker threads (default: all cores). The images do not depend on it.
@@ -141,10 +148,14 @@ pub fn run(args: GalleryArgs) -> Result<(), String> {
             write("gallery", &gem_sheet(&pictures), Instant::now())?;
         }
         type Figure = fn(&GallerySettings, &TableCache) -> Result<RgbImage, FigureError>;
-        let figures: [(&str, Figure); 3] = [
+        let figures: [(&str, Figure); 5] = [
             ("figure-4-11", figure_4_11),
             ("figure-3-2", figure_3_2),
             ("figure-4-3", figure_4_3),
+            ("figure-4-5b", figure_4_5b),
+            ("turntable-goldstone", |settings, cache| {
+                turntable_strip("goldstone", settings, cache)
+            }),
         ];
         for (name, make) in figures {
             if wanted(name) {

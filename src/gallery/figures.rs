@@ -86,6 +86,16 @@ pub(crate) const FIGURE_4_3_MATERIALS: [(&str, &str); 2] = [
     ("silver-paint", "patina (4.11e): two lobes"),
 ];
 
+/// Azimuths of [`turntable_strip`], evenly over a full turn.
+const TURNTABLE_FRAMES: u32 = 8;
+
+/// Figure 4.5 b's sunstones, left to right, with what their bodies are.
+const FIGURE_4_5B_GEMS: [(&str, &str); 3] = [
+    ("sunstone", "opaque"),
+    ("pink-sunstone", "translucent"),
+    ("patterned-sunstone", "translucent"),
+];
+
 /// Incidence angle of figure 4.3's BRDF slices, degrees from the normal.
 pub(crate) const FIGURE_4_3_INCIDENCE_DEG: f64 = 30.0;
 
@@ -389,7 +399,24 @@ impl Studio {
         side_px: u32,
         settings: &GallerySettings,
     ) -> Result<RgbImage, FigureError> {
-        let stones = stone_instances(&self.scene).map_err(FigureError::Scene)?;
+        self.render_turned(gem, side_px, settings, 0.0)
+    }
+
+    /// [`Studio::render`] with every stone turned by `turn_deg` about the
+    /// vertical through its own origin (counter-clockwise seen from above):
+    /// its pattern and inclusions turn with it, the lights and camera stay.
+    fn render_turned(
+        &self,
+        gem: Gem,
+        side_px: u32,
+        settings: &GallerySettings,
+        turn_deg: f64,
+    ) -> Result<RgbImage, FigureError> {
+        let turn = DQuat::from_rotation_z(turn_deg.to_radians());
+        let mut stones = stone_instances(&self.scene).map_err(FigureError::Scene)?;
+        for stone in &mut stones {
+            stone.rotation = turn * stone.rotation;
+        }
         let render_scene = RenderScene {
             world: World::new(stones, self.scene.ground.as_ref().map(|g| g.height)),
             material_id_bases: RenderScene::material_id_bases(std::slice::from_ref(&gem)),
@@ -561,6 +588,63 @@ pub fn figure_4_3(settings: &GallerySettings, cache: &TableCache) -> Result<RgbI
         "Figure 4.3: the same effective roughness m = 17°",
         &tiles,
         2,
+    ))
+}
+
+/// The three sunstones of figure 4.5 b, as the course notes show them:
+/// "only the specimen on the top right is opaque; the other two are
+/// translucent, volumetric objects" - `sunstone` (opaque) beside
+/// `pink-sunstone` and `patterned-sunstone` (translucent bodies with copper
+/// platelets at depth), each on the studio's cabochon at half the gem size.
+pub fn figure_4_5b(
+    settings: &GallerySettings,
+    cache: &TableCache,
+) -> Result<RgbImage, FigureError> {
+    let side_px = settings.large_sphere_px();
+    let studio = Studio::new(default_scene(), settings, cache)?;
+    let tiles = FIGURE_4_5B_GEMS
+        .iter()
+        .map(|(name, body)| {
+            let gem = compile_gem_draft_or_final(&GemSource::load(name)?, settings.draft, cache)?;
+            Ok(Tile {
+                image: studio.render(gem, side_px, settings)?,
+                lines: vec![name.to_string(), body.to_string()],
+            })
+        })
+        .collect::<Result<Vec<_>, FigureError>>()?;
+    Ok(contact_sheet(
+        "Figure 4.5 b: one opaque sunstone, two translucent",
+        &tiles,
+        3,
+    ))
+}
+
+/// A turntable strip: built-in gem `name` turned through
+/// `TURNTABLE_FRAMES` azimuths of a full turn under the studio's fixed key
+/// light, side by side at a quarter of the gem size. In a translucent
+/// stone single platelets at different depths catch the light in one frame
+/// and are dark in the next.
+pub fn turntable_strip(
+    name: &str,
+    settings: &GallerySettings,
+    cache: &TableCache,
+) -> Result<RgbImage, FigureError> {
+    let side_px = (settings.size_px / 4).max(MIN_SPHERE_PX);
+    let studio = Studio::new(default_scene(), settings, cache)?;
+    let gem = compile_gem_draft_or_final(&GemSource::load(name)?, settings.draft, cache)?;
+    let tiles = (0..TURNTABLE_FRAMES)
+        .map(|frame| {
+            let turn_deg = 360.0 * f64::from(frame) / f64::from(TURNTABLE_FRAMES);
+            Ok(Tile {
+                image: studio.render_turned(gem.clone(), side_px, settings, turn_deg)?,
+                lines: vec![format!("{turn_deg:.0}°")],
+            })
+        })
+        .collect::<Result<Vec<_>, FigureError>>()?;
+    Ok(contact_sheet(
+        &format!("{name} on a turntable: platelets at depth flash on and off"),
+        &tiles,
+        TURNTABLE_FRAMES,
     ))
 }
 

@@ -58,6 +58,16 @@ pub struct RenderScene {
     pub connect_through_surfaces: bool,
 }
 
+/// Scattering events a path may take inside translucent bodies (which are
+/// not bounces): a stone whose light scatters further is dark anyway.
+const MAX_SCATTERINGS: u32 = 1024;
+/// The scattering vertices of a path, counted from its first, that connect
+/// lights through the surface (`refracted_light`).
+const CONNECTED_SCATTERINGS: u32 = 2;
+/// Scattering events before Russian roulette (survival = the largest
+/// channel of the throughput, at most 0.95) may end a path.
+const SCATTERINGS_BEFORE_ROULETTE: u32 = 4;
+
 /// `material_id` AOV values: 0 is the background, 1 the ground, stones'
 /// materials count from 2.
 pub(crate) const MATERIAL_ID_GROUND: u32 = 1;
@@ -335,6 +345,8 @@ impl RenderScene {
         // continuation may still meet a light the same way.
         let mut connected: Option<ConnectedVertex> = None;
         let mut bounce = 0;
+        // Scattering events inside bodies so far (they are not bounces).
+        let mut scatterings = 0;
         loop {
             counts.traced += 1;
             let arriving = connected.take();
@@ -358,15 +370,20 @@ impl RenderScene {
                     throughput *= spectral.weigh(&flight);
                     if let Some(t) = flight.scatters_at {
                         // A scattering vertex: the phase function over its
-                        // own density is 1, and no light is sampled from
-                        // inside the dielectric boundary.
-                        if bounce > self.max_bounces {
+                        // own density is 1. It is no bounce: light in a
+                        // cloudy stone scatters dozens of times, so the
+                        // walk ends by Russian roulette instead.
+                        if bounce > self.max_bounces || scatterings == MAX_SCATTERINGS {
                             break;
                         }
                         origin += direction * t;
                         let g = medium.anisotropy;
+                        // Connected only near where the light entered:
+                        // deeper in, what arrives is diffuse and sampling
+                        // finds it as well, at a tenth of the cost.
                         let connects = self.connect_through_surfaces
                             && bounce < self.max_bounces
+                            && scatterings < CONNECTED_SCATTERINGS
                             && self.smooth_body_ior(stone).is_some();
                         if connects {
                             let incoming = direction;
@@ -391,16 +408,23 @@ impl RenderScene {
                             stone,
                             exited: false,
                         });
+                        scatterings += 1;
+                        if scatterings > SCATTERINGS_BEFORE_ROULETTE {
+                            let survival = throughput.max_element().min(0.95);
+                            if stream.next_1d() >= survival {
+                                break;
+                            }
+                            throughput /= survival;
+                        }
                         leaving = None;
                         previous = None;
-                        bounce += 1;
                         continue;
                     }
                 }
                 if let Some((flake, brdf)) = flake {
                     // Only a camera ray refracted in runs inside at bounce
                     // 1, and it did not scatter: its first event inside.
-                    first_hits.inclusions += u32::from(bounce == 1);
+                    first_hits.inclusions += u32::from(bounce == 1 && scatterings == 0);
                     // A flake reflects by its material's BRDF, from either
                     // side; only its BRDF is sampled (no light reaches a
                     // shadow ray through the smooth boundary).

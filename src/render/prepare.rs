@@ -185,7 +185,7 @@ mod tests {
         let scene = parse_scene(THREE_STONES, None).unwrap();
         let cache = TableCache::in_memory();
         let tables = Tables::Computed(&cache);
-        let default_gem = GemSource::load("green-aventurine").unwrap();
+        let default_gem = GemSource::load("lavender-lepidolite").unwrap();
         let prepared = prepare_scene(&scene, &default_gem, None, 2, tables, &|_| {}).unwrap();
         let gems = &prepared.gems;
         assert_eq!(gems.len(), 3);
@@ -200,7 +200,7 @@ mod tests {
 
         // The shared BRDFs are those of seed 2 compiled alone, bit for bit,
         // compensation tables included (computed afresh, not from the cache).
-        let source = GemSource::load("green-aventurine").unwrap();
+        let source = GemSource::load("lavender-lepidolite").unwrap();
         let fresh = TableCache::in_memory();
         let alone = compile_gem(&source, Some(2), Tables::Computed(&fresh)).unwrap();
         assert_eq!(alone.brdfs.len(), gems[1].brdfs.len());
