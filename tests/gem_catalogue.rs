@@ -209,7 +209,7 @@ fn patterned_body() -> (Gem, Inclusions, Zoning) {
     // Oligoclase (1.54–1.55) or the notes' 1.58, smooth polish.
     assert!((1.53..=1.59).contains(ior) && *roughness_deg == 0.0);
     assert_eq!(inclusions.len(), 1);
-    let (population, zoning) = (inclusions[0].clone(), *zoning);
+    let (population, zoning) = (inclusions[0].clone(), **zoning);
     (gem, population, zoning)
 }
 

@@ -249,8 +249,9 @@ pub enum Body {
         /// What happens along a path inside; with zoning, its absorption is
         /// the least the zoning reaches, per channel.
         medium: Medium,
-        /// The absorption above the medium's, where it varies.
-        zoning: Option<Zoning>,
+        /// The absorption above the medium's, where it varies (boxed: a
+        /// switch function is large, and most bodies have none).
+        zoning: Option<Box<Zoning>>,
         /// The flake populations.
         inclusions: Vec<Inclusions>,
     },
@@ -1293,7 +1294,7 @@ impl<'a> Compiler<'a> {
                     Rgb::from_array(*absorption),
                     Rgb::from_array(z.absorption),
                 );
-                (Some(zoning), minimum)
+                (Some(Box::new(zoning)), minimum)
             }
             None => (None, Rgb::from_array(*absorption)),
         };

@@ -57,7 +57,7 @@ impl RenderScene {
             Body::Translucent {
                 zoning: Some(zoning),
                 ..
-            } => Some(zoning),
+            } => Some(zoning.as_ref()),
             _ => None,
         }
     }
