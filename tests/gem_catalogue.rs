@@ -5,7 +5,7 @@
 
 use glam::DVec3;
 use lapidary::recipe::gem::{
-    compile_gem, load_gem, parse_gem, Body, Gem, GemSource, Inclusions, Tables,
+    compile_gem, load_gem, parse_gem, Body, Gem, GemSource, Inclusions, Tables, Zoning,
 };
 use lapidary::recipe::library::{builtin_gem_names, builtin_gem_source, BUILTIN_GEMS};
 use lapidary::recipe::material::{BaseSpec, Material};
@@ -180,19 +180,54 @@ fn every_builtin_renders_finite_pixels() {
         assert_renders(name, &mut prepared, Some(shading));
     }
 }
-/// Notes, 4.3.1: the patterned sunstone's "scattering function is no longer
-/// homogeneous". Glitter fractions measured in 64 blocks of 2.5 mm: their
-/// coefficient of variation is far above the sunstone's, whose blocks
-/// differ only by sampling noise.
+
+/// The patterned sunstone's body: its one platelet population and zoning.
+fn patterned_body() -> (Gem, Inclusions, Zoning) {
+    let gem = builtin("patterned-sunstone");
+    let Body::Translucent {
+        inclusions,
+        zoning: Some(zoning),
+        ior,
+        roughness_deg,
+        ..
+    } = &gem.body
+    else {
+        panic!("the patterned sunstone is a zoned translucent body");
+    };
+    // Oligoclase (1.54–1.55) or the notes' 1.58, smooth polish.
+    assert!((1.53..=1.59).contains(ior) && *roughness_deg == 0.0);
+    assert_eq!(inclusions.len(), 1);
+    let (population, zoning) = (inclusions[0].clone(), **zoning);
+    (gem, population, zoning)
+}
+
+/// Notes, 4.3.1: the patterned sunstone "has less glitter, but the
+/// scattering function is no longer homogeneous". Its platelets are kept
+/// with probability clamp(f, 0, 1) of their density modulation (measured
+/// here at many points of the stone): less than half the cells on average,
+/// and in 64 blocks of 2.5 mm that fraction varies far more than the
+/// sunstone's glitter fraction, whose blocks differ only by sampling noise.
 #[test]
-fn patterned_sunstone_glitter_is_patchy() {
-    let variation = |gem: &Gem| {
+fn patterned_sunstone_platelets_are_fewer_and_patchy() {
+    let (_, population, _) = patterned_body();
+    let f = population.density_modulation.expect("a density modulation");
+    let kept = |points: &[DVec3]| {
+        points
+            .iter()
+            .map(|p| f.value(*p).clamp(0.0, 1.0))
+            .sum::<f64>()
+            / points.len() as f64
+    };
+    let (lo, hi) = stone_box();
+    let overall = kept(&points_in(40_000, lo, hi, 1));
+    assert!(overall > 0.02 && overall < 0.5, "kept fraction {overall}");
+    let variation = |fraction: &dyn Fn(&[DVec3]) -> f64| {
         let mut fractions = Vec::new();
         for i in 0..8 {
             for j in 0..8 {
                 let lo = DVec3::new(-1.0 + 0.25 * i as f64, -1.0 + 0.25 * j as f64, 0.0);
                 let points = points_in(500, lo, lo + DVec3::splat(0.25), 100 + 8 * i + j);
-                fractions.push(glitter_fraction(gem, &points));
+                fractions.push(fraction(&points));
             }
         }
         let mean = fractions.iter().sum::<f64>() / fractions.len() as f64;
@@ -200,26 +235,48 @@ fn patterned_sunstone_glitter_is_patchy() {
             fractions.iter().map(|f| (f - mean).powi(2)).sum::<f64>() / fractions.len() as f64;
         var.sqrt() / mean
     };
-    let sun = variation(&builtin("sunstone"));
-    let patterned = variation(&builtin("patterned-sunstone"));
+    let sunstone = builtin("sunstone");
+    let sun = variation(&|points| glitter_fraction(&sunstone, points));
+    let patterned = variation(&kept);
     assert!(
         patterned > 3.0 * sun,
         "patterned {patterned} vs sunstone {sun}"
     );
 }
 
-/// The opaque sunstone's platelets lie in one cleavage plane (the schiller
-/// flashes in one direction): their normals' RMS spread around their mean
-/// is small (below 15°, about twice the 7° key light plus the copper's 3–5°
-/// slope), and the direction belongs to the crystal, not the cut: it is the
-/// same whatever the stone's surface normal. (The translucent sunstones'
-/// platelets: `the_translucent_gems_have_the_bodies_the_stones_have`.)
+/// The patterned sunstone's colour is zoned inside the stone: its blue
+/// absorption (what makes it orange) differs several-fold between the
+/// zones, and the stone holds both (the zoning function crosses 0 and 1).
+#[test]
+fn patterned_sunstone_colour_is_zoned() {
+    let (gem, _, zoning) = patterned_body();
+    let Body::Translucent { medium, .. } = &gem.body else {
+        unreachable!()
+    };
+    let (lo, hi) = stone_box();
+    let blue: Vec<f64> = points_in(20_000, lo, hi, 6)
+        .iter()
+        .map(|p| medium.absorption_per_mm.z + zoning.residual_per_mm(*p).z)
+        .collect();
+    let (least, most) = blue
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(*v), b.max(*v)));
+    assert!(
+        least > 0.0 && most > 3.0 * least,
+        "blue σa {least}–{most} per mm"
+    );
+}
+
+/// The opaque sunstone's platelets lie in one cleavage plane (the schiller flashes in one
+/// direction): their normals' RMS spread around their mean is small (below
+/// 15°, about twice the 7° key light plus the copper's 3–5° slope), and the
+/// direction belongs to the crystal, not the cut: it is the same whatever
+/// the stone's surface normal.
 #[test]
 fn sunstone_platelets_are_aligned_to_one_cleavage_plane() {
     let (lo, hi) = stone_box();
     let points = points_in(20_000, lo, hi, 4);
-    {
-        let name = "sunstone";
+    for name in ["sunstone"] {
         let gem = builtin(name);
         let up = flake_normals(&gem, &points, DVec3::Z);
         let side = flake_normals(&gem, &points, DVec3::X);
@@ -244,6 +301,26 @@ fn copper_base(m: &Material) -> Option<f64> {
         } if metal == "copper" => Some(*roughness_deg),
         _ => None,
     }
+}
+
+/// The patterned sunstone's platelets are copper (the notes' glitter base,
+/// 3°), lie in one cleavage plane (normals within 10° of one axis, fixed
+/// in the stone), and are 0.05–0.3 mm across.
+#[test]
+fn patterned_sunstone_platelets_are_aligned_copper() {
+    let (gem, population, _) = patterned_body();
+    let material = &gem.materials[population.material as usize].1;
+    assert_eq!(copper_base(material), Some(3.0));
+    let (_, cos_spread) = population.aligned.expect("aligned platelets");
+    assert!(cos_spread >= 10f64.to_radians().cos(), "cos {cos_spread}");
+    let diameters = (
+        2.0 * population.radius_mm * (1.0 - population.size_spread),
+        2.0 * population.radius_mm * (1.0 + population.size_spread),
+    );
+    assert!(
+        diameters.0 >= 0.05 && diameters.1 <= 0.3,
+        "platelets {diameters:?} mm"
+    );
 }
 
 /// Notes, 4.3.1: the opaque sunstone has no surface map, one Lambertian

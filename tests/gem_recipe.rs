@@ -544,6 +544,7 @@ fn translucent_body_fields_are_range_checked() {
                 scattering_per_mm: lapidary::brdf::Rgb::ZERO,
                 anisotropy: 0.0,
             },
+            zoning: None,
             inclusions: vec![],
         }
     );
@@ -563,4 +564,72 @@ fn translucent_body_fields_are_range_checked() {
         panic!("not translucent");
     };
     assert_eq!(roughness_deg, 12.5);
+}
+
+#[test]
+fn zoning_and_density_modulation_are_range_checked_and_reach_the_compiled_body() {
+    // Each bad value on its own line: the error names that line.
+    for (fields, marker, needles) in [
+        (
+            "zoning: Some(Zoning(function: Perlin(frequency: 2.0),\n        absorption: (0.1, -0.5, 0.1))),",
+            "absorption: (0.1, -0.5",
+            &["`absorption`", "0 <= absorption <= 1000 (per mm)"][..],
+        ),
+        (
+            "zoning: Some(Zoning(function: Perlin(frequency: 2.0),\n        absorption: (0.1, NaN, 0.1))),",
+            "absorption: (0.1, NaN",
+            &["`absorption`", "0 <= absorption <= 1000 (per mm)"][..],
+        ),
+        (
+            "zoning: Some(Zoning(\n        function: Perlin(frequency: -1.0), absorption: (1.0, 1.0, 1.0))),",
+            "function: Perlin",
+            &["`frequency`"][..],
+        ),
+        (
+            "zoning: Some(Zoning(function: Perlin(frequency: 2.0))),",
+            "zoning:",
+            &["absorption"][..],
+        ),
+        (
+            "inclusions: [Inclusions(shape: Disc, size_mm: 0.1, density_per_mm3: 10.0, material: \"silver\",\n        density_modulation: Some(Marble(frequency: NaN, amplitude: 1.0)))],",
+            "density_modulation",
+            &["`frequency`"][..],
+        ),
+    ] {
+        expect_error(
+            r#"surface: "veins","#,
+            &format!("surface: \"veins\",\n    body: Translucent(ior: 1.5,\n        {fields}),"),
+            marker,
+            needles,
+        );
+    }
+    // A good zoning: the medium keeps the least absorption per channel and
+    // the zoning what lies above it, σ̄ the largest difference.
+    let text = GOOD.replacen(
+        r#"surface: "veins","#,
+        "surface: \"veins\",\n    body: Translucent(ior: 1.54, absorption: (0.1, 0.8, 0.3), \
+         zoning: Some(Zoning(function: Perlin(frequency: 2.0), absorption: (0.5, 0.2, 0.3))), \
+         inclusions: [Inclusions(shape: Disc, size_mm: 0.1, density_per_mm3: 10.0, material: \"silver\", \
+         density_modulation: Some(Perlin(frequency: 3.0)))]),",
+        1,
+    );
+    let gem = parse_gem("good.ron", &text).unwrap_or_else(|e| panic!("{e}"));
+    let lapidary::recipe::gem::Body::Translucent {
+        medium,
+        zoning: Some(zoning),
+        inclusions,
+        ..
+    } = gem.body
+    else {
+        panic!("no zoning: {:?}", gem.body);
+    };
+    use lapidary::brdf::Rgb;
+    assert_eq!(medium.absorption_per_mm, Rgb::new(0.1, 0.2, 0.3));
+    assert_eq!(
+        zoning.residual_low_per_mm,
+        Rgb::new(0.0, 0.6000000000000001, 0.0)
+    );
+    assert_eq!(zoning.residual_high_per_mm, Rgb::new(0.4, 0.0, 0.0));
+    assert_eq!(zoning.majorant_per_mm, 0.6000000000000001);
+    assert!(inclusions[0].density_modulation.is_some());
 }

@@ -192,6 +192,103 @@ fn light_through_a_flat_window_is_absorbed_by_beer_lambert() {
 }
 
 #[test]
+fn light_through_a_zoned_flat_window_is_absorbed_by_the_integral_of_its_absorption() {
+    // The Beer–Lambert window with colour zoning striped along its
+    // thickness: Marble(amplitude 0) along z is f = 0.5 + 0.5 sin(k·0.1·z)
+    // (z in mm, 0.1 texture units per mm), so the light crossing straight
+    // down meets σa(z) = a + (b − a) f(z), and every crossing (reflected
+    // ones included) the same ∫σa dz = a L + (b − a)(L/2 + (cos(k'z₀) −
+    // cos(k'z₁)) / 2k'), k' = 0.1 k: e = exp(−∫σa dz) in the closed form
+    // of the unzoned test. Channels: one zoned darker, one lighter than
+    // the body (the medium keeps the least of the two), one not zoned.
+    let (shape, thickness) = flat_window();
+    let (lo, hi) = Cabochon::new(shape).unwrap().bounds();
+    let ior: f64 = 1.54;
+    let body_absorption = [0.05, 0.6, 0.2];
+    let zoned_absorption = [0.5, 0.1, 0.2];
+    let k: f64 = 6.0;
+    let radiance = 3.0;
+    let camera = PinholeCamera::new(DVec3::new(0.0, 0.0, 60.0), DVec3::ZERO, DVec3::Y, 0.5, 9, 9);
+    let body = format!(
+        "Translucent(ior: {ior}, absorption: ({}, {}, {}), zoning: Some(Zoning(function: \
+         Marble(frequency: {k}, amplitude: 0.0, direction: (0, 0, 1)), absorption: ({}, {}, {}))))",
+        body_absorption[0],
+        body_absorption[1],
+        body_absorption[2],
+        zoned_absorption[0],
+        zoned_absorption[1],
+        zoned_absorption[2]
+    );
+    let film = render_body(
+        &body,
+        shape,
+        Environment::Constant(Rgb::ZERO),
+        vec![soft_box_below(Rgb::splat(radiance))],
+        &camera,
+        9,
+        256,
+    );
+    let f = ((ior - 1.0) / (ior + 1.0)).powi(2);
+    let kk = 0.1 * k;
+    let integral_f = thickness / 2.0 + ((kk * lo.z).cos() - (kk * hi.z).cos()) / (2.0 * kk);
+    // The stripes vary across the window: f at its faces differs by > 0.3.
+    let f_at = |z: f64| 0.5 + 0.5 * (kk * z).sin();
+    assert!((f_at(lo.z) - f_at(hi.z)).abs() > 0.3, "{lo} {hi}");
+    for c in 0..3 {
+        let mean = film.rgb.iter().map(|p| f64::from(p[c])).sum::<f64>() / film.rgb.len() as f64;
+        let optical_depth = body_absorption[c] * thickness
+            + (zoned_absorption[c] - body_absorption[c]) * integral_f;
+        let e = (-optical_depth).exp();
+        let expected = radiance * (1.0 - f).powi(2) * e / (1.0 - f * f * e * e);
+        eprintln!("zoned window, channel {c}: {mean} against {expected}");
+        assert!(
+            (mean - expected).abs() < 0.01 * expected,
+            "channel {c}: {mean} against the closed form {expected}"
+        );
+    }
+}
+
+#[test]
+fn a_zoned_absorbing_body_in_a_white_furnace_never_exceeds_the_sky() {
+    // Ratio tracking's weights lie in [0, 1]: no sample of a clear zoned
+    // body (with density-modulated white flakes) is brighter than the sky,
+    // and the zones show: blue, absorbed where the zoning is high, varies
+    // across the stone far more than green, which is not zoned.
+    let film = in_white_furnace(
+        "Translucent(ior: 1.7, absorption: (0.02, 0.1, 0.05), zoning: Some(Zoning(\
+         function: Perlin(frequency: 1.5), absorption: (0.02, 0.1, 1.5))), inclusions: \
+         [Inclusions(shape: Disc, size_mm: 0.3, density_per_mm3: 2.0, material: \"white\", \
+         density_modulation: Some(Perlin(frequency: 2.0)))])",
+        24,
+        8,
+    );
+    for rgb in &film.rgb {
+        assert!(
+            rgb.iter().all(|c| *c <= 1.0 + 1e-6),
+            "energy created: {rgb:?}"
+        );
+    }
+    let stone = stone_pixels(&film);
+    let spread = |c: usize| {
+        let values: Vec<f64> = stone.iter().map(|p| f64::from(p[c])).collect();
+        let mean = values.iter().sum::<f64>() / values.len() as f64;
+        (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / values.len() as f64).sqrt()
+    };
+    eprintln!(
+        "zoned furnace spread: blue {}, green {}",
+        spread(2),
+        spread(1)
+    );
+    assert!(
+        spread(2) > 2.0 * spread(1),
+        "blue {} green {}",
+        spread(2),
+        spread(1)
+    );
+    assert_eq!(film.stats.bad_samples, 0);
+}
+
+#[test]
 fn a_lossless_body_in_a_white_furnace_vanishes() {
     // No absorption, a uniform white sky, nothing else: every path ends in
     // the sky with weight 1 (Fresnel picks reflection or refraction with
@@ -279,7 +376,7 @@ fn scattering_sends_light_back_out_of_an_absorbing_body_but_never_above_the_sky(
 }
 
 #[test]
-fn a_scattering_body_renders_the_same_bytes_on_any_thread_count() {
+fn a_scattering_zoned_body_renders_the_same_bytes_on_any_thread_count() {
     let camera = three_quarter_camera(20);
     let film_on = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
@@ -288,7 +385,10 @@ fn a_scattering_body_renders_the_same_bytes_on_any_thread_count() {
             .unwrap();
         pool.install(|| {
             render_body(
-                "Translucent(ior: 1.6, absorption: (0.1, 0.2, 0.3), scattering: (0.5, 0.3, 0.1), anisotropy: -0.3)",
+                "Translucent(ior: 1.6, absorption: (0.1, 0.2, 0.3), scattering: (0.5, 0.3, 0.1), anisotropy: -0.3, \
+                 zoning: Some(Zoning(function: Fbm(frequency: 2.0), absorption: (0.6, 0.1, 0.3))), inclusions: \
+                 [Inclusions(shape: Hexagon, size_mm: 0.4, density_per_mm3: 1.0, material: \"white\", \
+                 density_modulation: Some(Perlin(frequency: 2.5)))])",
                 CabochonParams::default(),
                 Environment::Constant(Rgb::new(0.8, 0.9, 1.0)),
                 vec![],
@@ -678,11 +778,16 @@ fn light_connected_through_the_surface_adds_up_to_what_path_sampling_finds() {
     // mean (the two strategies split every path by the power heuristic,
     // so any error in the connection's Jacobian, Fresnel factor or
     // weights moves the mean). Glinting flakes in a clear body, and the
-    // same in a scattering body (connections from scattering vertices),
-    // under a sphere large enough (12° across) for sampling alone to
-    // converge.
+    // same in a scattering body (connections from scattering vertices)
+    // and in a zoned one (the connection's inner segment tracked as a
+    // path's), under a sphere large enough (12° across) for sampling
+    // alone to converge.
     let camera = three_quarter_camera(40);
-    for extra in ["", "scattering: (0.15, 0.15, 0.15), anisotropy: 0.4,"] {
+    for extra in [
+        "",
+        "scattering: (0.15, 0.15, 0.15), anisotropy: 0.4,",
+        "zoning: Some(Zoning(function: Perlin(frequency: 2.0), absorption: (0.4, 0.15, 0.02))),",
+    ] {
         let mut scene = glints_under_a_sphere(extra, 6.0);
         let mask = mirror_image(glints_under_a_sphere(extra, 6.0), &camera, 40);
         let connected = render_scene(&scene, &camera, 40, 4096, 1);

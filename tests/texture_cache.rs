@@ -200,7 +200,7 @@ fn a_plain_stone_answers_inline_as_the_uncached_tree() {
 #[test]
 fn cached_resolve_equals_uncached_when_two_patterns_alternate() {
     let a = builtin("lavender-lepidolite");
-    let b = builtin("patterned-sunstone");
+    let b = builtin("pink-sunstone");
     let mut rng = TestRng(0x0123_4567_89ab_cdef);
     let points = pixel_points(&mut rng, 4000);
     let walk = walk_points(&mut rng, 4000);

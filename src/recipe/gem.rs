@@ -146,10 +146,28 @@ pub enum BodySpec {
         /// (0, the default, is a smooth surface; at most 45°).
         #[serde(default, deserialize_with = "ranges::body_roughness_deg")]
         roughness_deg: f64,
+        /// Colour zoning: the absorption varies through the body with a
+        /// switch function (None, the default: the same everywhere).
+        #[serde(default)]
+        zoning: Option<ZoningSpec>,
         /// Populations of flakes (platelets) through the body.
         #[serde(default)]
         inclusions: Vec<InclusionsSpec>,
     },
+}
+
+/// Colour zoning of a translucent body, as written: at an object point p
+/// the absorption is lerp(body `absorption`, zoning `absorption`,
+/// clamp(f(p), 0, 1)), per channel, with f read in texture space as the
+/// surface's switch functions are.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Zoning")]
+pub struct ZoningSpec {
+    /// The function whose clamped value mixes the two absorptions.
+    pub function: FunctionSpec,
+    /// Absorption per millimetre, per channel, where the function is ≥ 1.
+    #[serde(deserialize_with = "ranges::body_absorption")]
+    pub absorption: [f64; 3],
 }
 
 /// One population of flat crystals inside a translucent body, as written.
@@ -176,6 +194,11 @@ pub struct InclusionsSpec {
     /// Seed of the population (with the gem's).
     #[serde(default)]
     pub seed: u64,
+    /// Patches: a cell keeps its flake with probability clamp(f, 0, 1), f
+    /// this switch function at the flake's centre (None, the default:
+    /// every cell keeps its flake).
+    #[serde(default)]
+    pub density_modulation: Option<FunctionSpec>,
 }
 
 /// A platelet's outline, of circumscribed radius r in its own plane.
@@ -223,8 +246,12 @@ pub enum Body {
         /// Average micro-facet slope of the surface in degrees; 0 is a
         /// smooth (delta) interface.
         roughness_deg: f64,
-        /// What happens along a path inside.
+        /// What happens along a path inside; with zoning, its absorption is
+        /// the least the zoning reaches, per channel.
         medium: Medium,
+        /// The absorption above the medium's, where it varies (boxed: a
+        /// switch function is large, and most bodies have none).
+        zoning: Option<Box<Zoning>>,
         /// The flake populations.
         inclusions: Vec<Inclusions>,
     },
@@ -248,6 +275,48 @@ pub struct Inclusions {
     pub material: u32,
     /// The population's own seed (the gem's and its own, mixed).
     pub seed: u64,
+    /// Keep a cell's flake with probability clamp(f, 0, 1), f read at the
+    /// flake's centre in texture space; None keeps every flake.
+    pub density_modulation: Option<SwitchFunction>,
+}
+
+/// A compiled colour zoning (see [`ZoningSpec`]): the residual absorption
+/// σr(p) = σa(p) − σa,min ≥ 0 per channel over the body's medium, whose
+/// absorption is σa,min, the least of the two ends per channel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Zoning {
+    /// The function read at object point × texture units per mm.
+    pub function: SwitchFunction,
+    /// σr per mm where clamp(f, 0, 1) = 0.
+    pub residual_low_per_mm: Rgb,
+    /// σr per mm where clamp(f, 0, 1) = 1.
+    pub residual_high_per_mm: Rgb,
+    /// σ̄: a bound on every channel's σr, the rate of ratio tracking's
+    /// tentative collisions (0 when nothing varies).
+    pub majorant_per_mm: f64,
+}
+
+impl Zoning {
+    /// The zoning of the absorptions `low` (where clamp(f, 0, 1) = 0) and
+    /// `high` (where it is 1), and the medium's per-channel minimum.
+    pub fn new(function: SwitchFunction, low: Rgb, high: Rgb) -> (Self, Rgb) {
+        let minimum = low.min(high);
+        let (residual_low, residual_high) = (low - minimum, high - minimum);
+        let zoning = Self {
+            function,
+            residual_low_per_mm: residual_low,
+            residual_high_per_mm: residual_high,
+            majorant_per_mm: residual_low.max(residual_high).max_element(),
+        };
+        (zoning, minimum)
+    }
+
+    /// σr per mm at the texture-space point `p`: the linear mix of the two
+    /// residuals by clamp(f(p), 0, 1), each channel within [0, σ̄].
+    pub fn residual_per_mm(&self, p: DVec3) -> Rgb {
+        let mix = self.function.value(p).clamp(0.0, 1.0);
+        self.residual_low_per_mm + (self.residual_high_per_mm - self.residual_low_per_mm) * mix
+    }
 }
 
 /// A homogeneous participating medium, coefficients per millimetre (scene
@@ -736,6 +805,7 @@ const PURPOSE_NOISE: u64 = 1;
 const PURPOSE_PER_CELL: u64 = 2;
 const GLITTER_NAME: &str = "#glitter";
 const FACETS_NAME: &str = "#facets";
+const ZONING_NAME: &str = "#zoning";
 
 struct Compiler<'a> {
     path: &'a str,
@@ -1165,6 +1235,7 @@ impl<'a> Compiler<'a> {
             scattering,
             anisotropy,
             roughness_deg,
+            zoning,
             inclusions,
         } = &spec.body
         else {
@@ -1200,7 +1271,12 @@ impl<'a> Compiler<'a> {
                     Some((axis.normalize(), spread_deg.to_radians().cos()))
                 }
             };
+            let density_modulation = match &inclusion.density_modulation {
+                Some(f) => Some(self.function(&format!("#inclusions-{}", k + 1), f)?),
+                None => None,
+            };
             compiled.push(Inclusions {
+                density_modulation,
                 shape: inclusion.shape,
                 radius_mm: 0.5 * inclusion.size_mm,
                 size_spread: inclusion.size_spread,
@@ -1210,11 +1286,24 @@ impl<'a> Compiler<'a> {
                 seed: derive_stream(seed_key(spec.seed ^ inclusion.seed), 16 + k as u64),
             });
         }
+        let (zoning, absorption_per_mm) = match zoning {
+            Some(z) => {
+                let function = self.function(ZONING_NAME, &z.function)?;
+                let (zoning, minimum) = Zoning::new(
+                    function,
+                    Rgb::from_array(*absorption),
+                    Rgb::from_array(z.absorption),
+                );
+                (Some(Box::new(zoning)), minimum)
+            }
+            None => (None, Rgb::from_array(*absorption)),
+        };
         Ok(Body::Translucent {
             ior: *ior,
             roughness_deg: *roughness_deg,
+            zoning,
             medium: Medium {
-                absorption_per_mm: Rgb::from_array(*absorption),
+                absorption_per_mm,
                 scattering_per_mm: Rgb::from_array(*scattering),
                 anisotropy: *anisotropy,
             },

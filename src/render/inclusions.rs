@@ -4,10 +4,14 @@
 //! memory, the same flakes on every thread), placed so that it lies wholly
 //! inside its cell. A ray walks the cells it crosses in order (Amanatides
 //! & Woo's 3-D DDA), so the first flake met in a cell is the nearest of all.
+//! A density modulation thins the grid: each cell keeps its flake with a
+//! probability read from a switch function at the flake's centre, decided
+//! by the cell's own hash (patches of platelets).
 
 use glam::{DVec3, IVec3};
 
 use crate::recipe::gem::{FlakeShape, Inclusions};
+use crate::render::integrator::TEXTURE_UNITS_PER_SCENE_UNIT;
 use crate::texture::hash::{derive_stream, hash_cell, unit_f64};
 
 /// A ray's crossing of a flake.
@@ -47,6 +51,18 @@ impl Inclusions {
         let centre =
             (cell.as_dvec3() + DVec3::new(inside(u(1)), inside(u(2)), inside(u(3)))) * self.cell_mm;
         (h, centre, radius)
+    }
+
+    /// Whether the cell of hash `h`, its flake centred at `centre` (object
+    /// space, mm), keeps its flake: always without a density modulation,
+    /// else when the cell's own uniform number is below clamp(f, 0, 1), f
+    /// the modulation at the centre in texture space, so that a cell keeps
+    /// it with that probability (a pure function of seed and cell).
+    pub(crate) fn keeps(&self, h: u64, centre: DVec3) -> bool {
+        self.density_modulation.is_none_or(|f| {
+            let fraction = f.value(centre * TEXTURE_UNITS_PER_SCENE_UNIT);
+            unit_f64(derive_stream(h, 7)) < fraction.clamp(0.0, 1.0)
+        })
     }
 
     /// The flake of the cell of hash `h`, given its centre and radius.
@@ -148,7 +164,9 @@ impl Inclusions {
         // The flake lies in the sphere of its radius about its centre.
         let to_centre = centre - origin;
         let closest = to_centre.dot(direction);
-        if to_centre.length_squared() - closest * closest > radius * radius {
+        if to_centre.length_squared() - closest * closest > radius * radius
+            || !self.keeps(h, centre)
+        {
             return None;
         }
         let flake = self.flake(h, centre, radius);
@@ -174,6 +192,8 @@ impl Inclusions {
 mod tests {
     use super::*;
     use crate::sampling::Rng;
+    use crate::texture::noise_fns::{PerlinNoise, PerlinSource};
+    use crate::texture::pattern::SwitchFunction;
 
     fn population(shape: FlakeShape, aligned: Option<(DVec3, f64)>) -> Inclusions {
         Inclusions {
@@ -184,6 +204,7 @@ mod tests {
             aligned,
             material: 0,
             seed: 77,
+            density_modulation: None,
         }
     }
 
@@ -239,6 +260,50 @@ mod tests {
                 "{shape:?}: {got} crossings, expected {expected:.0}"
             );
         }
+    }
+
+    #[test]
+    fn a_density_modulation_keeps_flakes_in_proportion_and_none_where_it_is_not_positive() {
+        // 40³ cells of 0.25 mm (1 texture unit a side) under Perlin noise of
+        // 3 lattice cells per unit: the kept fraction against the mean of
+        // clamp(f, 0, 1) at the same centres (binomial noise about 1 %),
+        // no flake where f ≤ 0, and the same answer again.
+        let mut field = population(FlakeShape::Disc, None);
+        field.density_modulation = Some(SwitchFunction::Perlin(PerlinNoise {
+            source: PerlinSource::new(5),
+            frequency: 3.0,
+        }));
+        let f = field.density_modulation.unwrap();
+        let (mut kept, mut expected, mut barren, mut cells) = (0u32, 0.0, 0u32, 0u32);
+        for x in 0..40 {
+            for y in 0..40 {
+                for z in 0..40 {
+                    let cell = IVec3::new(x, y, z);
+                    let (h, centre, _) = field.centre_and_radius(cell);
+                    let value = f.value(centre * TEXTURE_UNITS_PER_SCENE_UNIT);
+                    let keeps = field.keeps(h, centre);
+                    assert_eq!(keeps, field.keeps(h, centre));
+                    if value <= 0.0 {
+                        barren += 1;
+                        assert!(!keeps, "cell {cell} kept where f = {value}");
+                    }
+                    kept += u32::from(keeps);
+                    expected += value.clamp(0.0, 1.0);
+                    cells += 1;
+                }
+            }
+        }
+        assert!(barren > cells / 10, "the noise is ≤ 0 somewhere: {barren}");
+        let fraction = f64::from(kept) / f64::from(cells);
+        let mean = expected / f64::from(cells);
+        assert!(
+            (fraction - mean).abs() < 0.03 * mean,
+            "kept {fraction} against mean clamp(f) {mean}"
+        );
+        // Without a modulation every cell keeps its flake.
+        field.density_modulation = None;
+        let (h, centre, _) = field.centre_and_radius(IVec3::ZERO);
+        assert!(field.keeps(h, centre));
     }
 
     #[test]

@@ -359,8 +359,12 @@ impl RenderScene {
                 let flake = self.nearest_flake(stone, origin, direction, hit.t);
                 let t_end = flake.map_or(hit.t, |(f, _)| f.t);
                 if medium.scattering_per_mm == Rgb::ZERO {
-                    // Beer–Lambert along the segment inside the body (eq. 3.4).
-                    throughput *= beer_lambert(medium.absorption_per_mm, t_end);
+                    // Beer–Lambert along the segment inside the body (eq. 3.4),
+                    // and ratio tracking for what zoning adds to it.
+                    throughput *= beer_lambert(medium.absorption_per_mm, t_end)
+                        * self.zoned_transmittance(stone, origin, direction, t_end, || {
+                            stream.next_1d()
+                        });
                 } else {
                     let spectral = spectral.get_or_insert_with(|| {
                         SpectralPath::new(((stream.next_1d() * 3.0) as usize).min(2))
@@ -368,6 +372,11 @@ impl RenderScene {
                     let flight =
                         sample_free_flight(&medium, t_end, spectral.hero, stream.next_1d());
                     throughput *= spectral.weigh(&flight);
+                    // Zoning's absorption over the distance flown, to the
+                    // scattering event or the segment's end.
+                    let flown = flight.scatters_at.unwrap_or(t_end);
+                    throughput *= self
+                        .zoned_transmittance(stone, origin, direction, flown, || stream.next_1d());
                     if let Some(t) = flight.scatters_at {
                         // A scattering vertex: the phase function over its
                         // own density is 1. It is no bounce: light in a
@@ -395,7 +404,7 @@ impl RenderScene {
                                         let phase = henyey_greenstein(wi.dot(incoming), g);
                                         (Rgb::splat(phase), phase)
                                     },
-                                    || stream.next_2d(),
+                                    stream,
                                     &mut counts.shadow,
                                 );
                         }
@@ -456,7 +465,7 @@ impl RenderScene {
                                     let (f, pdf) = brdf_at.eval_and_pdf(local);
                                     (f * local.z, pdf)
                                 },
-                                || stream.next_2d(),
+                                stream,
                                 &mut counts.shadow,
                             );
                     }

@@ -21,6 +21,7 @@ pub(crate) mod refracted_light;
 pub(crate) mod sampler;
 pub(crate) mod stone_grid;
 pub mod world;
+pub(crate) mod zoning;
 
 #[cfg(test)]
 mod snell_tests;

@@ -22,6 +22,7 @@ use crate::render::integrator::{power_heuristic, RenderScene};
 use crate::render::lights::Light;
 use crate::render::manifold::{self, Boundary, Exit, Target};
 use crate::render::medium::beer_lambert;
+use crate::render::sampler::SampleStream;
 use crate::render::world::{StoneInstance, RAY_OFFSET};
 
 /// Two unit directions closer than this are the same solution.
@@ -100,13 +101,14 @@ impl RenderScene {
     /// flake's f·cosθ or the phase function towards a unit direction in
     /// world space (zero where the vertex sends no light), weighted against
     /// sampling that direction with `vertex`'s density. One light point per
-    /// light from `next_2d`.
+    /// light from `stream`'s pairs; with zoning, the inner segment's
+    /// transmittance is ratio tracking's estimate from its 1-D numbers.
     pub(crate) fn refracted_light(
         &self,
         stone: usize,
         point: DVec3,
         vertex: impl Fn(DVec3) -> (Rgb, f64),
-        mut next_2d: impl FnMut() -> [f64; 2],
+        stream: &mut SampleStream,
         shadow_rays: &mut u64,
     ) -> Rgb {
         let instance = &self.world.stones()[stone];
@@ -121,15 +123,18 @@ impl RenderScene {
         let mut emitters = self
             .lights
             .iter()
-            .map(|light| (light_point(light, point, next_2d()), Some(light)))
+            .map(|light| (light_point(light, point, stream.next_2d()), Some(light)))
             .collect::<Vec<_>>();
         if self.samples_environment() {
-            let sampled = self.environment.sample(next_2d()).map(|sample| LightPoint {
-                target: Target::Direction(sample.direction),
-                normal: None,
-                emitted: sample.radiance,
-                pdf: Some(sample.pdf),
-            });
+            let sampled = self
+                .environment
+                .sample(stream.next_2d())
+                .map(|sample| LightPoint {
+                    target: Target::Direction(sample.direction),
+                    normal: None,
+                    emitted: sample.radiance,
+                    pdf: Some(sample.pdf),
+                });
             emitters.push((sampled, None));
         }
         for (sampled, _) in emitters {
@@ -178,8 +183,18 @@ impl RenderScene {
                 }
                 None => (1.0, 1.0),
             };
+            // Beer–Lambert over the inner segment (eq. 3.4), times ratio
+            // tracking's estimate of what zoning adds, as a path's segment.
+            let transmittance = beer_lambert(extinction_per_mm, path.exit.t)
+                * self.zoned_transmittance(
+                    stone,
+                    point,
+                    path.inside_direction,
+                    path.exit.t,
+                    || stream.next_1d(),
+                );
             total += value
-                * beer_lambert(extinction_per_mm, path.exit.t)
+                * transmittance
                 * sampled.emitted
                 * (path.transmittance * cos_light * jacobian * scale * weight);
         }
