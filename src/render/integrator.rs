@@ -61,9 +61,6 @@ pub struct RenderScene {
 /// Scattering events a path may take inside translucent bodies (which are
 /// not bounces): a stone whose light scatters further is dark anyway.
 const MAX_SCATTERINGS: u32 = 1024;
-/// The scattering vertices of a path, counted from its first, that connect
-/// lights through the surface (`refracted_light`).
-const CONNECTED_SCATTERINGS: u32 = 2;
 /// Scattering events before Russian roulette (survival = the largest
 /// channel of the throughput, at most 0.95) may end a path.
 const SCATTERINGS_BEFORE_ROULETTE: u32 = 4;
@@ -387,12 +384,8 @@ impl RenderScene {
                         }
                         origin += direction * t;
                         let g = medium.anisotropy;
-                        // Connected only near where the light entered:
-                        // deeper in, what arrives is diffuse and sampling
-                        // finds it as well, at a tenth of the cost.
                         let connects = self.connect_through_surfaces
                             && bounce < self.max_bounces
-                            && scatterings < CONNECTED_SCATTERINGS
                             && self.smooth_body_ior(stone).is_some();
                         if connects {
                             let incoming = direction;

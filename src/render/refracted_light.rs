@@ -100,8 +100,8 @@ impl RenderScene {
     /// of its smooth surface, times `vertex(direction)`'s value: the
     /// flake's f·cosθ or the phase function towards a unit direction in
     /// world space (zero where the vertex sends no light), weighted against
-    /// sampling that direction with `vertex`'s density. One light point per
-    /// light from `stream`'s pairs; with zoning, the inner segment's
+    /// sampling that direction with `vertex`'s density. One emitter, chosen
+    /// uniformly, and one point on it from `stream`; with zoning, the inner segment's
     /// transmittance is ratio tracking's estimate from its 1-D numbers.
     pub(crate) fn refracted_light(
         &self,
@@ -119,48 +119,46 @@ impl RenderScene {
         };
         let extinction_per_mm = medium.absorption_per_mm + medium.scattering_per_mm;
         let boundary = StoneBoundary::new(instance);
-        let mut total = Rgb::ZERO;
-        let mut emitters = self
-            .lights
-            .iter()
-            .map(|light| (light_point(light, point, stream.next_2d()), Some(light)))
-            .collect::<Vec<_>>();
-        if self.samples_environment() {
-            let sampled = self
-                .environment
-                .sample(stream.next_2d())
-                .map(|sample| LightPoint {
-                    target: Target::Direction(sample.direction),
-                    normal: None,
-                    emitted: sample.radiance,
-                    pdf: Some(sample.pdf),
-                });
-            emitters.push((sampled, None));
+        // One emitter per vertex, chosen uniformly among the lights and a
+        // light-sampled environment: a connection costs a Newton solve, and
+        // paths inside a cloudy stone have many vertices.
+        let count = self.connected_emitters();
+        if count == 0 {
+            return Rgb::ZERO;
         }
-        for (sampled, _) in emitters {
-            let Some(sampled) = sampled else {
-                continue;
-            };
-            let Some(path) = manifold::connect(&boundary, ior, point, sampled.target) else {
-                continue;
-            };
+        let chosen = ((stream.next_1d() * count as f64) as usize).min(count - 1);
+        let u = stream.next_2d();
+        let emitter = match self.lights.get(chosen) {
+            Some(light) => light_point(light, point, u),
+            None => self.environment.sample(u).map(|sample| LightPoint {
+                target: Target::Direction(sample.direction),
+                normal: None,
+                emitted: sample.radiance,
+                pdf: Some(sample.pdf),
+            }),
+        };
+        let connect = |sampled: LightPoint,
+                       stream: &mut SampleStream,
+                       shadow_rays: &mut u64|
+         -> Option<Rgb> {
+            let path = manifold::connect(&boundary, ior, point, sampled.target)?;
             // An area light emits from the side the refracted ray arrives at.
             let cos_light = sampled
                 .normal
                 .map_or(1.0, |n| -n.dot(path.outside_direction));
             if cos_light <= 0.0 {
-                continue;
+                return None;
             }
             let (value, vertex_pdf) = vertex(path.inside_direction);
             if value.max_element() <= 0.0 {
-                continue;
+                return None;
             }
             // Inside, the path must meet no flake and not scatter.
             if self
                 .nearest_flake(stone, point, path.inside_direction, path.exit.t)
                 .is_some()
             {
-                continue;
+                return None;
             }
             *shadow_rays += 1;
             let start = path.exit.point + path.exit.normal * RAY_OFFSET;
@@ -173,15 +171,16 @@ impl RenderScene {
                 .world
                 .occluded_leaving(start, path.outside_direction, reach, Some(stone))
             {
-                continue;
+                return None;
             }
             let jacobian = path.inside_solid_angle_per_target_measure;
+            let chosen = count as f64;
             let (scale, weight) = match sampled.pdf {
                 Some(pdf) => {
-                    let direction_pdf = pdf / (jacobian * cos_light);
-                    (1.0 / pdf, power_heuristic(direction_pdf, vertex_pdf))
+                    let direction_pdf = pdf / (jacobian * cos_light * chosen);
+                    (chosen / pdf, power_heuristic(direction_pdf, vertex_pdf))
                 }
-                None => (1.0, 1.0),
+                None => (chosen, 1.0),
             };
             // Beer–Lambert over the inner segment (eq. 3.4), times ratio
             // tracking's estimate of what zoning adds, as a path's segment.
@@ -193,12 +192,16 @@ impl RenderScene {
                     path.exit.t,
                     || stream.next_1d(),
                 );
-            total += value
-                * transmittance
-                * sampled.emitted
-                * (path.transmittance * cos_light * jacobian * scale * weight);
-        }
-        total
+            Some(
+                value
+                    * transmittance
+                    * sampled.emitted
+                    * (path.transmittance * cos_light * jacobian * scale * weight),
+            )
+        };
+        emitter
+            .and_then(|sampled| connect(sampled, stream, shadow_rays))
+            .unwrap_or(Rgb::ZERO)
     }
 
     /// The density with which [`RenderScene::refracted_light`] from
@@ -233,7 +236,10 @@ impl RenderScene {
                 let cos_light = light
                     .surface_normal(y)
                     .map_or(1.0, |n| -n.dot(path.outside_direction));
-                sampled / (path.inside_solid_angle_per_target_measure * cos_light)
+                sampled
+                    / (path.inside_solid_angle_per_target_measure
+                        * cos_light
+                        * self.connected_emitters() as f64)
             }
             _ => 0.0,
         }
@@ -241,6 +247,12 @@ impl RenderScene {
 }
 
 impl RenderScene {
+    /// How many emitters a connection chooses its one from: every light,
+    /// and the environment when it is light-sampled.
+    fn connected_emitters(&self) -> usize {
+        self.lights.len() + usize::from(self.samples_environment())
+    }
+
     /// [`RenderScene::connection_pdf`] for a path that left its body and
     /// escaped along `direction` to a light-sampled environment.
     pub(crate) fn environment_connection_pdf(
@@ -254,7 +266,9 @@ impl RenderScene {
         };
         match manifold::connect(&boundary, ior, vertex.point, Target::Direction(direction)) {
             Some(path) if (path.inside_direction - vertex.direction).length() < SAME_SOLUTION => {
-                self.environment.pdf(direction) / path.inside_solid_angle_per_target_measure
+                self.environment.pdf(direction)
+                    / (path.inside_solid_angle_per_target_measure
+                        * self.connected_emitters() as f64)
             }
             _ => 0.0,
         }
