@@ -46,6 +46,10 @@ ENVIRONMENT_RADIANCE = 0.2
 CLEAR_LIFT = 0.1
 CLEAR_IOR = 1.5
 CLEAR_ABSORPTION = (0.3, 0.1, 0.6)
+#: The scattering variant (bench/peer-scene-scattering.ron): the clear
+#: stone's absorption plus this σs per unit, Henyey–Greenstein with this g.
+SCATTERING = (0.5, 0.5, 0.5)
+SCATTERING_G = 0.5
 
 
 def camera_origin():
@@ -128,7 +132,7 @@ def stone_mesh(mi, dr, nonlinear=True):
     return mesh_of(mi, dr, pos, nrm, faces, props)
 
 
-def clear_stone_mesh(mi, dr):
+def clear_stone_mesh(mi, dr, scattering=False):
     """The cap closed by its flat base (z = 0), lifted by CLEAR_LIFT, as a
     smooth `dielectric` around a `homogeneous`, purely absorbing medium.
 
@@ -153,17 +157,24 @@ def clear_stone_mesh(mi, dr):
     faces = np.concatenate([faces, base_faces]).astype(np.uint32)
     props = mi.Properties()
     props["bsdf"] = mi.load_dict({"type": "dielectric", "int_ior": CLEAR_IOR, "ext_ior": 1.0})
+    sigma_s = SCATTERING if scattering else (0.0, 0.0, 0.0)
+    sigma_t = [a + s for a, s in zip(CLEAR_ABSORPTION, sigma_s)]
+    # Mitsuba reads an RGB σt as a reflectance (each channel ≤ 1): the
+    # values are scaled into [0, 1] and `scale` restores them.
+    scale = max(sigma_t)
     props["interior"] = mi.load_dict(
         {
             "type": "homogeneous",
-            "sigma_t": {"type": "rgb", "value": list(CLEAR_ABSORPTION)},
-            "albedo": {"type": "rgb", "value": [0.0, 0.0, 0.0]},
+            "scale": scale,
+            "sigma_t": {"type": "rgb", "value": [t / scale for t in sigma_t]},
+            "albedo": {"type": "rgb", "value": [s / t for s, t in zip(sigma_s, sigma_t)]},
+            "phase": {"type": "hg", "g": SCATTERING_G},
         }
     )
     return mesh_of(mi, dr, pos, nrm, faces, props)
 
 
-def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True, clear=False):
+def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True, clear=False, scattering=False):
     """The whole peer scene as a Mitsuba `load_dict` dictionary.
 
     `max_depth` follows Mitsuba's `path` convention: 1 = emitters seen
@@ -172,7 +183,10 @@ def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True, clear=False):
     t = mi.ScalarTransform4f
     return {
         "type": "scene",
-        "integrator": {"type": "volpath" if clear else "path", "max_depth": max_depth},
+        "integrator": {
+            "type": "volpath" if clear or scattering else "path",
+            "max_depth": max_depth,
+        },
         "sensor": {
             "type": "perspective",
             "fov": CAMERA_VERTICAL_FOV_DEG,
@@ -187,7 +201,11 @@ def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True, clear=False):
                 "rfilter": {"type": "box"},
             },
         },
-        "stone": clear_stone_mesh(mi, dr) if clear else stone_mesh(mi, dr, nonlinear),
+        "stone": (
+            clear_stone_mesh(mi, dr, scattering)
+            if clear or scattering
+            else stone_mesh(mi, dr, nonlinear)
+        ),
         "ground": {
             "type": "rectangle",  # [-1, 1]² in the xy plane, normal +z
             "to_world": t().scale([GROUND_SIDE / 2, GROUND_SIDE / 2, 1.0]),
@@ -214,7 +232,9 @@ def render(args):
     mi.set_variant("llvm_ad_rgb")
     dr.set_thread_count(args.threads)
     scene = mi.load_dict(
-        scene_dict(mi, dr, args.size, args.spp, args.max_depth, not args.linear, args.clear)
+        scene_dict(
+            mi, dr, args.size, args.spp, args.max_depth, not args.linear, args.clear, args.scattering
+        )
     )
     image = mi.render(scene, spp=args.spp, seed=0)
     mi.util.write_bitmap(args.out, image)
@@ -288,6 +308,11 @@ def main(argv):
         "--clear",
         action="store_true",
         help="the clear absorbing stone of bench/peer-scene-clear.ron (volpath)",
+    )
+    r.add_argument(
+        "--scattering",
+        action="store_true",
+        help="the scattering stone of bench/peer-scene-scattering.ron (volpath)",
     )
     p = sub.add_parser("to-png", help="downsample + sRGB-encode an image")
     p.add_argument("src")
