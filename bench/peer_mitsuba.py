@@ -236,6 +236,13 @@ def render(args):
             mi, dr, args.size, args.spp, args.max_depth, not args.linear, args.clear, args.scattering
         )
     )
+    if args.no_ground:
+        scene = mi.load_dict(
+            {k: v for k, v in scene_dict(
+                mi, dr, args.size, args.spp, args.max_depth, not args.linear, args.clear,
+                args.scattering,
+            ).items() if k != "ground"}
+        )
     image = mi.render(scene, spp=args.spp, seed=0)
     mi.util.write_bitmap(args.out, image)
 
@@ -314,6 +321,7 @@ def main(argv):
         action="store_true",
         help="the scattering stone of bench/peer-scene-scattering.ron (volpath)",
     )
+    r.add_argument("--no-ground", action="store_true", help="leave the ground out")
     p = sub.add_parser("to-png", help="downsample + sRGB-encode an image")
     p.add_argument("src")
     p.add_argument("dst")
