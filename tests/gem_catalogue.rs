@@ -1,7 +1,11 @@
 //! The gem catalogue (issue 5, section 4.3.1): every built-in gem and every
 //! recipe file compiles and renders, and the statistics the course notes
-//! demand of the sunstones and goldstone hold when MEASURED from the
-//! compiled pattern at many points (not read back from recipe parameters).
+//! demand of the opaque gems' surface patterns hold when MEASURED from the
+//! compiled pattern at many points (not read back from recipe parameters);
+//! translucent bodies (issue 26) are checked on their compiled bodies
+//! (index, scattering, flake populations and materials) and, for the
+//! patterned sunstone, its zoning and density modulation measured at many
+//! points.
 
 use glam::DVec3;
 use lapidary::recipe::gem::{

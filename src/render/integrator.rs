@@ -153,6 +153,13 @@ pub struct RayCounts {
     pub shadow: u64,
 }
 
+/// Whether a body's surface of index `ior` and polish `roughness_deg` is
+/// rough micro-facets (else a smooth interface; at IOR 1 there is no
+/// interface to be rough).
+fn is_rough(ior: f64, roughness_deg: f64) -> bool {
+    roughness_deg > 0.0 && ior > 1.0
+}
+
 /// The power heuristic with exponent 2 for a strategy of density `pdf_a`
 /// against one of density `pdf_b` (Veach 1997, eq. 9.13).
 #[inline(always)]
@@ -384,11 +391,9 @@ impl RenderScene {
                         }
                         origin += direction * t;
                         let g = medium.anisotropy;
-                        let connects = self.connect_through_surfaces
-                            && bounce < self.max_bounces
-                            && self.smooth_body_ior(stone).is_some();
+                        let connects = self.connects_from(stone, bounce);
+                        let incoming = direction;
                         if connects {
-                            let incoming = direction;
                             radiance += throughput
                                 * self.refracted_light(
                                     stone,
@@ -401,7 +406,6 @@ impl RenderScene {
                                     &mut counts.shadow,
                                 );
                         }
-                        let incoming = direction;
                         direction = sample_henyey_greenstein(direction, g, stream.next_2d());
                         connected = connects.then_some(ConnectedVertex {
                             point: origin,
@@ -442,9 +446,7 @@ impl RenderScene {
                     let wo = frame.to_local(-direction);
                     let brdf_at = brdf.at(wo);
                     origin += direction * flake.t + normal * RAY_OFFSET;
-                    let connects = self.connect_through_surfaces
-                        && bounce < self.max_bounces
-                        && self.smooth_body_ior(stone).is_some();
+                    let connects = self.connects_from(stone, bounce);
                     if connects {
                         radiance += throughput
                             * self.refracted_light(
@@ -699,7 +701,7 @@ impl RenderScene {
                 roughness_deg,
                 ..
             } => {
-                let rough = (*roughness_deg > 0.0 && *ior > 1.0)
+                let rough = is_rough(*ior, *roughness_deg)
                     .then(|| RoughInterface::new(*ior, *roughness_deg));
                 Some((*ior, *medium, rough))
             }
@@ -714,9 +716,18 @@ impl RenderScene {
         match &self.gems[self.world.stones()[stone].gem].body {
             Body::Translucent {
                 ior, roughness_deg, ..
-            } if *roughness_deg == 0.0 || *ior <= 1.0 => Some(*ior),
+            } if !is_rough(*ior, *roughness_deg) => Some(*ior),
             _ => None,
         }
+    }
+
+    /// Whether a vertex inside stone `stone` at `bounce` connects lights
+    /// through the surface: its body is smooth, connections are on, and a
+    /// sampled continuation could still leave and meet a light.
+    fn connects_from(&self, stone: usize, bounce: u32) -> bool {
+        self.connect_through_surfaces
+            && bounce < self.max_bounces
+            && self.smooth_body_ior(stone).is_some()
     }
 
     /// Next-event estimation at a rough interface vertex: one sample of
@@ -748,21 +759,13 @@ impl RenderScene {
                 return;
             }
             counts.shadow += 1;
-            let reach = if distance.is_finite() {
-                distance * (1.0 - 1e-7) - RAY_OFFSET
-            } else {
-                f64::INFINITY
-            };
-            if self.world.occluded_leaving(point, direction, reach, stone) {
+            if self
+                .world
+                .occluded_leaving(point, direction, shadow_reach(distance), stone)
+            {
                 return;
             }
-            // cosθ·w/pdf with the power heuristic (eq. 9.13), as in `direct`.
-            let scale = if is_delta {
-                wi.z / pdf
-            } else {
-                wi.z * pdf / (pdf * pdf + bsdf_pdf * bsdf_pdf)
-            };
-            sum += incoming * (f * scale);
+            sum += incoming * (f * light_sample_scale(wi.z, pdf, bsdf_pdf, is_delta));
         };
         for light in &self.lights {
             let u = stream.next_2d();
@@ -797,10 +800,7 @@ impl RenderScene {
         if inclusions.is_empty() {
             return None;
         }
-        // A rotation keeps lengths: t is the same in object space.
-        let to_object = instance.rotation.inverse();
-        let o = to_object * (origin - instance.position);
-        let d = to_object * direction;
+        let (o, d) = self.world.object_ray(stone, origin, direction);
         let mut best: Option<(FlakeHit, u32)> = None;
         for population in inclusions {
             let limit = best.map_or(t_max, |(hit, _)| hit.t);
@@ -931,26 +931,39 @@ impl RenderScene {
             return Rgb::ZERO;
         }
         counts.shadow += 1;
-        let reach = if distance.is_finite() {
-            distance * (1.0 - 1e-7) - RAY_OFFSET
-        } else {
-            f64::INFINITY
-        };
         if self
             .world
-            .occluded_leaving(point, direction, reach, hit.stone_index())
+            .occluded_leaving(point, direction, shadow_reach(distance), hit.stone_index())
         {
             return Rgb::ZERO;
         }
-        // cosθ·w/pdf with the power heuristic w = pdf²/(pdf² + pdf_brdf²)
-        // (eq. 9.13) folds into cosθ·pdf/(pdf² + pdf_brdf²): one division
-        // on the path's critical chain instead of two (pdf > 0 here).
-        let scale = if is_delta {
-            wi.z / pdf
-        } else {
-            wi.z * pdf / (pdf * pdf + brdf_pdf * brdf_pdf)
-        };
-        f * incoming * scale
+        f * incoming * light_sample_scale(wi.z, pdf, brdf_pdf, is_delta)
+    }
+}
+
+/// How far a shadow ray towards a light point at `distance` may run before
+/// it counts as blocked: short of the light by a relative 10⁻⁷ and the ray
+/// offset (everything, for a light at infinity).
+#[inline(always)]
+pub(crate) fn shadow_reach(distance: f64) -> f64 {
+    if distance.is_finite() {
+        distance * (1.0 - 1e-7) - RAY_OFFSET
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// A light sample's cosθ·w/pdf at a vertex whose BSDF would pick the
+/// direction with density `bsdf_pdf`: the power heuristic
+/// w = pdf²/(pdf² + pdf_bsdf²) (eq. 9.13) folds into cosθ·pdf/(pdf² +
+/// pdf_bsdf²), one division on the path's critical chain instead of two
+/// (pdf > 0); a delta light takes cosθ/pdf.
+#[inline(always)]
+fn light_sample_scale(cos_theta: f64, pdf: f64, bsdf_pdf: f64, is_delta: bool) -> f64 {
+    if is_delta {
+        cos_theta / pdf
+    } else {
+        cos_theta * pdf / (pdf * pdf + bsdf_pdf * bsdf_pdf)
     }
 }
 

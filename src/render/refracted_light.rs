@@ -1,8 +1,9 @@
 //! Next-event estimation from inside a translucent body: light reaches a
 //! flake or a scattering vertex through the body's smooth surface by one
-//! refraction, a specular chain that a shadow ray cannot follow. Each light
-//! is sampled as seen from the vertex, and [`manifold::connect`] finds the
-//! refracted path to the sampled point (manifold next-event estimation).
+//! refraction, a specular chain that a shadow ray cannot follow. One emitter
+//! (a light, or a light-sampled environment) is sampled as seen from the
+//! vertex, and [`manifold::connect`] finds the refracted path to the
+//! sampled point (manifold next-event estimation).
 //!
 //! A path "vertex → refraction → light" can come from either strategy: the
 //! connection, or sampling the vertex (flake BRDF or phase function) and
@@ -14,48 +15,30 @@
 //! second solution), so the sum stays unbiased
 //! ([`RenderScene::connection_pdf`]).
 
-use glam::{DMat3, DVec3};
+use glam::DVec3;
 
 use crate::brdf::Rgb;
 use crate::recipe::gem::Body;
-use crate::render::integrator::{power_heuristic, RenderScene};
+use crate::render::integrator::{power_heuristic, shadow_reach, RenderScene};
 use crate::render::lights::Light;
-use crate::render::manifold::{self, Boundary, Exit, Target};
+use crate::render::manifold::{self, Boundary, Connection, Exit, Target};
 use crate::render::medium::beer_lambert;
 use crate::render::sampler::SampleStream;
-use crate::render::world::{StoneInstance, RAY_OFFSET};
+use crate::render::world::{World, RAY_OFFSET};
 
 /// Two unit directions closer than this are the same solution.
 const SAME_SOLUTION: f64 = 1e-6;
 
-/// A stone's surface, in world space, as [`manifold`] traces it: its
-/// placement as matrices, made once per connection (a solve traces it a
-/// dozen times).
-struct StoneBoundary<'a> {
-    stone: &'a StoneInstance,
-    to_object: DMat3,
-    to_world: DMat3,
-}
-
-impl<'a> StoneBoundary<'a> {
-    fn new(stone: &'a StoneInstance) -> Self {
-        Self {
-            stone,
-            to_object: DMat3::from_quat(stone.rotation.inverse()),
-            to_world: DMat3::from_quat(stone.rotation),
-        }
-    }
-}
+/// Stone number `.1`'s surface, in world space, as [`manifold`] traces it.
+struct StoneBoundary<'a>(&'a World, usize);
 
 impl Boundary for StoneBoundary<'_> {
     fn exit(&self, origin: DVec3, direction: DVec3) -> Option<Exit> {
-        let o = self.to_object * (origin - self.stone.position);
-        let d = self.to_object * direction;
-        let hit = self.stone.cabochon.intersect(o, d, 0.0, f64::INFINITY)?;
-        (!hit.entering).then(|| Exit {
+        let (hit, entering) = self.0.stone_crossing(self.1, origin, direction)?;
+        (!entering).then_some(Exit {
             t: hit.t,
-            point: origin + direction * hit.t,
-            normal: (self.to_world * hit.normal).normalize(),
+            point: hit.point,
+            normal: hit.normal,
         })
     }
 }
@@ -95,7 +78,7 @@ struct LightPoint {
 }
 
 impl RenderScene {
-    /// Light from every light reaching `point` inside stone `stone`'s
+    /// Light from one emitter reaching `point` inside stone `stone`'s
     /// translucent body (attenuated by its extinction) through one refraction
     /// of its smooth surface, times `vertex(direction)`'s value: the
     /// flake's f·cosθ or the phase function towards a unit direction in
@@ -118,7 +101,7 @@ impl RenderScene {
             return Rgb::ZERO;
         };
         let extinction_per_mm = medium.absorption_per_mm + medium.scattering_per_mm;
-        let boundary = StoneBoundary::new(instance);
+        let boundary = StoneBoundary(&self.world, stone);
         // One emitter per vertex, chosen uniformly among the lights and a
         // light-sampled environment: a connection costs a Newton solve, and
         // paths inside a cloudy stone have many vertices.
@@ -162,15 +145,12 @@ impl RenderScene {
             }
             *shadow_rays += 1;
             let start = path.exit.point + path.exit.normal * RAY_OFFSET;
-            let reach = if path.outside_length.is_finite() {
-                path.outside_length * (1.0 - 1e-7) - RAY_OFFSET
-            } else {
-                f64::INFINITY
-            };
-            if self
-                .world
-                .occluded_leaving(start, path.outside_direction, reach, Some(stone))
-            {
+            if self.world.occluded_leaving(
+                start,
+                path.outside_direction,
+                shadow_reach(path.outside_length),
+                Some(stone),
+            ) {
                 return None;
             }
             let jacobian = path.inside_solid_angle_per_target_measure;
@@ -227,26 +207,26 @@ impl RenderScene {
         } else {
             Target::Direction(direction)
         };
-        let boundary = StoneBoundary::new(&self.world.stones()[vertex.stone]);
-        let Some(ior) = self.smooth_body_ior(vertex.stone) else {
-            return 0.0;
-        };
-        match manifold::connect(&boundary, ior, vertex.point, target) {
-            Some(path) if (path.inside_direction - vertex.direction).length() < SAME_SOLUTION => {
-                let cos_light = light
-                    .surface_normal(y)
-                    .map_or(1.0, |n| -n.dot(path.outside_direction));
-                sampled
-                    / (path.inside_solid_angle_per_target_measure
-                        * cos_light
-                        * self.connected_emitters() as f64)
-            }
-            _ => 0.0,
-        }
+        self.same_connection(vertex, target).map_or(0.0, |path| {
+            let cos_light = light
+                .surface_normal(y)
+                .map_or(1.0, |n| -n.dot(path.outside_direction));
+            sampled
+                / (path.inside_solid_angle_per_target_measure
+                    * cos_light
+                    * self.connected_emitters() as f64)
+        })
     }
-}
 
-impl RenderScene {
+    /// The connection from `vertex` to `target` when the solver finds the
+    /// direction the vertex's sampled continuation took (None otherwise).
+    fn same_connection(&self, vertex: &ConnectedVertex, target: Target) -> Option<Connection> {
+        let ior = self.smooth_body_ior(vertex.stone)?;
+        let boundary = StoneBoundary(&self.world, vertex.stone);
+        manifold::connect(&boundary, ior, vertex.point, target)
+            .filter(|path| (path.inside_direction - vertex.direction).length() < SAME_SOLUTION)
+    }
+
     /// How many emitters a connection chooses its one from: every light,
     /// and the environment when it is light-sampled.
     fn connected_emitters(&self) -> usize {
@@ -260,18 +240,12 @@ impl RenderScene {
         vertex: &ConnectedVertex,
         direction: DVec3,
     ) -> f64 {
-        let boundary = StoneBoundary::new(&self.world.stones()[vertex.stone]);
-        let Some(ior) = self.smooth_body_ior(vertex.stone) else {
-            return 0.0;
-        };
-        match manifold::connect(&boundary, ior, vertex.point, Target::Direction(direction)) {
-            Some(path) if (path.inside_direction - vertex.direction).length() < SAME_SOLUTION => {
+        self.same_connection(vertex, Target::Direction(direction))
+            .map_or(0.0, |path| {
                 self.environment.pdf(direction)
                     / (path.inside_solid_angle_per_target_measure
                         * self.connected_emitters() as f64)
-            }
-            _ => 0.0,
-        }
+            })
     }
 }
 

@@ -305,6 +305,33 @@ impl World {
         &self.stones
     }
 
+    /// The world ray in stone `index`'s object space, by its precomputed
+    /// placement (a rotation keeps lengths: t is the same in both spaces).
+    pub(crate) fn object_ray(
+        &self,
+        index: usize,
+        origin: DVec3,
+        direction: DVec3,
+    ) -> (DVec3, DVec3) {
+        self.placements[index].object_ray(self.stones[index].position, origin, direction)
+    }
+
+    /// Stone `index`'s first crossing of the world ray for t > 0, from
+    /// outside or inside, in world space, and whether the ray enters there.
+    pub(crate) fn stone_crossing(
+        &self,
+        index: usize,
+        origin: DVec3,
+        direction: DVec3,
+    ) -> Option<(SurfaceHit, bool)> {
+        let placement = &self.placements[index];
+        let hit = self.stones[index].intersect(placement, origin, direction, 0.0, f64::INFINITY)?;
+        Some((
+            placement.surface_hit(index, origin, direction, hit),
+            hit.entering,
+        ))
+    }
+
     /// The nearest surface along a unit-direction ray in (`t_min`, `t_max`).
     pub fn intersect(
         &self,

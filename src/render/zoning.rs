@@ -76,11 +76,8 @@ impl RenderScene {
         let Some(zoning) = self.zoning(stone) else {
             return Rgb::ONE;
         };
-        // A rotation keeps lengths: t is the same in object space.
-        let instance = &self.world.stones()[stone];
-        let to_object = instance.rotation.inverse();
-        let o = to_object * (origin - instance.position);
-        residual_transmittance(zoning, o, to_object * direction, length, next_1d)
+        let (o, d) = self.world.object_ray(stone, origin, direction);
+        residual_transmittance(zoning, o, d, length, next_1d)
     }
 }
 
