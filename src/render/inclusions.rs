@@ -8,11 +8,13 @@
 //! probability read from a switch function at the flake's centre, decided
 //! by the cell's own hash (patches of platelets).
 
+use std::sync::LazyLock;
+
 use glam::{DVec3, IVec3};
 
 use crate::recipe::gem::{FlakeShape, Inclusions};
 use crate::render::integrator::TEXTURE_UNITS_PER_SCENE_UNIT;
-use crate::texture::hash::{derive_stream, hash_cell, unit_f64};
+use crate::texture::hash::{derive_stream, hash_cell, hash_prefix, seed_key, unit_f64};
 
 /// A ray's crossing of a flake.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -23,16 +25,6 @@ pub(crate) struct FlakeHit {
     pub normal: DVec3,
 }
 
-/// One platelet.
-#[derive(Clone, Copy, Debug)]
-struct Flake {
-    centre: DVec3,
-    normal: DVec3,
-    /// Unit axes in the flake's plane, turned by its own angle.
-    axes: (DVec3, DVec3),
-    radius: f64,
-}
-
 /// The most cells one query walks (a bound on work for absurd inputs; at
 /// the densities allowed, a stone's diameter is far fewer).
 const MAX_CELLS_WALKED: u32 = 1 << 16;
@@ -40,8 +32,16 @@ const MAX_CELLS_WALKED: u32 = 1 << 16;
 impl Inclusions {
     /// The hash of `cell`, and its flake's centre and radius: enough to
     /// rule out a ray that passes farther than the radius from the centre.
+    #[cfg(test)]
     pub(super) fn centre_and_radius(&self, cell: IVec3) -> (u64, DVec3, f64) {
         let h = hash_cell(cell, self.seed);
+        let (centre, radius) = self.centre_and_radius_of(cell, h);
+        (h, centre, radius)
+    }
+
+    /// The centre and radius of the flake of `cell`, whose hash is `h`.
+    #[inline(always)]
+    fn centre_and_radius_of(&self, cell: IVec3, h: u64) -> (DVec3, f64) {
         let u = |k: u64| unit_f64(derive_stream(h, k));
         let radius = self.radius_mm * (1.0 + self.size_spread * (2.0 * u(0) - 1.0));
         // The centre at least `radius` from every face: the flake, a disc
@@ -50,7 +50,7 @@ impl Inclusions {
         let inside = |v: f64| margin + v * (1.0 - 2.0 * margin);
         let centre =
             (cell.as_dvec3() + DVec3::new(inside(u(1)), inside(u(2)), inside(u(3)))) * self.cell_mm;
-        (h, centre, radius)
+        (centre, radius)
     }
 
     /// Whether the cell of hash `h`, its flake centred at `centre` (object
@@ -65,42 +65,47 @@ impl Inclusions {
         })
     }
 
-    /// The flake of the cell of hash `h`, given its centre and radius.
-    fn flake(&self, h: u64, centre: DVec3, radius: f64) -> Flake {
+    /// The unit normal of the flake of the cell of hash `h`; `frame` is
+    /// the alignment axis's orthonormal pair (see [`Self::alignment_frame`]).
+    #[inline(always)]
+    fn flake_normal(&self, h: u64, frame: (DVec3, DVec3)) -> DVec3 {
         let u = |k: u64| unit_f64(derive_stream(h, k));
         let (cos_theta, phi) = match self.aligned {
             None => (1.0 - 2.0 * u(4), std::f64::consts::TAU * u(5)),
             Some((_, cos_max)) => (1.0 - u(4) * (1.0 - cos_max), std::f64::consts::TAU * u(5)),
         };
         let axis = self.aligned.map_or(DVec3::Z, |(axis, _)| axis);
-        let (t, b) = axis.any_orthonormal_pair();
+        let (t, b) = frame;
         let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-        let normal = (t * (sin_theta * phi.cos()) + b * (sin_theta * phi.sin()) + axis * cos_theta)
-            .normalize();
+        (t * (sin_theta * phi.cos()) + b * (sin_theta * phi.sin()) + axis * cos_theta).normalize()
+    }
+
+    /// The orthonormal pair about the axis the flakes' normals are drawn
+    /// around (+z when isotropic): the same for every flake of the population.
+    fn alignment_frame(&self) -> (DVec3, DVec3) {
+        self.aligned
+            .map_or(DVec3::Z, |(axis, _)| axis)
+            .any_orthonormal_pair()
+    }
+
+    /// The flake's unit in-plane axes, turned by its own angle.
+    fn in_plane_axes(h: u64, normal: DVec3) -> (DVec3, DVec3) {
         let (a0, a1) = normal.any_orthonormal_pair();
-        let (sin_turn, cos_turn) = (std::f64::consts::TAU * u(6)).sin_cos();
-        Flake {
-            centre,
-            normal,
-            axes: (a0 * cos_turn + a1 * sin_turn, a1 * cos_turn - a0 * sin_turn),
-            radius,
-        }
+        let (sin_turn, cos_turn) = (std::f64::consts::TAU * unit_f64(derive_stream(h, 6))).sin_cos();
+        (a0 * cos_turn + a1 * sin_turn, a1 * cos_turn - a0 * sin_turn)
     }
 
     /// Whether the in-plane point (x, y) lies in the outline of
     /// circumscribed radius `r`.
     fn outline_contains(&self, x: f64, y: f64, r: f64) -> bool {
-        // Edge normals at angles a₀ + k·step, apothem `apothem`.
-        let polygon = |first_deg: f64, step_deg: f64, sides: u32, apothem: f64| {
-            (0..sides).all(|k| {
-                let (s, c) = (first_deg + step_deg * f64::from(k)).to_radians().sin_cos();
-                x * c + y * s <= apothem
-            })
+        // Edge normals (cos, sin) at angles a₀ + k·step, apothem `apothem`.
+        let polygon = |edges: &[(f64, f64)], apothem: f64| {
+            edges.iter().all(|&(c, s)| x * c + y * s <= apothem)
         };
         match self.shape {
             FlakeShape::Disc => x * x + y * y <= r * r,
-            FlakeShape::Hexagon => polygon(30.0, 60.0, 6, r * 3f64.sqrt() / 2.0),
-            FlakeShape::Triangle => polygon(90.0, 120.0, 3, r / 2.0),
+            FlakeShape::Hexagon => polygon(&*HEXAGON_EDGES, r * 3f64.sqrt() / 2.0),
+            FlakeShape::Triangle => polygon(&*TRIANGLE_EDGES, r / 2.0),
             FlakeShape::Rectangle => x.abs() <= 2.0 * r / 5f64.sqrt() && y.abs() <= r / 5f64.sqrt(),
         }
     }
@@ -130,12 +135,19 @@ impl Inclusions {
         };
         let mut t_next = DVec3::new(next_face(0), next_face(1), next_face(2));
         let t_delta = (self.cell_mm / direction.abs()).min(DVec3::splat(f64::INFINITY));
+        let frame = self.alignment_frame();
+        // The cell hash absorbs x, then y, then z (`hash_cell`): a step
+        // along z reuses the (x, y) prefix, a step along y the x prefix.
+        let key = seed_key(self.seed);
+        let mut prefix_x = hash_prefix(key, cell.x);
+        let mut prefix_xy = hash_prefix(prefix_x, cell.y);
         let mut t_enter = 0.0;
         for _ in 0..MAX_CELLS_WALKED {
             if t_enter >= t_max {
                 return None;
             }
-            if let Some(hit) = self.crossing(cell, origin, direction, t_max) {
+            let h = hash_prefix(prefix_xy, cell.z);
+            if let Some(hit) = self.crossing(cell, h, frame, origin, direction, t_max) {
                 return Some(hit);
             }
             let axis = if t_next.x <= t_next.y && t_next.x <= t_next.z {
@@ -148,19 +160,29 @@ impl Inclusions {
             t_enter = t_next[axis];
             t_next[axis] += t_delta[axis];
             cell[axis] += step[axis];
+            if axis == 0 {
+                prefix_x = hash_prefix(key, cell.x);
+            }
+            if axis <= 1 {
+                prefix_xy = hash_prefix(prefix_x, cell.y);
+            }
         }
         None
     }
 
-    /// The ray's crossing of the flake of `cell`, for 0 < t < `t_max`.
+    /// The ray's crossing of the flake of `cell` (hash `h`), for
+    /// 0 < t < `t_max`; `frame` as for [`Self::flake_normal`].
+    #[inline(always)]
     fn crossing(
         &self,
         cell: IVec3,
+        h: u64,
+        frame: (DVec3, DVec3),
         origin: DVec3,
         direction: DVec3,
         t_max: f64,
     ) -> Option<FlakeHit> {
-        let (h, centre, radius) = self.centre_and_radius(cell);
+        let (centre, radius) = self.centre_and_radius_of(cell, h);
         // The flake lies in the sphere of its radius about its centre.
         let to_centre = centre - origin;
         let closest = to_centre.dot(direction);
@@ -169,23 +191,38 @@ impl Inclusions {
         {
             return None;
         }
-        let flake = self.flake(h, centre, radius);
-        let along = direction.dot(flake.normal);
+        let normal = self.flake_normal(h, frame);
+        let along = direction.dot(normal);
         if along == 0.0 {
             return None;
         }
-        let t = (flake.centre - origin).dot(flake.normal) / along;
+        let t = to_centre.dot(normal) / along;
         if !(t > 0.0 && t < t_max) {
             return None;
         }
-        let offset = origin + direction * t - flake.centre;
-        let (x, y) = (offset.dot(flake.axes.0), offset.dot(flake.axes.1));
-        self.outline_contains(x, y, flake.radius)
-            .then_some(FlakeHit {
-                t,
-                normal: flake.normal,
-            })
+        let offset = origin + direction * t - centre;
+        // Every outline lies in its circumscribed disc: most misses end
+        // here, before the flake's in-plane turn is drawn.
+        if offset.length_squared() > radius * radius {
+            return None;
+        }
+        let axes = Self::in_plane_axes(h, normal);
+        self.outline_contains(offset.dot(axes.0), offset.dot(axes.1), radius)
+            .then_some(FlakeHit { t, normal })
     }
+}
+
+/// Edge normals (cos a, sin a) of a hexagon's sides, a = 30° + k · 60°.
+static HEXAGON_EDGES: LazyLock<[(f64, f64); 6]> = LazyLock::new(|| edge_normals(30.0, 60.0));
+/// Edge normals of a triangle's sides, a = 90° + k · 120°.
+static TRIANGLE_EDGES: LazyLock<[(f64, f64); 3]> = LazyLock::new(|| edge_normals(90.0, 120.0));
+
+/// (cos, sin) of the angles `first_deg + k · step_deg`, k = 0 … N − 1.
+fn edge_normals<const N: usize>(first_deg: f64, step_deg: f64) -> [(f64, f64); N] {
+    std::array::from_fn(|k| {
+        let (s, c) = (first_deg + step_deg * k as f64).to_radians().sin_cos();
+        (c, s)
+    })
 }
 
 #[cfg(test)]
