@@ -91,7 +91,8 @@ impl Inclusions {
     /// The flake's unit in-plane axes, turned by its own angle.
     fn in_plane_axes(h: u64, normal: DVec3) -> (DVec3, DVec3) {
         let (a0, a1) = normal.any_orthonormal_pair();
-        let (sin_turn, cos_turn) = (std::f64::consts::TAU * unit_f64(derive_stream(h, 6))).sin_cos();
+        let (sin_turn, cos_turn) =
+            (std::f64::consts::TAU * unit_f64(derive_stream(h, 6))).sin_cos();
         (a0 * cos_turn + a1 * sin_turn, a1 * cos_turn - a0 * sin_turn)
     }
 

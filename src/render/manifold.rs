@@ -75,7 +75,7 @@ const JACOBIAN_STEP: f64 = 1e-6;
 /// Length of the Snell residual (n·ωᵢ − ωₒ) × N at which a solve has
 /// converged: about the angle, in radians, by which the refracted ray
 /// misses the target.
-const TOLERANCE: f64 = 1e-11;
+const TOLERANCE: f64 = 1e-9;
 /// Unit directions closer than this agree (a solution's refracted ray and
 /// the direction to its target).
 const SAME_DIRECTION: f64 = 1e-7;
@@ -190,6 +190,7 @@ pub(crate) fn connect(
     if !start.is_finite() {
         return None;
     }
+    let start = backward_refraction(boundary, ior, origin, start, target).unwrap_or(start);
     let chart = Chart::around(start);
     let evaluate = |a: f64, b: f64| -> Option<DVec3> {
         let direction = chart.direction(a, b);
@@ -263,8 +264,15 @@ pub(crate) fn connect(
             f64::INFINITY
         }
     };
-    let inside_solid_angle_per_target_measure =
-        1.0 / spread(boundary, ior, origin, inside_direction, target, out)?;
+    let inside_solid_angle_per_target_measure = 1.0
+        / spread(
+            boundary,
+            ior,
+            origin,
+            inside_direction,
+            target,
+            (&exit, out),
+        )?;
     let cos_inside = inside_direction.dot(exit.normal);
     Some(Connection {
         inside_direction,
@@ -274,6 +282,33 @@ pub(crate) fn connect(
         transmittance: 1.0 - fresnel::dielectric(cos_inside, 1.0 / ior),
         inside_solid_angle_per_target_measure,
     })
+}
+
+/// A better start than the straight line: where the straight line leaves
+/// the body, the direction inside that the surface there (taken as its
+/// tangent plane) refracts towards the target. Exact for a plane and a
+/// direction target; otherwise off by the surface's curvature over the
+/// distance between this exit and the solution's.
+fn backward_refraction(
+    boundary: &impl Boundary,
+    ior: f64,
+    origin: DVec3,
+    straight: DVec3,
+    target: Target,
+) -> Option<DVec3> {
+    let exit = boundary.exit(origin, straight)?;
+    let out = match target {
+        Target::Point(y) => (y - exit.point).normalize(),
+        Target::Direction(d) => d,
+    };
+    let cos_out = out.dot(exit.normal);
+    if !(cos_out > 0.0) {
+        return None;
+    }
+    // Snell (eq. 3.2) read backwards: ωₒ = n·ωᵢ − N·(n·cosθᵢ − cosθₒ).
+    let cos_in = (1.0 - (1.0 - cos_out * cos_out) / (ior * ior)).sqrt();
+    let inside = ((out + exit.normal * (ior * cos_in - cos_out)) / ior).normalize();
+    inside.is_finite().then_some(inside)
 }
 
 /// |d(target measure) / dω| at the solution: the area swept across the
@@ -286,7 +321,7 @@ fn spread(
     origin: DVec3,
     direction: DVec3,
     target: Target,
-    out: DVec3,
+    (exit, out): (&Exit, DVec3),
 ) -> Option<f64> {
     let chart = Chart::around(direction);
     // Measured against the solution's own ray, so the residual is exactly
@@ -305,7 +340,7 @@ fn spread(
     };
     // Forward differences from the solution, whose residual is 0 in this
     // measure up to the solve's tolerance: O(h) relative error, 10⁻⁶.
-    let (centre, pa, pb) = (at(0.0, 0.0)?, at(h, 0.0)?, at(0.0, h)?);
+    let (centre, pa, pb) = (residual.of(exit, out)?, at(h, 0.0)?, at(0.0, h)?);
     let ja = [(pa[0] - centre[0]) / h, (pa[1] - centre[1]) / h];
     let jb = [(pb[0] - centre[0]) / h, (pb[1] - centre[1]) / h];
     let det = (ja[0] * jb[1] - ja[1] * jb[0]).abs();
