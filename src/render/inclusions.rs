@@ -14,7 +14,7 @@ use glam::{DVec3, IVec3};
 
 use crate::recipe::gem::{FlakeShape, Inclusions};
 use crate::render::integrator::TEXTURE_UNITS_PER_SCENE_UNIT;
-use crate::texture::hash::{derive_stream, hash_cell, hash_prefix, seed_key, unit_f64};
+use crate::texture::hash::{derive_stream, hash_prefix, seed_key, unit_f64};
 
 /// A ray's crossing of a flake.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -34,7 +34,7 @@ impl Inclusions {
     /// rule out a ray that passes farther than the radius from the centre.
     #[cfg(test)]
     pub(super) fn centre_and_radius(&self, cell: IVec3) -> (u64, DVec3, f64) {
-        let h = hash_cell(cell, self.seed);
+        let h = crate::texture::hash::hash_cell(cell, self.seed);
         let (centre, radius) = self.centre_and_radius_of(cell, h);
         (h, centre, radius)
     }

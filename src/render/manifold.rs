@@ -302,7 +302,7 @@ fn backward_refraction(
         Target::Direction(d) => d,
     };
     let cos_out = out.dot(exit.normal);
-    if !(cos_out > 0.0) {
+    if cos_out.is_nan() || cos_out <= 0.0 {
         return None;
     }
     // Snell (eq. 3.2) read backwards: ωₒ = n·ωᵢ − N·(n·cosθᵢ − cosθₒ).
