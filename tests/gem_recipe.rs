@@ -633,3 +633,47 @@ fn zoning_and_density_modulation_are_range_checked_and_reach_the_compiled_body()
     assert_eq!(zoning.majorant_per_mm, 0.6000000000000001);
     assert!(inclusions[0].density_modulation.is_some());
 }
+
+#[test]
+fn a_flake_in_a_body_reflects_with_its_index_relative_to_the_body() {
+    // Fresnel (eq. 3.3) takes a metal's index relative to the medium it is
+    // seen from: copper platelets in glass of n = 1.5 reflect F₀(n/1.5,
+    // k/1.5) at normal incidence, not copper's F₀ in air (blue: 0.42
+    // against 0.51). The same library metal as the surface (seen from air)
+    // and as inclusions gets a BRDF for each.
+    use lapidary::brdf::albedo::directional_albedo;
+    use lapidary::brdf::fresnel::conductor;
+    use lapidary::brdf::Rgb;
+    use lapidary::recipe::gem::{compile_gem, Body, GemSource, Tables};
+    let text = r#"Gem(
+    name: "copper in glass",
+    surface: "copper",
+    body: Translucent(ior: 1.5, inclusions: [
+        Inclusions(shape: Disc, size_mm: 0.1, density_per_mm3: 10.0, material: "copper"),
+    ]),
+)"#;
+    let gem = compile_gem(&GemSource::new("copper.ron", text), None, Tables::Skipped)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let names: Vec<_> = gem.materials.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["copper", "copper"]);
+    assert_eq!(gem.seen_from_ior, [1.0, 1.5]);
+    let Body::Translucent { inclusions, .. } = &gem.body else {
+        panic!("a translucent body");
+    };
+    assert_eq!(inclusions[0].material, 1);
+    let (n, k) = (Rgb::new(0.200, 0.924, 1.102), Rgb::new(3.913, 2.453, 2.142));
+    let mut blue = Vec::new();
+    for (index, ior) in [(0, 1.0), (1, 1.5)] {
+        let albedo = directional_albedo(&gem.brdfs[index], 0.0, 5e-4, 1 << 18, 7).mean;
+        let f0 = conductor(1.0, n / ior, k / ior);
+        for (c, got) in albedo.to_array().into_iter().enumerate() {
+            let expected = f0[c];
+            assert!(
+                (got - expected).abs() < 0.01 * expected,
+                "seen from n = {ior}, channel {c}: albedo {got}, F₀ {expected}"
+            );
+        }
+        blue.push(albedo.to_array()[2]);
+    }
+    assert!(blue[1] < 0.85 * blue[0], "{blue:?}");
+}

@@ -211,6 +211,19 @@ pub(crate) fn compile_material_without_table(
     source: &MaterialSource,
     m: &Material,
 ) -> Result<LayeredBrdf, RecipeError> {
+    compile_material_seen_from(source, m, 1.0)
+}
+
+/// [`compile_material_without_table`] for a material seen from a medium of
+/// index `ior_outside` instead of air (a flake inside a translucent body):
+/// its top interface refracts with η = n / `ior_outside` and a bare metal
+/// base reflects with (n, k) / `ior_outside` (eqs. 3.2–3.3 take relative
+/// indices).
+pub(crate) fn compile_material_seen_from(
+    source: &MaterialSource,
+    m: &Material,
+    ior_outside: f64,
+) -> Result<LayeredBrdf, RecipeError> {
     let path = source.path.as_str();
     let text = source.text.as_str();
     let layer_error = |index: usize, message: String| match find_position(text, "Layer(", index) {
@@ -218,7 +231,7 @@ pub(crate) fn compile_material_without_table(
         None => RecipeError::whole_file(path, message),
     };
     let mut interfaces = Vec::with_capacity(m.layers.len());
-    let mut ior_above = 1.0;
+    let mut ior_above = ior_outside;
     let mut roughness_above_deg = 0.0;
     for (index, layer) in m.layers.iter().enumerate() {
         let given = [

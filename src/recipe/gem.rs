@@ -45,7 +45,7 @@
 
 use crate::brdf::{LayeredBrdf, Rgb};
 use crate::recipe::compile::{
-    compile_material_without_table, locate_material, parse_material, ron_error, MaterialSource,
+    compile_material_seen_from, locate_material, parse_material, ron_error, MaterialSource,
     COMPENSATION_SEED,
 };
 use crate::recipe::error::{did_you_mean, line_col_of_offset, RecipeError};
@@ -539,6 +539,10 @@ pub struct Gem {
     pub pattern: Pattern,
     /// `(name, material)` per material index, as written.
     pub materials: Vec<(String, Material)>,
+    /// Index of refraction of the medium each material is seen from, per
+    /// material index: 1 (air) for the surface's, the body's for its
+    /// inclusions'. A material used in both places has an index for each.
+    pub seen_from_ior: Vec<f64>,
     /// The compiled BRDF per material index. Shared by the gems of one
     /// recipe with different seeds (a seed changes the pattern, never a
     /// material): a tray of 1000 lepidolites holds 19 BRDFs, not 19 000.
@@ -649,14 +653,14 @@ pub fn compile_gems(
         let (_, spec, brdfs, wants_table) = &mut recipes[index];
         let gem = compile_gem_spec(&source.path, &source.text, spec.clone(), seed)?;
         if brdfs.is_empty() {
-            for (name, material) in &gem.materials {
+            for ((name, material), &ior_outside) in gem.materials.iter().zip(&gem.seen_from_ior) {
                 let inline = gem.spec.materials.contains_key(name);
                 brdfs.push(compile_gem_material(
                     &source.path,
                     &source.text,
-                    name,
-                    material,
+                    (name, material),
                     inline,
+                    ior_outside,
                 )?);
                 wants_table.push(material.multiple_scattering);
             }
@@ -724,12 +728,12 @@ pub fn parse_gem(path: &str, text: &str) -> Result<Gem, RecipeError> {
 fn compile_gem_material(
     path: &str,
     text: &str,
-    name: &str,
-    material: &Material,
+    (name, material): (&str, &Material),
     inline: bool,
+    ior_outside: f64,
 ) -> Result<LayeredBrdf, RecipeError> {
     if !inline {
-        return compile_material_without_table(&locate_material(name)?, material);
+        return compile_material_seen_from(&locate_material(name)?, material, ior_outside);
     }
     let quoted = format!("\"{name}\"");
     let definition = text
@@ -745,7 +749,7 @@ fn compile_gem_material(
         name: name.to_string(),
         text: text[from..].to_string(),
     };
-    compile_material_without_table(&source, material).map_err(|mut e| {
+    compile_material_seen_from(&source, material, ior_outside).map_err(|mut e| {
         if let Some((line, col)) = e.position {
             e.position = Some(if line == 1 {
                 (base.0, base.1 + col - 1)
@@ -813,6 +817,9 @@ struct Compiler<'a> {
     spec: &'a GemSpec,
     map_names: Vec<String>,
     materials: Vec<(String, Material)>,
+    /// Per material index, the index of the medium it is seen from (None:
+    /// an inline material not used yet).
+    seen_from_ior: Vec<Option<f64>>,
 }
 
 impl<'a> Compiler<'a> {
@@ -823,6 +830,7 @@ impl<'a> Compiler<'a> {
             spec,
             map_names: spec.maps.keys().cloned().collect(),
             materials: Vec::new(),
+            seen_from_ior: Vec::new(),
         }
     }
 
@@ -875,11 +883,33 @@ impl<'a> Compiler<'a> {
         self.error_at(&quoted, message)
     }
 
+    /// The index of material `name` seen from air.
     fn material_index(&mut self, name: &str) -> Result<u32, RecipeError> {
-        if let Some(i) = self.materials.iter().position(|(n, _)| n == name) {
-            return Ok(i as u32);
+        self.material_index_seen_from(name, 1.0)
+    }
+
+    /// The index of material `name` seen from a medium of index
+    /// `ior_outside`: its first use from that medium adds it.
+    fn material_index_seen_from(
+        &mut self,
+        name: &str,
+        ior_outside: f64,
+    ) -> Result<u32, RecipeError> {
+        let mut known = None;
+        for (i, (n, m)) in self.materials.iter().enumerate() {
+            if n == name {
+                match self.seen_from_ior[i] {
+                    Some(ior) if ior != ior_outside => known = Some(m.clone()),
+                    _ => {
+                        self.seen_from_ior[i] = Some(ior_outside);
+                        return Ok(i as u32);
+                    }
+                }
+            }
         }
-        let material = if let Some(m) = self.spec.materials.get(name) {
+        let material = if let Some(m) = known {
+            m
+        } else if let Some(m) = self.spec.materials.get(name) {
             m.clone()
         } else if let Some(source) = builtin_material_source(name) {
             parse_material(&format!("builtin:{name}"), source)?
@@ -907,6 +937,7 @@ impl<'a> Compiler<'a> {
             ));
         };
         self.materials.push((name.to_string(), material));
+        self.seen_from_ior.push(Some(ior_outside));
         Ok(self.materials.len() as u32 - 1)
     }
 
@@ -1282,7 +1313,7 @@ impl<'a> Compiler<'a> {
                 size_spread: inclusion.size_spread,
                 cell_mm,
                 aligned,
-                material: self.material_index(&inclusion.material)?,
+                material: self.material_index_seen_from(&inclusion.material, *ior)?,
                 seed: derive_stream(seed_key(spec.seed ^ inclusion.seed), 16 + k as u64),
             });
         }
@@ -1316,6 +1347,7 @@ impl<'a> Compiler<'a> {
         for name in self.spec.materials.keys() {
             self.materials
                 .push((name.clone(), self.spec.materials[name].clone()));
+            self.seen_from_ior.push(None);
         }
         self.check_cycles()?;
         let mut nodes = Vec::with_capacity(self.spec.maps.len());
@@ -1362,6 +1394,11 @@ impl<'a> Compiler<'a> {
             body,
             pattern,
             materials: self.materials,
+            seen_from_ior: self
+                .seen_from_ior
+                .into_iter()
+                .map(|ior| ior.unwrap_or(1.0))
+                .collect(),
             map_names: self.map_names,
             spec,
         })
