@@ -1,0 +1,162 @@
+#!/usr/bin/env python3
+"""Sparkle at any scale: how a gem's flakes hold up from thumbnail to close-up.
+
+Measures the three figures of issue 27 with the release build of lapidary
+(run with bench/.venv/bin/python: it reads EXRs with Mitsuba's Bitmap):
+
+  scale        the mean colour of the fully-stone pixels of a small render
+               against a big render of the same view box-filtered to the
+               small size, per channel, over several seeds (target: within 1 %)
+  convergence  RMSE over the stone's pixels at --spp against a long
+               reference, at each --sizes (target: 2x lower than today)
+  turntable    the stone's mean luminance over the frames of a turntable,
+               and the standard deviation of its frame-to-frame change
+               (target: a third of today's)
+
+    bench/.venv/bin/python bench/footprint.py scale goldstone green-aventurine
+    bench/.venv/bin/python bench/footprint.py convergence goldstone --sizes 64 128
+    bench/.venv/bin/python bench/footprint.py turntable goldstone --frames 36
+
+Every render is a pure function of its settings, so a figure is the same on
+every run; only the times vary. Extra render flags go after `--`, e.g.
+`-- --bounces 2` (a flag that turns footprints off, when there is one, to
+compare).
+"""
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import mitsuba as mi
+import numpy as np
+
+mi.set_variant("scalar_rgb")
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BINARY = os.path.join(ROOT, "target", "release", "lapidary")
+# Rec. 709 luminance of linear RGB.
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+
+def render(gem, size, spp, seed, out, extra, frame=None):
+    """Renders `gem` to the EXR `out`; returns the wall time in seconds."""
+    command = [BINARY, "render", gem, "-q", "--size", str(size), "--spp", str(spp),
+               "--seed", str(seed), "-o", out, *extra]
+    if frame is not None:
+        command += ["--frames", str(frame[1]), "--frame", str(frame[0])]
+    started = time.perf_counter()
+    subprocess.run(command, check=True)
+    return time.perf_counter() - started
+
+
+def load(path):
+    """Linear RGB (H, W, 3) and material_id (H, W) of an EXR."""
+    bitmap = mi.Bitmap(path)
+    names = [field.name for field in bitmap.struct_()]
+    pixels = np.array(bitmap, copy=False)
+    return pixels[..., :3].astype(np.float64), pixels[..., names.index("material_id")]
+
+
+def box_filter(image, factor):
+    """Mean over factor x factor blocks."""
+    h, w = image.shape[:2]
+    return image.reshape(h // factor, factor, w // factor, factor, *image.shape[2:]).mean(axis=(1, 3))
+
+
+def scale(args, folder):
+    factor = args.big // args.small
+    if factor * args.small != args.big:
+        sys.exit("--big must be a multiple of --small")
+    print(f"| gem | seed | small {args.small} px, {args.spp} spp | big {args.big} px box-filtered "
+          f"| stone pixels | difference R, G, B |")
+    print("|---|---:|---|---|---:|---|")
+    for gem in args.gems:
+        worst = []
+        for seed in range(1, args.seeds + 1):
+            small_path = os.path.join(folder, f"small-{seed}.exr")
+            big_path = os.path.join(folder, f"big-{seed}.exr")
+            render(gem, args.small, args.spp, seed, small_path, args.extra)
+            render(gem, args.big, args.big_spp, seed, big_path, args.extra)
+            small, _ = load(small_path)
+            big, big_material = load(big_path)
+            # Fully stone: every sub-pixel of the big render sees a stone.
+            stone = box_filter((big_material >= 2).astype(np.float64), factor) == 1.0
+            small_mean = small[stone].mean(axis=0)
+            big_mean = box_filter(big, factor)[stone].mean(axis=0)
+            difference = small_mean / big_mean - 1.0
+            worst.append(np.abs(difference).max())
+            print(f"| {gem} | {seed} | {fmt(small_mean)} | {fmt(big_mean)} | {stone.sum()} "
+                  f"| {', '.join(f'{100 * d:+.2f} %' for d in difference)} |")
+        print(f"| {gem} | mean of the worst channel | | | | {100 * np.mean(worst):.2f} % "
+              f"(max {100 * np.max(worst):.2f} %) |")
+
+
+def convergence(args, folder):
+    print(f"| gem | size | RMSE at {args.spp} spp vs {args.reference_spp} spp | time |")
+    print("|---|---:|---:|---:|")
+    for gem in args.gems:
+        for size in args.sizes:
+            reference_path = os.path.join(folder, f"reference-{size}.exr")
+            test_path = os.path.join(folder, f"test-{size}.exr")
+            render(gem, size, args.reference_spp, 1, reference_path, args.extra)
+            seconds = render(gem, size, args.spp, 2, test_path, args.extra)
+            reference, material = load(reference_path)
+            image, _ = load(test_path)
+            mask = material >= 2
+            rmse = np.sqrt(((image[mask] - reference[mask]) ** 2).mean())
+            print(f"| {gem} | {size} | {rmse:.5f} | {seconds:.2f} s |")
+
+
+def turntable(args, folder):
+    print(f"| gem | frames | size | spp | mean luminance | std of frame-to-frame change |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for gem in args.gems:
+        means = []
+        for k in range(args.frames):
+            path = os.path.join(folder, f"frame-{k}.exr")
+            render(gem, args.size, args.spp, 1, path, args.extra, frame=(k, args.frames))
+            image, material = load(path)
+            means.append((image[material >= 2] @ LUMINANCE).mean())
+        change = np.diff(np.array(means))
+        print(f"| {gem} | {args.frames} | {args.size} | {args.spp} | {np.mean(means):.5f} "
+              f"| {np.std(change):.5f} |")
+
+
+def fmt(rgb):
+    return "(" + ", ".join(f"{c:.4f}" for c in rgb) + ")"
+
+
+def main():
+    argv = sys.argv[1:]
+    extra = []
+    if "--" in argv:
+        extra = argv[argv.index("--") + 1:]
+        argv = argv[:argv.index("--")]
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    commands = parser.add_subparsers(dest="command", required=True)
+    s = commands.add_parser("scale", help="small render against a big one box-filtered")
+    s.add_argument("gems", nargs="+")
+    s.add_argument("--small", type=int, default=64)
+    s.add_argument("--big", type=int, default=1024)
+    s.add_argument("--spp", type=int, default=16)
+    s.add_argument("--big-spp", type=int, default=16)
+    s.add_argument("--seeds", type=int, default=4)
+    c = commands.add_parser("convergence", help="RMSE against a long reference")
+    c.add_argument("gems", nargs="+")
+    c.add_argument("--sizes", type=int, nargs="+", default=[64, 128])
+    c.add_argument("--spp", type=int, default=16)
+    c.add_argument("--reference-spp", type=int, default=4096)
+    t = commands.add_parser("turntable", help="the stone's brightness over a turn")
+    t.add_argument("gems", nargs="+")
+    t.add_argument("--frames", type=int, default=36)
+    t.add_argument("--size", type=int, default=128)
+    t.add_argument("--spp", type=int, default=16)
+    args = parser.parse_args(argv)
+    args.extra = extra
+    with tempfile.TemporaryDirectory() as folder:
+        {"scale": scale, "convergence": convergence, "turntable": turntable}[args.command](args, folder)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
