@@ -404,8 +404,17 @@ fn a_batch_task_re_run_gives_the_same_tile_and_a_complete_one_is_skipped() {
     assert_eq!(bytes(&tile), first);
     let log = ok(&["batch", s(&job), "--task", "3"]);
     assert!(log.contains("already complete, skipped"), "{log}");
-    // A tile of other settings is not this task's output: rendered again.
+    // A tile of other settings is not this task's output: the merge
+    // refuses it, the task renders it again.
+    for task in ["0", "1", "2"] {
+        ok(&["batch", s(&job), "--task", task, "-q"]);
+    }
+    ok(&["batch", s(&job), "--merge", "-q"]);
     std::fs::write(&job, JOB.replace("spp: 2", "spp: 3")).unwrap();
+    refused(
+        &["batch", s(&job), "--merge"],
+        "its spp is 2, not 3): run its task again",
+    );
     let log = ok(&["batch", s(&job), "--task", "3"]);
     assert!(!log.contains("skipped"), "{log}");
     assert_ne!(bytes(&tile), first);

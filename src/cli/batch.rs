@@ -81,11 +81,32 @@ fn run_task(job: &Job, index: u64, args: &BatchArgs) -> Result<(), String> {
     let path = job.tile_path(task);
     std::fs::create_dir_all(path.parent().unwrap_or(Path::new(".")))
         .map_err(|e| format!("{}: cannot create the folder: {e}", path.display()))?;
+    let render_args = render_args(job, task.image, path.clone(), args);
     let settings = &image.settings;
-    let render_args = RenderArgs {
+    let split = TileSplit::new(task.tile, job.tiles, settings.height)?;
+    let outcome = super::render::run_task(&render_args, job.turntable, task.frame, split, &path)?;
+    if !args.quiet {
+        match outcome {
+            TaskOutcome::Rendered => eprintln!("task {index}: done"),
+            TaskOutcome::AlreadyDone => {
+                eprintln!(
+                    "task {index}: {} is already complete, skipped",
+                    path.display()
+                )
+            }
+        }
+    }
+    Ok(())
+}
+
+/// What `lapidary render` is asked for by image `image` of `job`, to `output`.
+fn render_args(job: &Job, image: usize, output: PathBuf, args: &BatchArgs) -> RenderArgs {
+    let image = &job.images[image];
+    let settings = &image.settings;
+    RenderArgs {
         recipe: Some(image.recipe.clone()),
         scene: image.scene.clone(),
-        output: path.clone(),
+        output,
         size: None,
         width: Some(settings.width),
         height: Some(settings.height),
@@ -103,24 +124,10 @@ fn run_task(job: &Job, index: u64, args: &BatchArgs) -> Result<(), String> {
         max_memory: super::render::DEFAULT_MAX_MEMORY_GIB,
         quiet: args.quiet,
         frames: None,
-        frame: task.frame,
+        frame: None,
         turn: None,
-        tile: Some((task.tile, job.tiles)),
-    };
-    let split = TileSplit::new(task.tile, job.tiles, settings.height)?;
-    let outcome = super::render::run_task(&render_args, job.turntable, task.frame, split, &path)?;
-    if !args.quiet {
-        match outcome {
-            TaskOutcome::Rendered => eprintln!("task {index}: done"),
-            TaskOutcome::AlreadyDone => {
-                eprintln!(
-                    "task {index}: {} is already complete, skipped",
-                    path.display()
-                )
-            }
-        }
+        tile: None,
     }
-    Ok(())
 }
 
 fn merge_all(job: &Job, args: &BatchArgs) -> Result<(), String> {
@@ -153,8 +160,26 @@ fn merge_all(job: &Job, args: &BatchArgs) -> Result<(), String> {
                 .filter_map(|i| job.task(i))
                 .map(|t| read_tile(&job.tile_path(t)))
                 .collect::<Result<Vec<_>, _>>()?;
-            let merged = merge(tiles)?;
+            // Tiles of an earlier version of the job (its settings or
+            // files changed since) are not this job's: their tasks must run again.
             let output = job.image_path(image, *frame);
+            let wanted = render_args(job, image, output.clone(), args);
+            let expected = super::render::expected_record(&wanted, job.turntable, *frame)?;
+            for tile in &tiles {
+                let found = &tile.record.render_lines;
+                if let Some(((key, theirs), (_, ours))) = found
+                    .iter()
+                    .zip(expected.text_lines())
+                    .find(|(a, b)| *a != b)
+                {
+                    return Err(format!(
+                        "{} is a tile of another render than {} asks for now (its {key} is {theirs}, not {ours}): run its task again",
+                        tile.path.display(),
+                        args.job.display()
+                    ));
+                }
+            }
+            let merged = merge(tiles)?;
             let png = job.images[image].settings.format == FormatSpec::Png;
             let picture = pool.install(|| super::merge::write_merged(&output, merged, png))?;
             pictures.extend(picture);

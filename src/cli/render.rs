@@ -357,6 +357,18 @@ pub(super) fn run_task(
     Ok(TaskOutcome::Rendered)
 }
 
+/// The record of frame `frame` (or the still) of the render `args` and
+/// `turntable` ask for: what its tiles must say they are.
+pub(super) fn expected_record(
+    args: &RenderArgs,
+    turntable: Option<Turntable>,
+    frame: Option<u32>,
+) -> Result<RenderRecord, String> {
+    let (width, height) = check_settings(args)?;
+    let inputs = Inputs::load(args)?;
+    Ok(Renderer::prepare_lazily(args, inputs, width, height, turntable)?.record(frame))
+}
+
 /// Frames per second of a turntable's animated PNG.
 pub(super) const ANIMATION_FRAMES_PER_SECOND: u16 = 12;
 

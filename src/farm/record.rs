@@ -88,6 +88,15 @@ impl RenderRecord {
         }
     }
 
+    /// The record's `key: value` lines as a tile stores them (what
+    /// [`ReadRecord::render_lines`] reads back).
+    pub fn text_lines(&self) -> Vec<(String, String)> {
+        self.lines()
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), v))
+            .collect()
+    }
+
     /// `key: value` lines in a fixed order.
     fn lines(&self) -> Vec<(&'static str, String)> {
         let text = |s: &str| format!("{s:?}");
