@@ -30,6 +30,7 @@
 //! ```
 
 pub mod brdf;
+pub mod farm;
 pub mod gallery;
 pub mod geometry;
 pub mod output;

@@ -1,9 +1,11 @@
 //! Argument definitions (clap) and dispatch to the subcommands.
 
+mod batch;
 mod brdf;
 mod catalogue;
 mod gallery;
 mod maps;
+mod merge;
 mod new;
 mod render;
 mod validate;
@@ -21,6 +23,10 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// A catalogue or a turntable job over a render farm: the task list,
+    /// `--task I` runs task I of it (a scheduler array's element),
+    /// `--merge` assembles the images.
+    Batch(batch::BatchArgs),
     /// Inspect a material's BRDF: albedo table, point values, or polar plots.
     Brdf(BrdfArgs),
     /// Print the section 3.4 class of a material, with the reason.
@@ -36,6 +42,9 @@ enum Command {
     /// Draw the figure 4.6 sheet of a gem: surface map, glitter map, facet
     /// normals and the combination, over the slice z = 0.
     Maps(MapsArgs),
+    /// Merge the tiles of a render (`render --tile I/N`) into its image:
+    /// the same bytes as rendering it on one machine.
+    Merge(merge::MergeArgs),
     /// Render a gem (default: green-aventurine) on a cabochon in a scene
     /// (default: the studio scene), to PNG or EXR.
     Render(render::RenderArgs),
@@ -164,11 +173,13 @@ pub fn run() -> i32 {
         }
     };
     let result = match cli.command {
+        Command::Batch(args) => batch::run(args),
         Command::Brdf(args) => brdf::run(args),
         Command::Classify { material } => catalogue::classify(&material),
         Command::Gallery(args) => gallery::run(args),
         Command::List => catalogue::list(),
         Command::Maps(args) => maps::run(args),
+        Command::Merge(args) => merge::run(args),
         Command::Render(args) => render::run(args),
         Command::Validate { recipes } => validate::run(&recipes),
         Command::New(args) => new::run(args),

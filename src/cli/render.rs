@@ -7,13 +7,26 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use lapidary::output::exr::{film_channels, write_exr_owned};
-use lapidary::output::tonemap::{DisplayTransform, ToneCurve};
+use lapidary::farm::job::frame_suffix;
+use lapidary::farm::merge::read_tile;
+use lapidary::farm::record::{
+    inputs_sha256, tile_record, FrameOf, ReadRecord, RenderRecord, TILE_NOTE,
+};
+use lapidary::output::animation::write_apng;
+use lapidary::output::exr::{film_channels, write_exr_owned, write_exr_with_note};
+use lapidary::output::tonemap::ToneCurve;
 use lapidary::recipe::gem::{GemSource, Tables};
 use lapidary::recipe::library::DEFAULT_GEM;
-use lapidary::render::film::{render_cancellable, FilmSettings, FILM_BYTES_PER_PIXEL};
+use lapidary::render::film::{render_rows_cancellable, FilmSettings, FILM_BYTES_PER_PIXEL};
+use lapidary::render::integrator::RenderScene;
 use lapidary::render::prepare::{camera_for, prepare_scene};
-use lapidary::scene::{default_scene, load_scene};
+use lapidary::render::tiles::TileSplit;
+use lapidary::render::turntable::{orbited_camera, turned_stones};
+use lapidary::render::world::{StoneInstance, World};
+use lapidary::scene::spec::MAX_FRAMES;
+use lapidary::scene::{
+    default_scene, load_scene, Scene, TurnSpec, Turntable, DEFAULT_SCENE_SOURCE,
+};
 
 /// Largest image side accepted, in pixels.
 pub const MAX_SIDE_PX: u32 = 32_768;
@@ -38,35 +51,35 @@ pub enum TonemapArg {
 pub struct RenderArgs {
     /// A built-in gem (see `lapidary list`) or a RON gem recipe; default:
     /// green-aventurine. Used by every stone of the scene that names none.
-    recipe: Option<String>,
+    pub(super) recipe: Option<String>,
     /// A RON scene (camera, stones, ground, lights, environment); default:
     /// the built-in studio scene.
     #[arg(long, value_name = "SCENE.ron")]
-    scene: Option<PathBuf>,
+    pub(super) scene: Option<PathBuf>,
     /// The image to write: .png (tone-mapped sRGB) or .exr (linear, with AOV layers).
     #[arg(short = 'o', long = "output", value_name = "OUT.png|OUT.exr")]
-    output: PathBuf,
+    pub(super) output: PathBuf,
     /// Width and height of a square image in pixels.
     #[arg(long, value_name = "N", conflicts_with_all = ["width", "height"])]
-    size: Option<u32>,
+    pub(super) size: Option<u32>,
     /// Image width in pixels (default 512).
     #[arg(long, value_name = "W")]
-    width: Option<u32>,
+    pub(super) width: Option<u32>,
     /// Image height in pixels (default 512).
     #[arg(long, value_name = "H")]
-    height: Option<u32>,
+    pub(super) height: Option<u32>,
     /// Samples per pixel.
     #[arg(long, value_name = "N", default_value_t = 64)]
-    spp: u32,
+    pub(super) spp: u32,
     /// Seed of the sample pattern (the gems keep their recipe seeds).
     #[arg(long, value_name = "S", default_value_t = 0)]
-    seed: u64,
+    pub(super) seed: u64,
     /// Worker threads (default: all cores). The image does not depend on it.
     #[arg(long, value_name = "N")]
-    threads: Option<usize>,
+    pub(super) threads: Option<usize>,
     /// An equirectangular .hdr or .exr environment replacing the scene's.
     #[arg(long, value_name = "FILE")]
-    env: Option<PathBuf>,
+    pub(super) env: Option<PathBuf>,
     /// Exposure in stops applied before tone mapping (PNG only).
     #[arg(
         long,
@@ -74,25 +87,60 @@ pub struct RenderArgs {
         default_value_t = 0.0,
         allow_negative_numbers = true
     )]
-    exposure: f64,
+    pub(super) exposure: f64,
     /// Tone curve for PNG output.
     #[arg(long, value_enum, default_value_t = TonemapArg::Filmic)]
-    tonemap: TonemapArg,
+    pub(super) tonemap: TonemapArg,
     /// Bounces after the first hit (0: direct light only).
     #[arg(long, value_name = "N", default_value_t = 4)]
-    bounces: u32,
+    pub(super) bounces: u32,
     /// Ambient occlusion within DIST scene units (mm), as the appendix
     /// shader gathers it: adds an `ao` layer to EXR output; a PNG shows the
     /// occlusion itself (white: open, black: enclosed) instead of the beauty.
     #[arg(long, value_name = "DIST")]
-    ao: Option<f64>,
+    pub(super) ao: Option<f64>,
     /// Largest film memory to allow, in GiB (default 4); the render is
     /// refused up front above it, and always above the memory available.
     #[arg(long, value_name = "GIB", default_value_t = DEFAULT_MAX_MEMORY_GIB)]
-    max_memory: f64,
+    pub(super) max_memory: f64,
     /// No progress bar and no summary.
     #[arg(long, short = 'q')]
-    quiet: bool,
+    pub(super) quiet: bool,
+    /// Render a turntable of N frames over a full turn: frame K is written
+    /// as OUT-000K.png (or .exr), and a PNG turntable also as an animated
+    /// OUT.png. Overrides the scene's `turntable`.
+    #[arg(long, value_name = "N")]
+    pub(super) frames: Option<u32>,
+    /// Render frame K (from 0) of the turntable alone, as OUT-000K.png.
+    #[arg(long, value_name = "K")]
+    pub(super) frame: Option<u32>,
+    /// What a turntable turns: the stones about their own verticals, or
+    /// the camera round the point it looks at (default: the scene's, else
+    /// stone).
+    #[arg(long, value_enum, value_name = "WHAT")]
+    pub(super) turn: Option<TurnArg>,
+    /// Render tile I of N (from 0; bands of rows) into an EXR that records
+    /// what it is; `lapidary merge` puts the tiles back together.
+    #[arg(long, value_name = "I/N", value_parser = parse_tile)]
+    pub(super) tile: Option<(u32, u32)>,
+}
+
+/// What a turntable turns (`--turn`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TurnArg {
+    /// The stones, each about the vertical through its origin.
+    Stone,
+    /// The camera, round the point it looks at.
+    Camera,
+}
+
+/// `I/N` of `--tile`: two whole numbers (ranges are checked against the
+/// image height later).
+fn parse_tile(text: &str) -> Result<(u32, u32), String> {
+    let parse = |s: &str| s.trim().parse::<u32>().ok();
+    text.split_once('/')
+        .and_then(|(i, n)| Some((parse(i)?, parse(n)?)))
+        .ok_or_else(|| format!("`{text}` is not I/N: tile I (from 0) of N tiles, e.g. 0/4"))
 }
 
 enum Format {
@@ -114,6 +162,11 @@ fn output_format(path: &Path) -> Result<Format, String> {
             path.display()
         )),
     }
+}
+
+/// Whether `path` names a PNG (else an EXR); another extension is refused.
+pub(super) fn is_png_output(path: &Path) -> Result<bool, String> {
+    Ok(matches!(output_format(path)?, Format::Png))
 }
 
 /// Memory the render needs, in bytes: the film, and as much again for the
@@ -203,136 +256,461 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
     Ok((width, height))
 }
 
-/// Run `lapidary render`.
+/// Run `lapidary render`: a still, a turntable's frames (and its animated
+/// PNG), one frame, or one tile of any of them.
 pub fn run(args: RenderArgs) -> Result<(), String> {
     let format = output_format(&args.output)?;
     let (width, height) = check_settings(&args)?;
-    let interrupted = Arc::new(AtomicBool::new(false));
-    {
-        let flag = Arc::clone(&interrupted);
-        // Ctrl-C (from here on) stops the render after the rows in flight; nothing is written;
-        // if a handler cannot be installed, Ctrl-C keeps its default (the
-        // process dies before writing, which also leaves no file).
-        let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
-    }
-
-    lapidary::output::check_writable(&args.output).map_err(|e| e.to_string())?;
-    let scene = match &args.scene {
-        Some(path) => load_scene(path).map_err(|e| e.to_string())?,
-        None => default_scene(),
+    let inputs = Inputs::load(&args)?;
+    let turntable = turntable_of(&args, &inputs.scene)?;
+    let frames: Vec<Option<u32>> = match (turntable, args.frame) {
+        (None, _) => vec![None],
+        (Some(t), Some(k)) => vec![Some(k)].into_iter().filter(|_| k < t.frames).collect(),
+        (Some(t), None) => (0..t.frames).map(Some).collect(),
     };
-    let gem = GemSource::load(args.recipe.as_deref().unwrap_or(DEFAULT_GEM))
-        .map_err(|e| e.to_string())?;
-    let quiet = args.quiet;
-    let report = |message: &str| {
-        if !quiet {
-            eprintln!("{message}");
-        }
-    };
-    let started = Instant::now();
-    let cache = super::table_cache_from_env();
-    let tables = Tables::Computed(&cache);
-    let mut render_scene = prepare_scene(
-        &scene,
-        &gem,
-        args.env.as_deref(),
-        args.bounces,
-        tables,
-        &report,
-    )?;
-    render_scene.ambient_occlusion = args.ao;
-    // `LAPIDARY_MNEE=off` leaves light through smooth translucent surfaces
-    // to path sampling alone, to measure what the connections gain.
-    render_scene.connect_through_surfaces = std::env::var("LAPIDARY_MNEE").as_deref() != Ok("off");
-    let camera = camera_for(&scene, width, height);
-    let settings = FilmSettings {
-        code_path: super::code_path_from_env(),
-        ..FilmSettings::new(width, height, args.spp, args.seed)
-    };
-    let pool = super::worker_pool(args.threads)?;
-    let bar = if !quiet && std::io::stderr().is_terminal() {
-        let bar = ProgressBar::new(u64::from(width) * u64::from(height));
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{bar:40} {percent:>3}% {elapsed_precise} eta {eta} {msg}",
-            )
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-        Some(bar)
-    } else {
-        None
-    };
-    let tracing = Instant::now();
-    let film = pool.install(|| {
-        render_cancellable(
-            &render_scene,
-            &camera,
-            &settings,
-            &|pixels| {
-                if let Some(bar) = &bar {
-                    bar.inc(pixels);
-                }
-            },
-            &interrupted,
-        )
-    });
-    let seconds = tracing.elapsed().as_secs_f64();
-    if let Some(bar) = &bar {
-        bar.finish_and_clear();
-    }
-    let Some(film) = film else {
+    if frames.is_empty() {
+        let frames = turntable.map_or(0, |t| t.frames);
         return Err(format!(
-            "interrupted: the render stopped and {} was not written",
+            "--frame {}: the turntable has {frames} frames, allowed 0 to {}",
+            args.frame.unwrap_or(0),
+            frames.saturating_sub(1)
+        ));
+    }
+    let split = match args.tile {
+        Some((index, count)) => Some(
+            TileSplit::new(index, count, height)
+                .map_err(|e| format!("--tile {index}/{count}: {e}"))?,
+        ),
+        None => None,
+    };
+    if split.is_some() && !matches!(format, Format::Exr) {
+        return Err(format!(
+            "{}: --tile writes a tile EXR: the output must end in .exr (`lapidary merge` makes the PNG)",
             args.output.display()
         ));
-    };
-    // The scene (materials, environment map, BVH) is no longer needed:
-    // free it before the output is encoded, which is the memory peak.
-    drop(render_scene);
-    let stats = film.stats;
-    match format {
-        Format::Png => {
-            let transform = DisplayTransform {
-                exposure_ev: args.exposure,
-                // Occlusion is a fraction: shown linearly, 1 as white.
-                curve: match (args.tonemap, args.ao) {
-                    (_, Some(_)) | (TonemapArg::Linear, None) => ToneCurve::Linear,
-                    (TonemapArg::Filmic, None) => ToneCurve::Filmic,
-                },
-                dither_seed: args.seed,
-            };
-            let ao_grey: Vec<[f32; 3]>;
-            let pixels = if args.ao.is_some() {
-                ao_grey = film.ao.iter().map(|a| [*a, *a, *a]).collect();
-                &ao_grey
-            } else {
-                &film.rgb
-            };
-            let image = pool.install(|| transform.encode(pixels, width, height));
-            lapidary::output::write_png(&args.output, &image).map_err(|e| e.to_string())?;
-        }
-        Format::Exr => {
-            let channels = film_channels(film, args.ao.is_some());
-            write_exr_owned(&args.output, width, height, channels).map_err(|e| e.to_string())?;
+    }
+    let outputs: Vec<PathBuf> = frames
+        .iter()
+        .map(|frame| frame_output(&args.output, *frame))
+        .collect();
+    for path in &outputs {
+        lapidary::output::check_writable(path).map_err(|e| e.to_string())?;
+    }
+    // A PNG turntable rendered whole also becomes an animated PNG at OUT.
+    let animation = (turntable.is_some()
+        && args.frame.is_none()
+        && split.is_none()
+        && matches!(format, Format::Png))
+    .then(|| args.output.clone());
+    let mut renderer = Renderer::prepare(&args, inputs, width, height, turntable)?;
+    let mut pictures = Vec::new();
+    for (frame, path) in frames.iter().zip(&outputs) {
+        let picture = renderer.render_to(*frame, split, path)?;
+        if animation.is_some() {
+            pictures.extend(picture);
         }
     }
-    if stats.bad_samples > 0 {
-        eprintln!(
-            "warning: {} samples were NaN, infinite or negative and were left out",
-            stats.bad_samples
-        );
+    if let Some(path) = animation {
+        write_apng(&path, &pictures, ANIMATION_FRAMES_PER_SECOND).map_err(|e| e.to_string())?;
+        renderer.report(&format!(
+            "wrote {} ({} frames, animated)",
+            path.display(),
+            pictures.len()
+        ));
     }
-    let rays = stats.traced_rays + stats.shadow_rays;
-    let samples = f64::from(width) * f64::from(height) * f64::from(args.spp);
-    report(&format!(
-        "wrote {} ({width} × {height}, {} spp) in {:.1} s: {:.2} Mrays/s, {:.2} M samples/s, {:.1} s total, {} code",
-        args.output.display(),
-        args.spp,
-        seconds,
-        rays as f64 / seconds / 1e6,
-        samples / seconds / 1e6,
-        started.elapsed().as_secs_f64(),
-        settings.code_path.name(),
-    ));
     Ok(())
+}
+
+/// What a batch task did.
+pub(super) enum TaskOutcome {
+    /// It rendered and wrote its tile.
+    Rendered,
+    /// Its tile was already there, complete and of this render.
+    AlreadyDone,
+}
+
+/// Render one tile of one frame (a batch task) to `path`, unless `path`
+/// already holds that very tile, complete (a re-queued task resumes).
+/// `turntable` replaces the scene's.
+pub(super) fn run_task(
+    args: &RenderArgs,
+    turntable: Option<Turntable>,
+    frame: Option<u32>,
+    split: TileSplit,
+    path: &Path,
+) -> Result<TaskOutcome, String> {
+    let (width, height) = check_settings(args)?;
+    lapidary::output::check_writable(path).map_err(|e| e.to_string())?;
+    let inputs = Inputs::load(args)?;
+    let renderer = Renderer::prepare_lazily(args, inputs, width, height, turntable)?;
+    if path.exists() {
+        if let Ok(tile) = read_tile(path) {
+            let expected = renderer.record(frame);
+            let done = tile_record(&expected, split, &tile.channels, tile.record.bad_samples);
+            if ReadRecord::parse(&done.to_text()).is_some_and(|r| r == tile.record) {
+                return Ok(TaskOutcome::AlreadyDone);
+            }
+        }
+    }
+    let mut renderer = renderer.compiled(args)?;
+    renderer.render_to(frame, Some(split), path)?;
+    Ok(TaskOutcome::Rendered)
+}
+
+/// The record of frame `frame` (or the still) of the render `args` and
+/// `turntable` ask for: what its tiles must say they are.
+pub(super) fn expected_record(
+    args: &RenderArgs,
+    turntable: Option<Turntable>,
+    frame: Option<u32>,
+) -> Result<RenderRecord, String> {
+    let (width, height) = check_settings(args)?;
+    let inputs = Inputs::load(args)?;
+    Ok(Renderer::prepare_lazily(args, inputs, width, height, turntable)?.record(frame))
+}
+
+/// Frames per second of a turntable's animated PNG.
+pub(super) const ANIMATION_FRAMES_PER_SECOND: u16 = 12;
+
+/// The file of frame `frame` beside `output`: `OUT-0007.png`; `output`
+/// itself for a still.
+pub(super) fn frame_output(output: &Path, frame: Option<u32>) -> PathBuf {
+    if frame.is_none() {
+        return output.to_path_buf();
+    }
+    let stem = output
+        .file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    let extension = output
+        .extension()
+        .map_or_else(String::new, |e| format!(".{}", e.to_string_lossy()));
+    output.with_file_name(format!("{stem}{}{extension}", frame_suffix(frame)))
+}
+
+/// The turntable to render: `--frames` (with `--turn`, else the scene's
+/// motion, else the stones), else the scene's; `--frame` needs one.
+fn turntable_of(args: &RenderArgs, scene: &Scene) -> Result<Option<Turntable>, String> {
+    let turn = args.turn.map(|t| match t {
+        TurnArg::Stone => TurnSpec::Stone,
+        TurnArg::Camera => TurnSpec::Camera,
+    });
+    let turntable = match args.frames {
+        Some(frames) if frames == 0 || frames > MAX_FRAMES => {
+            return Err(format!("--frames {frames}: allowed 1 to {MAX_FRAMES}"));
+        }
+        Some(frames) => Some(Turntable {
+            frames,
+            turn: turn.or(scene.turntable.map(|t| t.turn)).unwrap_or_default(),
+        }),
+        None => scene.turntable.map(|t| Turntable {
+            turn: turn.unwrap_or(t.turn),
+            ..t
+        }),
+    };
+    if turntable.is_none() && (args.frame.is_some() || args.turn.is_some()) {
+        return Err(format!(
+            "--{} needs a turntable: give --frames N, or a scene with `turntable`",
+            if args.frame.is_some() {
+                "frame"
+            } else {
+                "turn"
+            }
+        ));
+    }
+    Ok(turntable)
+}
+
+/// The inputs of a render, read and checked.
+struct Inputs {
+    scene: Scene,
+    gem: GemSource,
+    /// SHA-256 of every input file's bytes.
+    sha256: String,
+}
+
+impl Inputs {
+    fn load(args: &RenderArgs) -> Result<Inputs, String> {
+        let (scene, scene_bytes) = match &args.scene {
+            Some(path) => (
+                load_scene(path).map_err(|e| e.to_string())?,
+                std::fs::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?,
+            ),
+            None => (default_scene(), DEFAULT_SCENE_SOURCE.as_bytes().to_vec()),
+        };
+        let gem = GemSource::load(args.recipe.as_deref().unwrap_or(DEFAULT_GEM))
+            .map_err(|e| e.to_string())?;
+        let sha256 = inputs_sha256(&scene_bytes, &scene, &gem, args.env.as_deref())?;
+        Ok(Inputs { scene, gem, sha256 })
+    }
+}
+
+/// A scene compiled for rendering, with everything each frame shares.
+struct Renderer {
+    scene: Scene,
+    gem: GemSource,
+    record: RenderRecord,
+    turntable: Option<Turntable>,
+    /// The compiled scene, or `None` until [`Renderer::compiled`].
+    traced: Option<(RenderScene, Vec<StoneInstance>)>,
+    settings: FilmSettings,
+    pool: rayon::ThreadPool,
+    interrupted: Arc<AtomicBool>,
+    quiet: bool,
+    started: Instant,
+}
+
+impl Renderer {
+    /// The record of the render and its compiled scene.
+    fn prepare(
+        args: &RenderArgs,
+        inputs: Inputs,
+        width: u32,
+        height: u32,
+        turntable: Option<Turntable>,
+    ) -> Result<Renderer, String> {
+        Renderer::prepare_lazily(args, inputs, width, height, turntable)?.compiled(args)
+    }
+
+    /// The record of the render, its scene not compiled yet.
+    fn prepare_lazily(
+        args: &RenderArgs,
+        inputs: Inputs,
+        width: u32,
+        height: u32,
+        turntable: Option<Turntable>,
+    ) -> Result<Renderer, String> {
+        // `LAPIDARY_MNEE=off` leaves light through smooth translucent surfaces
+        // to path sampling alone, to measure what the connections gain.
+        let connections = std::env::var("LAPIDARY_MNEE").as_deref() != Ok("off");
+        let record = RenderRecord {
+            version: env!("CARGO_PKG_VERSION").to_string(),
+            recipe: args
+                .recipe
+                .clone()
+                .unwrap_or_else(|| DEFAULT_GEM.to_string()),
+            scene: args
+                .scene
+                .as_ref()
+                .map_or_else(|| "builtin:studio".to_string(), |p| p.display().to_string()),
+            environment: args.env.as_ref().map(|p| p.display().to_string()),
+            width_px: width,
+            height_px: height,
+            samples_per_pixel: args.spp,
+            seed: args.seed,
+            bounces: args.bounces,
+            ao_distance_mm: args.ao,
+            exposure_ev: args.exposure,
+            tone_curve: match args.tonemap {
+                TonemapArg::Filmic => ToneCurve::Filmic,
+                TonemapArg::Linear => ToneCurve::Linear,
+            },
+            connections,
+            frame: None,
+            inputs_sha256: inputs.sha256,
+        };
+        let interrupted = Arc::new(AtomicBool::new(false));
+        {
+            let flag = Arc::clone(&interrupted);
+            // Ctrl-C (from here on) stops the render after the rows in flight; nothing is written;
+            // if a handler cannot be installed, Ctrl-C keeps its default (the
+            // process dies before writing, which also leaves no file).
+            let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+        }
+        Ok(Renderer {
+            scene: inputs.scene,
+            gem: inputs.gem,
+            record,
+            turntable,
+            traced: None,
+            settings: FilmSettings {
+                code_path: super::code_path_from_env(),
+                ..FilmSettings::new(width, height, args.spp, args.seed)
+            },
+            pool: super::worker_pool(args.threads)?,
+            interrupted,
+            quiet: args.quiet,
+            started: Instant::now(),
+        })
+    }
+
+    /// This renderer with its scene compiled (gems, materials, environment).
+    fn compiled(mut self, args: &RenderArgs) -> Result<Renderer, String> {
+        let cache = super::table_cache_from_env();
+        let quiet = self.quiet;
+        let report = |message: &str| {
+            if !quiet {
+                eprintln!("{message}");
+            }
+        };
+        let mut traced = prepare_scene(
+            &self.scene,
+            &self.gem,
+            args.env.as_deref(),
+            args.bounces,
+            Tables::Computed(&cache),
+            &report,
+        )?;
+        traced.ambient_occlusion = args.ao;
+        traced.connect_through_surfaces = self.record.connections;
+        let stones = traced.world.stones().to_vec();
+        self.traced = Some((traced, stones));
+        Ok(self)
+    }
+
+    /// The record of frame `frame` (or the still).
+    fn record(&self, frame: Option<u32>) -> RenderRecord {
+        RenderRecord {
+            frame: frame.zip(self.turntable).map(|(frame, t)| FrameOf {
+                frame,
+                frames: t.frames,
+                turn: t.turn,
+            }),
+            ..self.record.clone()
+        }
+    }
+
+    fn report(&self, message: &str) {
+        if !self.quiet {
+            eprintln!("{message}");
+        }
+    }
+
+    /// Render frame `frame` (or the still), or tile `split` of it, and write
+    /// it to `path`; returns the PNG picture when one was written. The
+    /// summary line on stderr says which frame of how many it was.
+    fn render_to(
+        &mut self,
+        frame: Option<u32>,
+        split: Option<TileSplit>,
+        path: &Path,
+    ) -> Result<Option<image::RgbImage>, String> {
+        let turn_deg = frame
+            .zip(self.turntable)
+            .map_or(0.0, |(k, t)| t.turn_deg(k));
+        let Some((traced, stones)) = &mut self.traced else {
+            unreachable!("render_to runs on a compiled renderer");
+        };
+        let (width, height) = (self.settings.width, self.settings.height);
+        let mut view = self.scene.clone();
+        match self.turntable.map(|t| t.turn) {
+            Some(TurnSpec::Stone) => {
+                let ground = traced.world.ground_height();
+                traced.world = World::new(turned_stones(stones, turn_deg), ground);
+            }
+            Some(TurnSpec::Camera) => view.camera = orbited_camera(&self.scene.camera, turn_deg),
+            None => {}
+        }
+        let traced: &RenderScene = traced;
+        let camera = camera_for(&view, width, height);
+        let rows = split.map_or(0..height, |s| s.rows());
+        let bar = if !self.quiet && std::io::stderr().is_terminal() {
+            let bar = ProgressBar::new(u64::from(width) * u64::from(rows.end - rows.start));
+            bar.set_style(
+                ProgressStyle::with_template(
+                    "{bar:40} {percent:>3}% {elapsed_precise} eta {eta} {msg}",
+                )
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            Some(bar)
+        } else {
+            None
+        };
+        let tracing = Instant::now();
+        let film = self.pool.install(|| {
+            render_rows_cancellable(
+                traced,
+                &camera,
+                &self.settings,
+                rows.clone(),
+                &|pixels| {
+                    if let Some(bar) = &bar {
+                        bar.inc(pixels);
+                    }
+                },
+                &self.interrupted,
+            )
+        });
+        let seconds = tracing.elapsed().as_secs_f64();
+        if let Some(bar) = &bar {
+            bar.finish_and_clear();
+        }
+        let Some(film) = film else {
+            return Err(format!(
+                "interrupted: the render stopped and {} was not written",
+                path.display()
+            ));
+        };
+        let stats = film.stats;
+        let record = self.record(frame);
+        let with_ao = record.ao_distance_mm.is_some();
+        let mut picture = None;
+        match (split, output_format(path)?) {
+            (Some(split), _) => {
+                let mut channels = film_channels(film, with_ao);
+                channels.sort_by(|a, b| a.name.as_bytes().cmp(b.name.as_bytes()));
+                let note = tile_record(&record, split, &channels, stats.bad_samples).to_text();
+                write_exr_with_note(
+                    path,
+                    width,
+                    rows.end - rows.start,
+                    channels,
+                    (TILE_NOTE, &note),
+                )
+                .map_err(|e| e.to_string())?;
+            }
+            (None, Format::Png) => {
+                let transform = record.display_transform();
+                let ao_grey: Vec<[f32; 3]>;
+                let pixels = if with_ao {
+                    ao_grey = film.ao.iter().map(|a| [*a, *a, *a]).collect();
+                    &ao_grey
+                } else {
+                    &film.rgb
+                };
+                let image = self
+                    .pool
+                    .install(|| transform.encode(pixels, width, height));
+                lapidary::output::write_png(path, &image).map_err(|e| e.to_string())?;
+                picture = Some(image);
+            }
+            (None, Format::Exr) => {
+                let channels = film_channels(film, with_ao);
+                write_exr_owned(path, width, height, channels).map_err(|e| e.to_string())?;
+            }
+        }
+        if stats.bad_samples > 0 {
+            eprintln!(
+                "warning: {} samples were NaN, infinite or negative and were left out",
+                stats.bad_samples
+            );
+        }
+        let rays = stats.traced_rays + stats.shadow_rays;
+        let samples = f64::from(width)
+            * f64::from(rows.end - rows.start)
+            * f64::from(self.settings.samples_per_pixel);
+        let what = match (frame.zip(self.turntable), split) {
+            (Some((k, t)), _) => format!("frame {k} of {} ({turn_deg:.1}°): ", t.frames),
+            _ => String::new(),
+        };
+        let tile = split.map_or(String::new(), |s| {
+            format!(
+                ", tile {} of {}: rows {}..{}",
+                s.index(),
+                s.count(),
+                rows.start,
+                rows.end
+            )
+        });
+        self.report(&format!(
+            "{what}wrote {} ({width} × {height}{tile}, {} spp) in {:.1} s: {:.2} Mrays/s, {:.2} M samples/s, {:.1} s total, {} code",
+            path.display(),
+            self.settings.samples_per_pixel,
+            seconds,
+            rays as f64 / seconds / 1e6,
+            samples / seconds / 1e6,
+            self.started.elapsed().as_secs_f64(),
+            self.settings.code_path.name(),
+        ));
+        Ok(picture)
+    }
 }

@@ -19,7 +19,7 @@ use std::path::Path;
 
 use ::exr::block::chunk::{Chunk, CompressedBlock, CompressedScanLineBlock};
 use ::exr::block::writer::ChunksWriter;
-use ::exr::meta::attribute::{ChannelDescription, SampleType, Text};
+use ::exr::meta::attribute::{AttributeValue, ChannelDescription, SampleType, Text};
 use ::exr::meta::header::Header;
 use ::exr::meta::BlockDescription;
 use ::exr::prelude::{
@@ -77,6 +77,10 @@ pub struct ExrImage {
     /// All channels of the first layer, sorted by name (byte order, as the
     /// EXR format stores them).
     pub channels: Vec<ExrChannel>,
+    /// The layer's text attributes beyond the standard ones (as
+    /// [`write_exr_with_note`] writes), sorted by name; text that is not
+    /// UTF-8 is decoded lossily.
+    pub notes: Vec<(String, String)>,
 }
 
 /// Longest channel name the EXR format allows (with the long-names flag,
@@ -110,6 +114,42 @@ pub fn write_exr_owned(
     height: u32,
     channels: Vec<ExrChannel>,
 ) -> Result<(), OutputError> {
+    write_exr_with_attributes(path, width, height, channels, LayerAttributes::default())
+}
+
+/// [`write_exr_owned`] with one text attribute `note = (name, text)` in the
+/// header besides the standard ones (e.g. what a tile of a render is, for
+/// the merge to check). The text is stored as its UTF-8 bytes; one
+/// attribute, so the header's bytes do not depend on a map's order.
+pub fn write_exr_with_note(
+    path: &Path,
+    width: u32,
+    height: u32,
+    channels: Vec<ExrChannel>,
+    note: (&str, &str),
+) -> Result<(), OutputError> {
+    let (name, text) = note;
+    let name = Text::new_or_none(name)
+        .filter(|n| !n.bytes().is_empty() && n.bytes().iter().all(u8::is_ascii_graphic))
+        .ok_or_else(|| OutputError {
+            path: path.display().to_string(),
+            message: format!("attribute name {name:?} must be printable ASCII"),
+        })?;
+    let mut attributes = LayerAttributes::default();
+    attributes.other.insert(
+        name,
+        AttributeValue::Text(Text::from_slice_unchecked(text.as_bytes())),
+    );
+    write_exr_with_attributes(path, width, height, channels, attributes)
+}
+
+fn write_exr_with_attributes(
+    path: &Path,
+    width: u32,
+    height: u32,
+    channels: Vec<ExrChannel>,
+    attributes: LayerAttributes,
+) -> Result<(), OutputError> {
     let err = |message: String| OutputError {
         path: path.display().to_string(),
         message,
@@ -142,7 +182,7 @@ pub fn write_exr_owned(
         BlockDescription::ScanLines,
         LineOrder::Increasing,
     )
-    .with_attributes(LayerAttributes::default());
+    .with_attributes(attributes);
     let width = width as usize;
     write_atomically_with(path, |file| {
         let mut buffered = std::io::BufWriter::new(file);
@@ -293,10 +333,24 @@ pub fn read_exr(path: &Path) -> Result<ExrImage, OutputError> {
         })
         .collect();
     channels.sort_by(|a, b| a.name.as_bytes().cmp(b.name.as_bytes()));
+    let mut notes: Vec<(String, String)> = layer
+        .attributes
+        .other
+        .iter()
+        .filter_map(|(name, value)| match value {
+            AttributeValue::Text(text) => Some((
+                name.to_string(),
+                String::from_utf8_lossy(text.bytes()).into_owned(),
+            )),
+            _ => None,
+        })
+        .collect();
+    notes.sort();
     Ok(ExrImage {
         width,
         height,
         channels,
+        notes,
     })
 }
 /// The EXR channels of a film: RGBA and the AOV layers, dotted names, plus

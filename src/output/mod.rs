@@ -1,6 +1,7 @@
 //! Writing results to disk without ever leaving a half-written file: data
 //! goes to a temporary file beside the target, which is then renamed over it.
 
+pub mod animation;
 pub mod exr;
 pub(crate) mod exr_zip;
 pub mod tonemap;

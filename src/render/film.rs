@@ -8,6 +8,7 @@
 //! the filter, all weights are 1), which keeps pixels independent.
 
 use glam::DVec3;
+use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
@@ -321,11 +322,41 @@ pub fn render_cancellable(
     progress: &(dyn Fn(u64) + Sync),
     cancel: &AtomicBool,
 ) -> Option<Film> {
-    let pixels = settings.width as usize * settings.height as usize;
+    render_rows_cancellable(
+        scene,
+        camera,
+        settings,
+        0..settings.height,
+        progress,
+        cancel,
+    )
+}
+
+/// [`render_cancellable`] for the rows `rows` of the film alone (a tile,
+/// [`crate::render::tiles`]): a [`Film`] `rows.len()` pixels high whose
+/// rows are the same bits as those rows of the whole film, because every
+/// pixel is keyed by its place in the whole film. `rows` must lie within
+/// `0..settings.height`.
+pub fn render_rows_cancellable(
+    scene: &RenderScene,
+    camera: &PinholeCamera,
+    settings: &FilmSettings,
+    rows: Range<u32>,
+    progress: &(dyn Fn(u64) + Sync),
+    cancel: &AtomicBool,
+) -> Option<Film> {
+    assert!(
+        rows.start <= rows.end && rows.end <= settings.height,
+        "rows {rows:?} outside a film {} high",
+        settings.height
+    );
+    let first_row = rows.start;
+    let height = rows.end - rows.start;
+    let pixels = settings.width as usize * height as usize;
     let w = settings.width as usize;
     let mut film = Film {
         width: settings.width,
-        height: settings.height,
+        height,
         rgb: vec![[0.0; 3]; pixels],
         alpha: vec![0.0; pixels],
         albedo: vec![[0.0; 3]; pixels],
@@ -387,7 +418,7 @@ pub fn render_cancellable(
                     material_id,
                     ao,
                 };
-                let stats = render_row(scene, camera, settings, y as u32, row);
+                let stats = render_row(scene, camera, settings, first_row + y as u32, row);
                 progress(u64::from(settings.width));
                 stats
             },

@@ -20,6 +20,8 @@ pub mod prepare;
 pub(crate) mod refracted_light;
 pub(crate) mod sampler;
 pub(crate) mod stone_grid;
+pub mod tiles;
+pub mod turntable;
 pub mod world;
 pub(crate) mod zoning;
 

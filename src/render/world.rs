@@ -305,6 +305,11 @@ impl World {
         &self.stones
     }
 
+    /// The height of the ground plane, if there is one.
+    pub fn ground_height(&self) -> Option<f64> {
+        self.ground_height
+    }
+
     /// The world ray in stone `index`'s object space, by its precomputed
     /// placement (a rotation keeps lengths: t is the same in both spaces).
     pub(crate) fn object_ray(

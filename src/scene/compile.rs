@@ -19,7 +19,9 @@ use super::spec::{
     BaseSpec, CameraSpec, EnvironmentKind, GroundSpec, LightKind, OutlineSpec, SceneSpec,
     ShapeSpec, StoneSpec,
 };
-use super::{Camera, EnvironmentSpec, Ground, LightSpec, Scene, StonePlacement, MAX_STONES};
+use super::{
+    Camera, EnvironmentSpec, Ground, LightSpec, Scene, StonePlacement, Turntable, MAX_STONES,
+};
 use crate::brdf::Rgb;
 use crate::geometry::{Base, Cabochon, CabochonParams, GeometryError, Outline};
 use crate::recipe::compile::{read_ron_file, ron_error};
@@ -310,6 +312,10 @@ impl Compiler<'_> {
             ground,
             lights,
             environment,
+            turntable: spec.turntable.as_ref().map(|t| Turntable {
+                frames: t.frames,
+                turn: t.turn,
+            }),
             path: path.map(Path::to_path_buf),
         })
     }

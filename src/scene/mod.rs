@@ -23,6 +23,7 @@ pub mod compile;
 pub mod spec;
 
 pub use compile::{default_scene, load_scene, parse_scene, DEFAULT_SCENE_SOURCE};
+pub use spec::TurnSpec;
 
 use crate::brdf::Rgb;
 use crate::geometry::CabochonParams;
@@ -46,9 +47,28 @@ pub struct Scene {
     pub lights: Vec<LightSpec>,
     /// What rays leaving the scene see.
     pub environment: EnvironmentSpec,
+    /// The turntable the scene file names, if any.
+    pub turntable: Option<Turntable>,
     /// The scene file (`None` for text parsed without one, e.g. the
     /// built-in default).
     pub path: Option<PathBuf>,
+}
+
+/// A turntable: `frames` pictures evenly over a full turn; frame k is
+/// turned by 360°·k/`frames` ([`Turntable::turn_deg`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Turntable {
+    /// Frames of the full turn, 1 to [`spec::MAX_FRAMES`].
+    pub frames: u32,
+    /// What turns.
+    pub turn: TurnSpec,
+}
+
+impl Turntable {
+    /// The turn of frame `frame`, degrees counter-clockwise seen from above.
+    pub fn turn_deg(&self, frame: u32) -> f64 {
+        360.0 * f64::from(frame) / f64::from(self.frames)
+    }
 }
 
 /// A pinhole camera in world space.

@@ -47,6 +47,51 @@ pub struct SceneSpec {
     /// What rays that leave the scene see (default: `Studio(intensity: 1.0)`).
     #[serde(default = "studio")]
     pub environment: EnvironmentKind,
+    /// Render a turntable of this many frames instead of one still
+    /// (default: none; `lapidary render --frames` overrides it).
+    #[serde(default)]
+    pub turntable: Option<TurntableSpec>,
+}
+
+/// A turntable: `frames` pictures evenly over a full turn.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(rename = "Turntable", deny_unknown_fields)]
+pub struct TurntableSpec {
+    /// Frames of the full turn, 1 to `MAX_FRAMES`.
+    #[serde(deserialize_with = "frames")]
+    pub frames: u32,
+    /// What turns (default: the stones).
+    #[serde(default)]
+    pub turn: TurnSpec,
+}
+
+/// What a turntable turns.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename = "Turn", deny_unknown_fields)]
+pub enum TurnSpec {
+    /// Every stone about the vertical through its own origin; the camera,
+    /// lights and environment stay.
+    #[default]
+    Stone,
+    /// The camera about the vertical through the point it looks at; the
+    /// stones, lights and environment stay.
+    Camera,
+}
+
+/// Most frames a turntable may have (one a tenth of a degree).
+pub const MAX_FRAMES: u32 = 3600;
+
+/// Deserialize `frames`, allowed 1 to [`MAX_FRAMES`].
+fn frames<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    let v = u64::deserialize(d)?;
+    u32::try_from(v)
+        .ok()
+        .filter(|v| (1..=MAX_FRAMES).contains(v))
+        .ok_or_else(|| {
+            D::Error::custom(format!(
+                "`frames` = {v} is out of range; allowed: 1 to {MAX_FRAMES}"
+            ))
+        })
 }
 
 fn studio() -> EnvironmentKind {

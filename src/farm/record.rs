@@ -1,0 +1,410 @@
+//! What a render is, written into each tile it is split into, so that a
+//! merge can tell which tiles belong together: the inputs (names and a
+//! SHA-256 of their bytes), every setting that changes a byte of the
+//! image, the frame, the version; and per tile its place and a SHA-256 of
+//! its pixels.
+//!
+//! The record is text, `key: value` a line, in one fixed order, stored as
+//! one EXR header attribute ([`TILE_NOTE`]). Strings are written with
+//! Rust's debug escapes (no line break can split a value) and only ever
+//! compared, never unescaped.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use sha2::{Digest, Sha256};
+
+use crate::output::exr::{ChannelData, ExrChannel};
+use crate::output::tonemap::{DisplayTransform, ToneCurve};
+use crate::recipe::gem::GemSource;
+use crate::render::tiles::TileSplit;
+use crate::scene::{EnvironmentSpec, Scene, TurnSpec};
+
+/// Name of the EXR header attribute that holds a tile's record.
+pub const TILE_NOTE: &str = "lapidary.tile";
+
+/// First line of every tile record; a new layout gets a new number.
+const RECORD_HEADER: &str = "lapidary tile record 1";
+
+/// Frame `frame` of a turntable of `frames`, turning `turn`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameOf {
+    /// The frame, from 0.
+    pub frame: u32,
+    /// Frames of the full turn.
+    pub frames: u32,
+    /// What turns.
+    pub turn: TurnSpec,
+}
+
+/// Everything that decides the bytes of one image (a still, or one frame).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderRecord {
+    /// The lapidary version that rendered it.
+    pub version: String,
+    /// The gem of stones that name none, as given (a built-in name or a path).
+    pub recipe: String,
+    /// The scene file as given, or `builtin:studio`.
+    pub scene: String,
+    /// The environment image replacing the scene's, as given.
+    pub environment: Option<String>,
+    /// Image width in pixels.
+    pub width_px: u32,
+    /// Image height in pixels.
+    pub height_px: u32,
+    /// Samples per pixel.
+    pub samples_per_pixel: u32,
+    /// Seed of the sample pattern and of the PNG dither.
+    pub seed: u64,
+    /// Bounces after the first hit.
+    pub bounces: u32,
+    /// Ambient-occlusion distance in mm, when on.
+    pub ao_distance_mm: Option<f64>,
+    /// Exposure of the PNG, stops.
+    pub exposure_ev: f64,
+    /// Tone curve of the PNG.
+    pub tone_curve: ToneCurve,
+    /// Whether light is connected through translucent surfaces
+    /// (`LAPIDARY_MNEE`).
+    pub connections: bool,
+    /// The turntable frame, for an animation.
+    pub frame: Option<FrameOf>,
+    /// SHA-256 (hex) of the bytes of every input file the render read.
+    pub inputs_sha256: String,
+}
+
+impl RenderRecord {
+    /// How the PNG of this render is encoded from its linear film: the same
+    /// for a single render and for merged tiles. Ambient occlusion, a
+    /// fraction, is shown linearly.
+    pub fn display_transform(&self) -> DisplayTransform {
+        DisplayTransform {
+            exposure_ev: self.exposure_ev,
+            curve: match self.ao_distance_mm {
+                Some(_) => ToneCurve::Linear,
+                None => self.tone_curve,
+            },
+            dither_seed: self.seed,
+        }
+    }
+
+    /// The record's `key: value` lines as a tile stores them (what
+    /// [`ReadRecord::render_lines`] reads back).
+    pub fn text_lines(&self) -> Vec<(String, String)> {
+        self.lines()
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), v))
+            .collect()
+    }
+
+    /// `key: value` lines in a fixed order.
+    fn lines(&self) -> Vec<(&'static str, String)> {
+        let text = |s: &str| format!("{s:?}");
+        let frame = match self.frame {
+            Some(f) => format!("{} of {} turning {:?}", f.frame, f.frames, f.turn),
+            None => "still".to_string(),
+        };
+        vec![
+            ("version", text(&self.version)),
+            ("recipe", text(&self.recipe)),
+            ("scene", text(&self.scene)),
+            (
+                "environment",
+                self.environment.as_deref().map_or("none".into(), text),
+            ),
+            ("size", format!("{}x{}", self.width_px, self.height_px)),
+            ("spp", self.samples_per_pixel.to_string()),
+            ("seed", self.seed.to_string()),
+            ("bounces", self.bounces.to_string()),
+            (
+                "ao_mm",
+                self.ao_distance_mm.map_or("off".into(), |d| d.to_string()),
+            ),
+            ("exposure_ev", self.exposure_ev.to_string()),
+            ("tonemap", format!("{:?}", self.tone_curve)),
+            ("connections", self.connections.to_string()),
+            ("frame", frame),
+            ("inputs_sha256", self.inputs_sha256.clone()),
+        ]
+    }
+}
+
+/// One tile of a render as its file records it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TileRecord {
+    /// The render it is part of.
+    pub render: RenderRecord,
+    /// Which tile, from 0.
+    pub tile: u32,
+    /// Of how many.
+    pub tiles: u32,
+    /// SHA-256 (hex) of its channels ([`pixels_sha256`]).
+    pub pixels_sha256: String,
+    /// Samples that were NaN, infinite or negative and left out.
+    pub bad_samples: u64,
+}
+
+impl TileRecord {
+    /// The record as the text stored in the tile's header.
+    pub fn to_text(&self) -> String {
+        let mut text = format!("{RECORD_HEADER}\n");
+        let tile_lines = [
+            ("tile", format!("{} of {}", self.tile, self.tiles)),
+            ("pixels_sha256", self.pixels_sha256.clone()),
+            ("bad_samples", self.bad_samples.to_string()),
+        ];
+        for (key, value) in self.render.lines().into_iter().chain(tile_lines) {
+            let _ = writeln!(text, "{key}: {value}");
+        }
+        text
+    }
+}
+
+/// A tile record read back: its render's lines (compared as text), and
+/// the fields a merge needs parsed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReadRecord {
+    /// The render's `key: value` lines as written, in order.
+    pub render_lines: Vec<(String, String)>,
+    /// Image width and height in pixels.
+    pub size_px: (u32, u32),
+    /// Which tile, from 0, and of how many.
+    pub tile: (u32, u32),
+    /// SHA-256 (hex) of its channels.
+    pub pixels_sha256: String,
+    /// Samples left out.
+    pub bad_samples: u64,
+    /// The PNG encoding of the merged image, and whether its picture is
+    /// the ambient occlusion (not the beauty).
+    pub display: (DisplayTransform, bool),
+}
+
+impl ReadRecord {
+    /// Parse the text of [`TileRecord::to_text`]; `None` when it is not one
+    /// (another layout, a line missing, a value that does not parse).
+    pub fn parse(text: &str) -> Option<ReadRecord> {
+        let mut lines = text.lines();
+        if lines.next()? != RECORD_HEADER {
+            return None;
+        }
+        let mut pairs: Vec<(String, String)> = Vec::new();
+        for line in lines {
+            let (key, value) = line.split_once(": ")?;
+            pairs.push((key.to_string(), value.to_string()));
+        }
+        let get = |key: &str| {
+            pairs
+                .iter()
+                .find(|(k, _)| k == key)
+                .map(|(_, v)| v.as_str())
+        };
+        // The same keys in the same order as written, nothing else.
+        let expected = RenderRecord::example_keys();
+        let written: Vec<&str> = pairs.iter().map(|(k, _)| k.as_str()).collect();
+        if written.len() != expected.len() + 3
+            || written[..expected.len()] != expected[..]
+            || written[expected.len()..] != ["tile", "pixels_sha256", "bad_samples"]
+        {
+            return None;
+        }
+        let (width, height) = get("size")?.split_once('x')?;
+        let (tile, tiles) = get("tile")?.split_once(" of ")?;
+        let curve = match get("tonemap")? {
+            "Filmic" => ToneCurve::Filmic,
+            "Linear" => ToneCurve::Linear,
+            _ => return None,
+        };
+        let ao = match get("ao_mm")? {
+            "off" => None,
+            d => Some(d.parse::<f64>().ok()?),
+        };
+        let exposure_ev: f64 = get("exposure_ev")?.parse().ok()?;
+        let seed: u64 = get("seed")?.parse().ok()?;
+        let display = DisplayTransform {
+            exposure_ev,
+            curve: if ao.is_some() {
+                ToneCurve::Linear
+            } else {
+                curve
+            },
+            dither_seed: seed,
+        };
+        let sha = get("pixels_sha256")?.to_string();
+        Some(ReadRecord {
+            size_px: (width.parse().ok()?, height.parse().ok()?),
+            tile: (tile.parse().ok()?, tiles.parse().ok()?),
+            pixels_sha256: sha,
+            bad_samples: get("bad_samples")?.parse().ok()?,
+            display: (display, ao.is_some()),
+            render_lines: pairs.into_iter().take(expected.len()).collect(),
+        })
+    }
+}
+
+impl RenderRecord {
+    /// The render keys of a record, in their order.
+    fn example_keys() -> Vec<&'static str> {
+        let example = RenderRecord {
+            version: String::new(),
+            recipe: String::new(),
+            scene: String::new(),
+            environment: None,
+            width_px: 1,
+            height_px: 1,
+            samples_per_pixel: 1,
+            seed: 0,
+            bounces: 0,
+            ao_distance_mm: None,
+            exposure_ev: 0.0,
+            tone_curve: ToneCurve::Filmic,
+            connections: true,
+            frame: None,
+            inputs_sha256: String::new(),
+        };
+        example.lines().into_iter().map(|(k, _)| k).collect()
+    }
+}
+
+/// SHA-256 (hex) of channels: each channel's name, type and samples
+/// (little-endian) in the order given.
+pub fn pixels_sha256(channels: &[ExrChannel]) -> String {
+    let mut hash = Sha256::new();
+    for channel in channels {
+        hash.update((channel.name.len() as u64).to_le_bytes());
+        hash.update(channel.name.as_bytes());
+        match &channel.data {
+            ChannelData::F32(v) => {
+                hash.update(b"f32");
+                v.iter().for_each(|x| hash.update(x.to_le_bytes()));
+            }
+            ChannelData::U32(v) => {
+                hash.update(b"u32");
+                v.iter().for_each(|x| hash.update(x.to_le_bytes()));
+            }
+        }
+    }
+    hex(&hash.finalize())
+}
+
+/// SHA-256 (hex) of every file a render reads: the gem recipe, the scene,
+/// the recipes its stones name, the ground's material file, the
+/// environment image (the scene's or `environment_file`); built-in ones
+/// by their embedded text. An unreadable file is an error naming it.
+pub fn inputs_sha256(
+    scene_bytes: &[u8],
+    scene: &Scene,
+    gem: &GemSource,
+    environment_file: Option<&Path>,
+) -> Result<String, String> {
+    let mut hash = Sha256::new();
+    let mut add = |label: &str, bytes: &[u8]| {
+        hash.update((label.len() as u64).to_le_bytes());
+        hash.update(label.as_bytes());
+        hash.update((bytes.len() as u64).to_le_bytes());
+        hash.update(bytes);
+    };
+    add("scene", scene_bytes);
+    add("gem", gem.text.as_bytes());
+    for stone in &scene.stones {
+        if let Some(recipe) = &stone.recipe {
+            let source = GemSource::load(recipe).map_err(|e| e.to_string())?;
+            add("stone gem", source.text.as_bytes());
+        }
+    }
+    let read = |path: &Path| {
+        std::fs::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))
+    };
+    if let Some(ground) = &scene.ground {
+        let path = Path::new(&ground.material);
+        if path.is_file() {
+            add("ground material", &read(path)?);
+        } else {
+            add("ground material", ground.material.as_bytes());
+        }
+    }
+    let environment = environment_file
+        .map(Path::to_path_buf)
+        .or(match &scene.environment {
+            EnvironmentSpec::File { path, .. } => Some(path.clone()),
+            _ => None,
+        });
+    if let Some(path) = environment {
+        add("environment", &read(&path)?);
+    }
+    Ok(hex(&hash.finalize()))
+}
+
+/// The tile record of tile `split` of `render`, for `channels` as they
+/// will be stored (sorted by name).
+pub fn tile_record(
+    render: &RenderRecord,
+    split: TileSplit,
+    channels: &[ExrChannel],
+    bad_samples: u64,
+) -> TileRecord {
+    TileRecord {
+        render: render.clone(),
+        tile: split.index(),
+        tiles: split.count(),
+        pixels_sha256: pixels_sha256(channels),
+        bad_samples,
+    }
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record() -> RenderRecord {
+        RenderRecord {
+            version: "0.1.0".into(),
+            recipe: "my\ngem.ron".into(),
+            scene: "builtin:studio".into(),
+            environment: None,
+            width_px: 32,
+            height_px: 24,
+            samples_per_pixel: 4,
+            seed: 9,
+            bounces: 4,
+            ao_distance_mm: None,
+            exposure_ev: 0.1,
+            tone_curve: ToneCurve::Filmic,
+            connections: true,
+            frame: Some(FrameOf {
+                frame: 3,
+                frames: 8,
+                turn: TurnSpec::Camera,
+            }),
+            inputs_sha256: "ab".into(),
+        }
+    }
+
+    #[test]
+    fn a_record_reads_back_with_its_fields_and_a_line_break_cannot_split_it() {
+        let tile = TileRecord {
+            render: record(),
+            tile: 2,
+            tiles: 3,
+            pixels_sha256: "cd".into(),
+            bad_samples: 5,
+        };
+        let text = tile.to_text();
+        let read = ReadRecord::parse(&text).unwrap();
+        assert_eq!(read.size_px, (32, 24));
+        assert_eq!(read.tile, (2, 3));
+        assert_eq!(read.bad_samples, 5);
+        assert_eq!(read.display.0, record().display_transform());
+        assert!(read
+            .render_lines
+            .iter()
+            .any(|(k, v)| k == "recipe" && v == "\"my\\ngem.ron\""));
+        // A missing or extra line, or another header, is not a record.
+        assert!(ReadRecord::parse(&text.replace("seed: 9\n", "")).is_none());
+        assert!(ReadRecord::parse(&format!("{text}extra: 1\n")).is_none());
+        assert!(ReadRecord::parse(&text.replace("record 1", "record 2")).is_none());
+    }
+}
