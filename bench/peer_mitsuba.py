@@ -12,6 +12,9 @@ Usage:
   peer_mitsuba.py render OUT.exr --size 512 --spp 64 --max-depth 6 --threads 2
   peer_mitsuba.py to-png IN.exr OUT.png --size 256
   peer_mitsuba.py patch-mean IN.exr X0 Y0 X1 Y1
+  peer_mitsuba.py render OUT.exr --suite-scene env-softbox --env MAP.exr …
+  peer_mitsuba.py suite-maps bench/out/suite
+  peer_mitsuba.py marker-position IN.exr
 """
 
 import argparse
@@ -62,8 +65,9 @@ def camera_origin():
     return (0.0, -CAMERA_DISTANCE * math.cos(e), CAMERA_DISTANCE * math.sin(e))
 
 
-def ellipsoid_cap_mesh(rings=96, segments=192):
-    """Triangulate the upper half (z >= 0) of the stone's ellipsoid.
+def ellipsoid_cap_mesh(rings=96, segments=192, semi_axes=STONE_SEMI_AXES):
+    """Triangulate the upper half (z >= 0) of an ellipsoid, by default the
+    peer stone's.
 
     Returns (positions (N,3), normals (N,3), faces (F,3) uint32) as numpy
     arrays. Normals are the analytic ellipsoid normals ∇(x²/a² + y²/b² +
@@ -73,7 +77,7 @@ def ellipsoid_cap_mesh(rings=96, segments=192):
     """
     import numpy as np
 
-    a, b, c = STONE_SEMI_AXES
+    a, b, c = semi_axes
     theta = np.linspace(0.0, 0.5 * math.pi, rings + 1)[1:]  # polar angle from +z
     phi = np.linspace(0.0, 2.0 * math.pi, segments, endpoint=False)
     st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
@@ -97,10 +101,10 @@ def ellipsoid_cap_mesh(rings=96, segments=192):
 # --- Mitsuba ------------------------------------------------------------------
 
 
-def mesh_of(mi, dr, pos, nrm, faces, props):
-    """A Mitsuba mesh named `stone` from numpy positions, vertex normals and
+def mesh_of(mi, dr, pos, nrm, faces, props, name="stone"):
+    """A Mitsuba mesh named `name` from numpy positions, vertex normals and
     faces, with `props` (its BSDF, and its interior medium if any)."""
-    mesh = mi.Mesh("stone", len(pos), len(faces), props, has_vertex_normals=True)
+    mesh = mi.Mesh(name, len(pos), len(faces), props, has_vertex_normals=True)
     params = mi.traverse(mesh)
     params["vertex_positions"] = dr.ravel(mi.Point3f(pos[:, 0], pos[:, 1], pos[:, 2]))
     params["vertex_normals"] = dr.ravel(mi.Normal3f(nrm[:, 0], nrm[:, 1], nrm[:, 2]))
@@ -132,33 +136,35 @@ def stone_mesh(mi, dr, nonlinear=True):
     return mesh_of(mi, dr, pos, nrm, faces, props)
 
 
-def clear_stone_mesh(mi, dr, scattering=False):
-    """The cap closed by its flat base (z = 0), lifted by CLEAR_LIFT, as a
-    smooth `dielectric` around a `homogeneous`, purely absorbing medium.
+def clear_stone_mesh(mi, dr, scattering=False, semi_axes=STONE_SEMI_AXES, lift=CLEAR_LIFT,
+                     ior=CLEAR_IOR, absorption=CLEAR_ABSORPTION):
+    """The cap closed by its flat base (z = 0), lifted by `lift`, as a
+    smooth `dielectric` of `ior` around a `homogeneous` medium of σa
+    `absorption` (per unit), purely absorbing unless `scattering`.
 
     The base is a separate fan of vertices with the normal −z, so the rim
     stays a sharp edge as lapidary's analytic stone has it.
     """
     import numpy as np
 
-    pos, nrm, faces = ellipsoid_cap_mesh()
-    rim = pos[-192:].copy()  # the last ring: z ≈ c·cos(π/2) = 0
+    segments = 192
+    pos, nrm, faces = ellipsoid_cap_mesh(segments=segments, semi_axes=semi_axes)
+    rim = pos[-segments:].copy()  # the last ring: z ≈ c·cos(π/2) = 0
     rim[:, 2] = 0.0
     centre = len(pos)
     base_pos = np.vstack([[0.0, 0.0, 0.0], rim])
     base_nrm = np.tile([0.0, 0.0, -1.0], (len(base_pos), 1))
-    segments = len(rim)
     cur = np.arange(segments)
     nxt = (cur + 1) % segments
     base_faces = np.stack([np.full(segments, centre), centre + 1 + nxt, centre + 1 + cur], axis=1)
     pos = np.vstack([pos, base_pos])
-    pos[:, 2] += CLEAR_LIFT
+    pos[:, 2] += lift
     nrm = np.vstack([nrm, base_nrm])
     faces = np.concatenate([faces, base_faces]).astype(np.uint32)
     props = mi.Properties()
-    props["bsdf"] = mi.load_dict({"type": "dielectric", "int_ior": CLEAR_IOR, "ext_ior": 1.0})
+    props["bsdf"] = mi.load_dict({"type": "dielectric", "int_ior": ior, "ext_ior": 1.0})
     sigma_s = SCATTERING if scattering else (0.0, 0.0, 0.0)
-    sigma_t = [a + s for a, s in zip(CLEAR_ABSORPTION, sigma_s)]
+    sigma_t = [a + s for a, s in zip(absorption, sigma_s)]
     # Mitsuba reads an RGB σt as a reflectance (each channel ≤ 1): the
     # values are scaled into [0, 1] and `scale` restores them.
     scale = max(sigma_t)
@@ -224,6 +230,303 @@ def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True, clear=False, scatte
     }
 
 
+# --- The benchmark suite's scenes (bench/suite/, issue 28) -------------------
+#
+# Built in code like the peer scene; each constant mirrors the RON file named
+# beside it and must stay in step with it. Lengths in mm, z up.
+
+#: bench/suite/env-softbox.ron: the orbit camera (target, distance,
+#: elevation, azimuth, vertical field of view).
+SOFTBOX_CAMERA = ((0.0, 0.0, 1.5), 60.0, 30.0, -70.0, 28.0)
+#: Its three stones: ellipsoid cap semi-axes (length/2, width/2, dome),
+#: position and turn about z in degrees; all of bench/peer-stone.ron.
+SOFTBOX_STONES = (
+    ((5.0, 4.0, 4.0), (-3.0, 2.0, 0.0), 20.0),
+    ((3.0, 2.4, 2.6), (6.0, -3.0, 0.0), -30.0),
+    ((2.0, 1.6, 2.0), (-1.0, -6.0, 0.0), 75.0),
+)
+#: The soft box: centre, the point it faces, width (horizontal), height, radiance.
+SOFTBOX_RECT = ((-25.0, -30.0, 35.0), (0.0, 0.0, 0.0), 24.0, 16.0, 25.0)
+#: bench/suite/glossy-ground.ron: a rough IOR 1.5 coat (10° average slope)
+#: over a Lambertian base.
+GLOSSY_GROUND_RGB = (0.35, 0.32, 0.3)
+GLOSSY_GROUND_IOR = 1.5
+GLOSSY_GROUND_SLOPE_DEG = 10.0
+#: Side of the suite's square ground in Mitsuba (lapidary's is infinite);
+#: the frames see less than 250 mm of it.
+SUITE_GROUND_SIDE = 400.0
+#: bench/suite/goldstone-*.ron: the studio's camera and key light, a
+#: 10 × 8 × 4 mm cap lifted 0.5 mm, a constant environment; the stone of
+#: goldstone-clear-stone.ron: IOR 1.53, σa per mm.
+GOLDSTONE_CAMERA = ((0.0, 0.0, 1.5), 38.0, 35.0, -60.0, 22.0)
+GOLDSTONE_SEMI_AXES = (5.0, 4.0, 4.0)
+GOLDSTONE_LIFT = 0.5
+GOLDSTONE_IOR = 1.53
+GOLDSTONE_ABSORPTION = (0.05, 0.15, 0.3)
+GOLDSTONE_LIGHT = ((-4.0, -14.0, 21.0), 1.5, 300.0)
+GOLDSTONE_ENVIRONMENT = 0.5
+#: bench/suite/orientation.ron: camera at the origin looking along +y, 20°
+#: up, 70° vertical field of view; the marker map's markers: name, RGB
+#: radiance, azimuth and elevation in degrees, angular radius in degrees.
+ORIENTATION_LOOK_AT = (0.0, 1.0, math.tan(math.radians(20.0)))
+ORIENTATION_FOV_DEG = 70.0
+MARKERS = (
+    ("red", (20.0, 0.0, 0.0), 75.0, 30.0, 4.0),
+    ("green", (0.0, 20.0, 0.0), 110.0, 5.0, 4.0),
+)
+#: The generated maps (file name, width): a smooth sky for env-softbox, a
+#: dim sky with a small bright sun for sun-map, the markers.
+SKY_MAP = ("sky-2048x1024.exr", 2048)
+SUN_MAP = ("sun-4096x2048.exr", 4096)
+MARKER_MAP = ("marker-512x256.exr", 512)
+#: The sun of SUN_MAP: elevation, azimuth, angular radius (degrees), radiance.
+SUN = (40.0, 120.0, 0.5, 1.0e5)
+#: SUN_MAP's sky is SKY_MAP's sky scaled by this.
+SUN_SKY_SCALE = 0.1
+
+
+def orbit_origin(target, distance, elevation_deg, azimuth_deg):
+    """Lapidary's orbit camera: target + d·(cos e cos a, cos e sin a, sin e)."""
+    e, a = math.radians(elevation_deg), math.radians(azimuth_deg)
+    return [t + distance * c for t, c in
+            zip(target, (math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)))]
+
+
+def sensor_dict(mi, origin, target, fov_deg, size, spp):
+    """A perspective camera with a square box-filtered film, as the peer scene's."""
+    return {
+        "type": "perspective",
+        "fov": fov_deg,
+        "fov_axis": "y",
+        "to_world": mi.ScalarTransform4f().look_at(origin=list(origin), target=list(target),
+                                                   up=[0, 0, 1]),
+        "sampler": {"type": "stratified", "sample_count": spp},
+        "film": {"type": "hdrfilm", "width": size, "height": size, "pixel_format": "rgb",
+                 "rfilter": {"type": "box"}},
+    }
+
+
+def envmap_dict(mi, path):
+    """An `envmap` emitter laid out as lapidary's `File` environment.
+
+    Lapidary (src/render/environment.rs, `direction_to_uv`): column u =
+    atan2(ω_y, ω_x) / 2π, counter-clockwise from +x seen from above; row
+    v = acos(ω_z) / π, row 0 straight up. Mitsuba 3's `envmap` reads the
+    local direction d as u = atan2(d_x, −d_z) / 2π, v = acos(d_y) / π (y
+    up). Equal (u, v) needs d = (ω_y, ω_z, −ω_x), so to_world maps d back
+    to ω: rows (0, 0, −1), (1, 0, 0), (0, 1, 0). That matrix is a
+    reflection (determinant −1): the two layouts run round the horizon in
+    opposite senses. It is orthogonal, so solid angles and Mitsuba's
+    sampling densities are unchanged. `bench/suite/run --check-orientation`
+    checks it with markers.
+    """
+    to_world = mi.ScalarTransform4f(
+        [[0.0, 0.0, -1.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
+    )
+    return {"type": "envmap", "filename": str(path), "to_world": to_world}
+
+
+def placed_cap(mi, dr, name, semi_axes, position, turn_deg, bsdf):
+    """An ellipsoid cap mesh turned by `turn_deg` about z and moved to
+    `position` (lapidary's `rotation_deg: (0, 0, turn)` and `position`)."""
+    import numpy as np
+
+    pos, nrm, faces = ellipsoid_cap_mesh(semi_axes=semi_axes)
+    c, s = math.cos(math.radians(turn_deg)), math.sin(math.radians(turn_deg))
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    pos = pos @ turn.T + np.array(position)
+    nrm = nrm @ turn.T
+    props = mi.Properties()
+    props["bsdf"] = mi.load_dict(bsdf)
+    return mesh_of(mi, dr, pos, nrm, faces, props, name=name)
+
+
+def peer_stone_bsdf():
+    """bench/peer-stone.ron as Mitsuba's `plastic` (see stone_mesh)."""
+    return {"type": "plastic",
+            "diffuse_reflectance": {"type": "rgb", "value": list(STONE_BASE_RGB)},
+            "int_ior": STONE_COAT_IOR, "ext_ior": 1.0, "nonlinear": True}
+
+
+def suite_ground(mi, bsdf):
+    """The suite's square ground on z = 0 (lapidary's is infinite)."""
+    return {"type": "rectangle",
+            "to_world": mi.ScalarTransform4f().scale(
+                [SUITE_GROUND_SIDE / 2, SUITE_GROUND_SIDE / 2, 1.0]),
+            "bsdf": bsdf}
+
+
+def suite_scene_dict(mi, dr, name, size, spp, max_depth, env_path=None):
+    """One of the suite's scenes (`env-softbox`, `goldstone-clear`,
+    `orientation`) as a Mitsuba `load_dict` dictionary; `env_path` is the
+    generated map of env-softbox and orientation."""
+    scene = {"type": "scene",
+             "integrator": {"type": "volpath" if name == "goldstone-clear" else "path",
+                            "max_depth": max_depth}}
+    if name == "env-softbox":
+        target, distance, elevation, azimuth, fov = SOFTBOX_CAMERA
+        scene["sensor"] = sensor_dict(mi, orbit_origin(target, distance, elevation, azimuth),
+                                      target, fov, size, spp)
+        for k, (axes, position, turn) in enumerate(SOFTBOX_STONES):
+            scene[f"stone{k}"] = placed_cap(mi, dr, f"stone{k}", axes, position, turn,
+                                            peer_stone_bsdf())
+        scene["ground"] = suite_ground(mi, {
+            "type": "roughplastic",
+            "distribution": "beckmann",
+            "alpha": math.tan(math.radians(GLOSSY_GROUND_SLOPE_DEG)),
+            "int_ior": GLOSSY_GROUND_IOR,
+            "ext_ior": 1.0,
+            "diffuse_reflectance": {"type": "rgb", "value": list(GLOSSY_GROUND_RGB)},
+            "nonlinear": True,
+        })
+        centre, aim, width, height, radiance = SOFTBOX_RECT
+        # The rectangle is [-1, 1]² with normal +z, emitting on that side;
+        # look_at turns +z to the aim and keeps +x horizontal (width).
+        scene["softbox"] = {
+            "type": "rectangle",
+            "to_world": mi.ScalarTransform4f().look_at(origin=list(centre), target=list(aim),
+                                                       up=[0, 0, 1])
+            @ mi.ScalarTransform4f().scale([width / 2, height / 2, 1.0]),
+            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": radiance}},
+        }
+        scene["environment"] = envmap_dict(mi, env_path)
+    elif name == "goldstone-clear":
+        target, distance, elevation, azimuth, fov = GOLDSTONE_CAMERA
+        scene["sensor"] = sensor_dict(mi, orbit_origin(target, distance, elevation, azimuth),
+                                      target, fov, size, spp)
+        scene["stone"] = clear_stone_mesh(mi, dr, semi_axes=GOLDSTONE_SEMI_AXES,
+                                          lift=GOLDSTONE_LIFT, ior=GOLDSTONE_IOR,
+                                          absorption=GOLDSTONE_ABSORPTION)
+        scene["ground"] = suite_ground(
+            mi, {"type": "diffuse", "reflectance": {"type": "rgb", "value": GROUND_ALBEDO}})
+        centre, radius, radiance = GOLDSTONE_LIGHT
+        scene["light"] = {"type": "sphere", "center": list(centre), "radius": radius,
+                          "emitter": {"type": "area",
+                                      "radiance": {"type": "rgb", "value": radiance}}}
+        scene["environment"] = {"type": "constant",
+                                "radiance": {"type": "rgb", "value": GOLDSTONE_ENVIRONMENT}}
+    elif name == "orientation":
+        scene["sensor"] = sensor_dict(mi, (0.0, 0.0, 0.0), ORIENTATION_LOOK_AT,
+                                      ORIENTATION_FOV_DEG, size, spp)
+        scene["environment"] = envmap_dict(mi, env_path)
+    else:
+        raise ValueError(f"unknown suite scene {name!r}")
+    return scene
+
+
+def lat_long_directions(width):
+    """Unit directions (H, W, 3) of the texel centres of a width × width/2
+    map in lapidary's layout (column u from +x counter-clockwise, row 0 up)."""
+    import numpy as np
+
+    height = width // 2
+    phi = (np.arange(width) + 0.5) / width * 2.0 * math.pi
+    theta = (np.arange(height) + 0.5) / height * math.pi
+    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
+    return np.stack([st * np.cos(phi), st * np.sin(phi), np.broadcast_to(ct, (height, width))],
+                    axis=-1)
+
+
+def unit(azimuth_deg, elevation_deg):
+    """The unit direction of an azimuth (from +x, counter-clockwise) and elevation."""
+    a, e = math.radians(azimuth_deg), math.radians(elevation_deg)
+    return (math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e))
+
+
+def sky_texels(width):
+    """A smooth sky over a ground, float32 (H, W, 3): warm near the horizon,
+    blue towards the zenith, up to twice as bright towards azimuth 200°; a
+    dark brown ground below the horizon. No edges, so no texel dominates."""
+    import numpy as np
+
+    d = lat_long_directions(width)
+    up = np.clip(d[..., 2:3], 0.0, 1.0)
+    horizon, zenith = np.array([1.0, 0.95, 0.85]), np.array([0.25, 0.45, 0.9])
+    t = np.sqrt(up)
+    sky = (1.0 - t) * horizon + t * zenith
+    towards = d @ np.array(unit(200.0, 0.0))
+    sky *= 1.0 + np.clip(towards, 0.0, 1.0)[..., None] ** 2
+    down = np.clip(-d[..., 2:3], 0.0, 1.0)
+    ground = np.array([0.12, 0.1, 0.08]) * (1.0 - 0.5 * down)
+    return np.where(d[..., 2:3] >= 0.0, sky, ground).astype(np.float32)
+
+
+def sun_texels(width):
+    """SUN_SKY_SCALE × the smooth sky, plus the SUN disc (texels whose
+    centre lies within its angular radius)."""
+    import numpy as np
+
+    elevation, azimuth, radius_deg, radiance = SUN
+    texels = sky_texels(width) * SUN_SKY_SCALE
+    inside = lat_long_directions(width) @ np.array(unit(azimuth, elevation)) \
+        >= math.cos(math.radians(radius_deg))
+    texels[inside] = radiance
+    return texels
+
+
+def marker_texels(width):
+    """A black map with the MARKERS' discs."""
+    import numpy as np
+
+    d = lat_long_directions(width)
+    texels = np.zeros(d.shape, dtype=np.float32)
+    for _, rgb, azimuth, elevation, radius_deg in MARKERS:
+        inside = d @ np.array(unit(azimuth, elevation)) >= math.cos(math.radians(radius_deg))
+        texels[inside] = rgb
+    return texels
+
+
+def suite_maps(args):
+    """Write the suite's maps into `args.dir` (those not there yet) as
+    float32 EXR through Mitsuba's Bitmap writer; print their paths.
+    Deterministic: the same texels on every machine."""
+    from pathlib import Path
+
+    import mitsuba as mi
+
+    mi.set_variant("scalar_rgb")
+    out = Path(args.dir)
+    out.mkdir(parents=True, exist_ok=True)
+    for (filename, width), texels in ((SKY_MAP, sky_texels), (SUN_MAP, sun_texels),
+                                      (MARKER_MAP, marker_texels)):
+        path = out / filename
+        if not path.exists():
+            tmp = path.with_suffix(".tmp.exr")
+            mi.Bitmap(texels(width), mi.Bitmap.PixelFormat.RGB).write(str(tmp))
+            tmp.replace(path)
+        print(path)
+
+
+def marker_position(args):
+    """Print, per marker colour, the mean pixel (x, y) of the pixels where
+    that channel dominates (x right, y down, pixel centres at +0.5), and
+    where a pinhole camera of the orientation scene puts the marker's
+    centre: the check that a map lands alike in lapidary and Mitsuba."""
+    import numpy as np
+
+    rgb = read_rgb(args.src)
+    height, width = rgb.shape[:2]
+    ys, xs = np.mgrid[0:height, 0:width] + 0.5
+    forward = np.array(ORIENTATION_LOOK_AT) / np.linalg.norm(ORIENTATION_LOOK_AT)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    half = math.tan(math.radians(ORIENTATION_FOV_DEG) / 2)
+    for channel, (name, _, azimuth, elevation, _) in enumerate(MARKERS):
+        c = rgb[..., channel]
+        others = np.delete(rgb, channel, axis=-1).max(axis=-1)
+        mask = (c > 1.0) & (c > 4.0 * others)
+        if mask.any():
+            seen = f"{xs[mask].mean():.2f} {ys[mask].mean():.2f} ({mask.sum()} px)"
+        else:
+            seen = "not seen"
+        d = np.array(unit(azimuth, elevation))
+        x_ndc = d @ right / (d @ forward) / half
+        y_ndc = d @ up / (d @ forward) / half
+        expected = f"{(x_ndc + 1) / 2 * width:.2f} {(1 - y_ndc) / 2 * height:.2f}"
+        print(f"{name}: at {seen}; a pinhole puts it at {expected}")
+
+
 def render(args):
     """Build the scene, render it with `llvm_ad_rgb` and write a linear EXR."""
     import drjit as dr
@@ -231,6 +534,11 @@ def render(args):
 
     mi.set_variant("llvm_ad_rgb")
     dr.set_thread_count(args.threads)
+    if args.suite_scene:
+        scene = mi.load_dict(suite_scene_dict(mi, dr, args.suite_scene, args.size, args.spp,
+                                              args.max_depth, args.env))
+        mi.util.write_bitmap(args.out, mi.render(scene, spp=args.spp, seed=0))
+        return
     scene = mi.load_dict(
         scene_dict(
             mi, dr, args.size, args.spp, args.max_depth, not args.linear, args.clear, args.scattering
@@ -322,6 +630,10 @@ def main(argv):
         help="the scattering stone of bench/peer-scene-scattering.ron (volpath)",
     )
     r.add_argument("--no-ground", action="store_true", help="leave the ground out")
+    r.add_argument("--suite-scene", choices=("env-softbox", "goldstone-clear", "orientation"),
+                   help="render this scene of bench/suite/ instead of the peer scene")
+    r.add_argument("--env", help="the generated environment map of --suite-scene env-softbox "
+                                 "or orientation (bench/out/suite/…)")
     p = sub.add_parser("to-png", help="downsample + sRGB-encode an image")
     p.add_argument("src")
     p.add_argument("dst")
@@ -330,8 +642,14 @@ def main(argv):
     m.add_argument("src")
     for name in ("x0", "y0", "x1", "y1"):
         m.add_argument(name, type=int)
+    g = sub.add_parser("suite-maps", help="write bench/suite's environment maps (EXR) into DIR")
+    g.add_argument("dir")
+    k = sub.add_parser("marker-position",
+                       help="where the orientation check's markers landed in an image")
+    k.add_argument("src")
     args = parser.parse_args(argv)
-    {"render": render, "to-png": to_png, "patch-mean": patch_mean}[args.command](args)
+    {"render": render, "to-png": to_png, "patch-mean": patch_mean, "suite-maps": suite_maps,
+     "marker-position": marker_position}[args.command](args)
 
 
 if __name__ == "__main__":
