@@ -65,6 +65,50 @@ pub(crate) fn cross_smooth_interface(
     }
 }
 
+/// One branch of a split crossing: where it goes and what it carries.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Branch {
+    /// The crossing this branch takes.
+    pub(crate) crossing: Crossing,
+    /// Its share of the radiance: F for the reflection, 1 − F for the
+    /// refraction (eq. 3.1).
+    pub(crate) weight: f64,
+}
+
+/// [`cross_smooth_interface`] taking both ways at once, for a ray arriving
+/// from outside (where no total internal reflection can happen): the
+/// reflection weighted by the Fresnel reflectance F, the refraction by
+/// 1 − F. Their sum has the expectation of the Fresnel draw without its
+/// noise.
+pub(crate) fn split_smooth_interface(
+    direction: DVec3,
+    normal: DVec3,
+    ior: f64,
+) -> (Branch, Branch) {
+    let cos_i = -direction.dot(normal);
+    debug_assert!(cos_i > 0.0, "split only from outside");
+    let reflectance = fresnel::dielectric(cos_i, ior);
+    let sin2_t = (1.0 - cos_i * cos_i) / (ior * ior);
+    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+    let reflection = Branch {
+        crossing: Crossing {
+            direction: (direction + 2.0 * cos_i * normal).normalize(),
+            refracted: false,
+            from_outside: true,
+        },
+        weight: reflectance,
+    };
+    let refraction = Branch {
+        crossing: Crossing {
+            direction: (direction / ior + (cos_i / ior - cos_t) * normal).normalize(),
+            refracted: true,
+            from_outside: true,
+        },
+        weight: 1.0 - reflectance,
+    };
+    (reflection, refraction)
+}
+
 /// A rough dielectric interface between air (outside, index 1) and a body
 /// of index `ior` (inside): GGX micro-facets of average slope
 /// `roughness_deg` (α = tan m, as the layered BRDFs' lobes), each a smooth
@@ -231,6 +275,37 @@ impl RoughInterface {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_split_crossing_takes_both_ways_of_the_fresnel_draw_with_its_odds() {
+        // The split's branches are the draw's two outcomes, weighted by
+        // the probabilities the draw gives them: the same expectation.
+        let ior = 1.53;
+        let normal = DVec3::new(-0.3, 0.1, 1.0).normalize();
+        let (t, _) = normal.any_orthonormal_pair();
+        for theta_deg in [0.0f64, 30.0, 60.0, 80.0, 89.0] {
+            let (sin, cos) = theta_deg.to_radians().sin_cos();
+            let towards = -(normal * cos + t * sin);
+            let (reflection, refraction) = split_smooth_interface(towards, normal, ior);
+            assert!((reflection.weight + refraction.weight - 1.0).abs() < 1e-15);
+            // The draw reflects for u below F, and refracts above.
+            let reflectance = fresnel::dielectric(cos, ior);
+            assert!((reflection.weight - reflectance).abs() < 1e-12);
+            for (branch, u) in [(reflection, 0.0), (refraction, 1.0 - 1e-12)] {
+                let drawn = cross_smooth_interface(towards, normal, ior, u);
+                assert_eq!(branch.crossing.refracted, drawn.refracted);
+                assert!((branch.crossing.direction - drawn.direction).length() < 1e-12);
+            }
+            // The fraction of a fine grid of u that reflects is F.
+            let reflected = (0..100_000)
+                .filter(|i| {
+                    let u = (f64::from(*i) + 0.5) / 100_000.0;
+                    !cross_smooth_interface(towards, normal, ior, u).refracted
+                })
+                .count();
+            assert!((reflected as f64 / 100_000.0 - reflectance).abs() < 1e-4);
+        }
+    }
 
     #[test]
     fn a_smooth_interface_refracts_by_snell_and_reflects_by_fresnel() {

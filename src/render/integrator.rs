@@ -11,7 +11,7 @@ use glam::DVec3;
 
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem, Medium};
-use crate::render::dielectric::{cross_smooth_interface, RoughInterface};
+use crate::render::dielectric::{cross_smooth_interface, split_smooth_interface, RoughInterface};
 use crate::render::environment::Environment;
 use crate::render::inclusions::FlakeHit;
 use crate::render::lights::Light;
@@ -321,8 +321,61 @@ impl RenderScene {
     #[inline(always)]
     pub fn radiance(
         &self,
-        mut origin: DVec3,
-        mut direction: DVec3,
+        origin: DVec3,
+        direction: DVec3,
+        stream: &mut SampleStream,
+        counts: &mut RayCounts,
+        first_hits: &mut FirstHitSums,
+        first_sample: bool,
+    ) -> Rgb {
+        self.trace::<false>(
+            (origin, direction, 0, None),
+            stream,
+            counts,
+            first_hits,
+            first_sample,
+        )
+    }
+
+    /// The radiance along the mirror reflection of a camera ray off a
+    /// smooth translucent stone `stone`, the path going on from `bounce`:
+    /// the branch the camera ray splits into where it meets its first
+    /// smooth stone (see [`RenderScene::trace`]).
+    #[inline(never)]
+    fn reflected_branch(
+        &self,
+        (origin, direction, bounce, stone): (DVec3, DVec3, u32, Option<usize>),
+        stream: &mut SampleStream,
+        counts: &mut RayCounts,
+    ) -> Rgb {
+        let mut unused = FirstHitSums::default();
+        self.trace::<true>(
+            (origin, direction, bounce, stone),
+            stream,
+            counts,
+            &mut unused,
+            false,
+        )
+    }
+
+    /// The path tracer: radiance along the ray `start` = (origin,
+    /// direction, bounces so far, the stone it leaves). A camera ray
+    /// (`BRANCH` false) that meets a smooth translucent stone first splits
+    /// there: its reflection (weight F, eq. 3.1) is traced as a branch of
+    /// its own and the path goes on refracted (weight 1 − F), where a
+    /// Fresnel choice would reflect only a few per cent of the samples: the
+    /// polish's image of a small light, the brightest thing on a stone,
+    /// then has no noise of its own. A branch splits no further; deeper
+    /// crossings choose by Fresnel.
+    #[inline(always)]
+    fn trace<const BRANCH: bool>(
+        &self,
+        (mut origin, mut direction, start_bounce, start_leaving): (
+            DVec3,
+            DVec3,
+            u32,
+            Option<usize>,
+        ),
         stream: &mut SampleStream,
         counts: &mut RayCounts,
         first_hits: &mut FirstHitSums,
@@ -337,7 +390,7 @@ impl RenderScene {
         let mut previous: Option<(DVec3, f64)> = None;
         // The stone the current segment leaves (outwards), which it cannot
         // meet again: every cabochon is convex.
-        let mut leaving: Option<usize> = None;
+        let mut leaving: Option<usize> = start_leaving;
         // The medium of the translucent body the current segment runs
         // through, if it runs inside one.
         let mut inside: Option<(Medium, usize)> = None;
@@ -348,7 +401,7 @@ impl RenderScene {
         // through its surface (`refracted_light`), while the path's sampled
         // continuation may still meet a light the same way.
         let mut connected: Option<ConnectedVertex> = None;
-        let mut bounce = 0;
+        let mut bounce = start_bounce;
         // Scattering events inside bodies so far (they are not bounces).
         let mut scatterings = 0;
         loop {
@@ -430,7 +483,7 @@ impl RenderScene {
                 if let Some((flake, brdf)) = flake {
                     // Only a camera ray refracted in runs inside at bounce
                     // 1, and it did not scatter: its first event inside.
-                    first_hits.inclusions += u32::from(bounce == 1 && scatterings == 0);
+                    first_hits.inclusions += u32::from(!BRANCH && bounce == 1 && scatterings == 0);
                     // A flake reflects by its material's BRDF, from either
                     // side; only its BRDF is sampled (no light reaches a
                     // shadow ray through the smooth boundary).
@@ -568,7 +621,23 @@ impl RenderScene {
                     bounce += 1;
                     continue;
                 }
-                let crossing = cross_smooth_interface(direction, hit.normal, ior, stream.next_1d());
+                let crossing = if !BRANCH && bounce == 0 && -direction.dot(hit.normal) > 0.0 {
+                    // The camera ray's first stone: split (see above).
+                    let (reflection, refraction) =
+                        split_smooth_interface(direction, hit.normal, ior);
+                    let outwards = hit.point + hit.normal * RAY_OFFSET;
+                    radiance += throughput
+                        * reflection.weight
+                        * self.reflected_branch(
+                            (outwards, reflection.crossing.direction, bounce + 1, stone),
+                            stream,
+                            counts,
+                        );
+                    throughput *= refraction.weight;
+                    refraction.crossing
+                } else {
+                    cross_smooth_interface(direction, hit.normal, ior, stream.next_1d())
+                };
                 // Refracting in from outside, or reflecting from inside,
                 // the new segment runs inside; it starts on that side.
                 let now_inside = crossing.refracted == crossing.from_outside;
@@ -677,7 +746,7 @@ impl RenderScene {
             direction = wi_world;
             bounce += 1;
         }
-        if !first_recorded {
+        if !BRANCH && !first_recorded {
             let nothing = FirstHit {
                 unoccluded: 1.0,
                 ..FirstHit::default()
