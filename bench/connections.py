@@ -24,7 +24,7 @@ import numpy as np
 
 mi.set_variant("scalar_rgb")
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BINARY = os.path.join(ROOT, "target", "release", "lapidary")
+BINARY = os.environ.get("LAPIDARY_BINARY", os.path.join(ROOT, "target", "release", "lapidary"))
 
 
 def render(args, spp, seed, connections, out):

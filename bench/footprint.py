@@ -34,7 +34,7 @@ import numpy as np
 
 mi.set_variant("scalar_rgb")
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BINARY = os.path.join(ROOT, "target", "release", "lapidary")
+BINARY = os.environ.get("LAPIDARY_BINARY", os.path.join(ROOT, "target", "release", "lapidary"))
 # Rec. 709 luminance of linear RGB.
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
