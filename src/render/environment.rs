@@ -753,7 +753,13 @@ fn row_weights(luminances: &[f64], s: f64, total: u64) -> Option<(Vec<u64>, Vec<
         return None;
     }
     let mut extra = vec![false; luminances.len()];
-    if missing > 0 {
+    if missing == lit.len() {
+        // Every lit texel (a row of one colour, often): no selection.
+        for &i in &lit {
+            weights[i] += 1;
+            extra[i] = true;
+        }
+    } else if missing > 0 {
         // The `missing` largest remainders (ties by column: a total order,
         // so the set chosen does not depend on the selection algorithm).
         let remainder = |i: usize| luminances[i] * s - weights[i] as f64;
@@ -798,10 +804,12 @@ impl BadTexel {
 
 /// The radiance bits of one source texel.
 fn pack_texel(rgb: [f64; 3]) -> Result<u64, BadTexel> {
-    encode(rgb).ok_or(if rgb.iter().all(|c| c.is_finite() && *c >= 0.0) {
-        BadTexel::TooBright(rgb)
-    } else {
-        BadTexel::Invalid(rgb)
+    encode(rgb).ok_or_else(|| {
+        if rgb.iter().all(|c| c.is_finite() && *c >= 0.0) {
+            BadTexel::TooBright(rgb)
+        } else {
+            BadTexel::Invalid(rgb)
+        }
     })
 }
 

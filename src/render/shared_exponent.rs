@@ -46,30 +46,47 @@ pub(crate) fn exponent_scales(scale: f64) -> [f64; 64] {
 
 /// The texel of `rgb`, rounded to nearest; `None` for a NaN, infinite or
 /// negative channel or one above [`MAX_RADIANCE`].
+#[inline]
 pub(crate) fn encode(rgb: [f64; 3]) -> Option<u64> {
-    if !rgb.iter().all(|c| (0.0..=MAX_RADIANCE).contains(c)) {
+    // + 0 turns −0 into +0; then, for non-negative finite values, the
+    // order of the bit patterns is the order of the values, and a negative
+    // (sign bit set), infinite or NaN channel has a pattern above every
+    // allowed one: one comparison refuses them all and finds the brightest.
+    let [r, g, b] = rgb.map(|c| c + 0.0);
+    let max_bits = r.to_bits().max(g.to_bits()).max(b.to_bits());
+    if max_bits > MAX_RADIANCE.to_bits() {
         return None;
     }
-    let max = rgb[0].max(rgb[1]).max(rgb[2]);
     // e = ⌊log2 max⌋ + 32 puts max in [256, 512) steps of 2^(e − 40);
-    // at least 0 (below 2⁻³² the step stays 2⁻⁴⁰).
-    let floor_log2 = if max >= 2f64.powi(-40) {
-        ((max.to_bits() >> 52) & 0x7ff) as i32 - 1023
-    } else {
-        -64
-    };
+    // at least 0 (below 2⁻³² the step stays 2⁻⁴⁰). ⌊log2⌋ from the
+    // exponent bits (zero and subnormals read −1023 and get e = 0).
+    let floor_log2 = (max_bits >> 52) as i32 - 1023;
     let mut e = (floor_log2 + EXPONENT_OFFSET - MANTISSA_BITS as i32 + 1).max(0);
-    let step = |e: i32| 2f64.powi(e - EXPONENT_OFFSET);
+    let mut inverse = inverse_step(e);
+    // x / step is x × (1 / step) exactly (a power of two); adding 2⁵²
+    // rounds a value below 2¹⁰ to the nearest integer (ties to even) and
+    // leaves it in the low bits of the pattern.
+    let nearest = |x: f64| (x + 2f64.powi(52)).to_bits() & 0x3ff;
     // Rounding max up to 512 steps needs the next exponent (then 256).
-    if (max / step(e) + 0.5).floor() >= (1 << MANTISSA_BITS) as f64 {
+    if nearest(f64::from_bits(max_bits) * inverse) >= 1 << MANTISSA_BITS {
         e += 1;
+        inverse *= 0.5;
     }
+    // Unreachable below MAX_RADIANCE (e ≤ 63 there), kept as the format's
+    // bound.
     if e > EXPONENT_MASK as i32 {
         return None;
     }
-    let step = step(e);
-    let m = rgb.map(|c| ((c / step + 0.5).floor() as u64).min(MANTISSA_MASK));
-    Some(m[0] | m[1] << MANTISSA_BITS | m[2] << (2 * MANTISSA_BITS) | (e as u64) << 27)
+    // Every channel is ≤ max, so its mantissa is at most max's (≤ 511).
+    let m = |c: f64| nearest(c * inverse);
+    Some(m(r) | m(g) << MANTISSA_BITS | m(b) << (2 * MANTISSA_BITS) | (e as u64) << 27)
+}
+
+/// `2^(40 − e)`, one over the step of exponent `e` (`0 ≤ e ≤ 64`), built
+/// from its bits.
+#[inline]
+fn inverse_step(e: i32) -> f64 {
+    f64::from_bits(((EXPONENT_OFFSET - e + 1023) as u64) << 52)
 }
 
 /// The radiance of the texel in the low [`TEXEL_BITS`] of `bits` (higher
