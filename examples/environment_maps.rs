@@ -3,15 +3,17 @@
 //!
 //! ```sh
 //! cargo run --release --example environment_maps -- write DIR
-//! cargo run --release --example environment_maps -- compare REF.exr A.exr [B.exr …]
+//! cargo run --release --example environment_maps -- spread A.exr B.exr [C.exr …]
 //! ```
 //!
 //! `write` generates two equirectangular f32 OpenEXR maps in DIR:
 //! `sky-8k.exr` (8192 × 4096, a textured sky over a dark ground, with the
 //! sun) and `sun-4k.exr` (4096 × 2048, a plain sky with a small bright sun,
 //! 0.53° across at 10⁵ times the sky, carrying about two thirds of the
-//! map's power). `compare` prints each image's mean RGB and its RMSE
-//! against REF (a render with many more samples), over all pixels.
+//! map's power). `spread` takes renders of one scene with different
+//! `--seed`s and prints the mean of their average and the per-pixel
+//! variance across them (the noise of one render), averaged over pixels,
+//! without the noisiest 1 % of pixels, and its median.
 
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
@@ -33,41 +35,47 @@ fn main() {
             write_map(&dir.join("sun-4k.exr"), 4096, 2048, false);
             write_map(&dir.join("sky-8k.exr"), 8192, 4096, true);
         }
-        Some("compare") if args.len() >= 3 => {
-            let reference = read_rgb(Path::new(&args[1]));
-            let mean = |img: &[[f32; 3]]| {
-                let mut sum = [0.0f64; 3];
-                for p in img {
-                    for c in 0..3 {
-                        sum[c] += p[c] as f64;
+        Some("spread") if args.len() >= 3 => {
+            // Renders of one scene with different seeds: the mean of the
+            // average image, and the per-pixel variance across renders
+            // (n − 1 in the denominator) averaged over pixels and channels.
+            let images: Vec<Vec<[f32; 3]>> =
+                args[1..].iter().map(|p| read_rgb(Path::new(p))).collect();
+            let (n, pixels) = (images.len() as f64, images[0].len());
+            let mut mean = [0.0f64; 3];
+            // Per pixel, the variance across renders averaged over channels.
+            let mut variances: Vec<f64> = (0..pixels)
+                .map(|i| {
+                    let mut v = 0.0;
+                    for (c, mean_c) in mean.iter_mut().enumerate() {
+                        let values = images.iter().map(|img| img[i][c] as f64);
+                        let m = values.clone().sum::<f64>() / n;
+                        *mean_c += m / pixels as f64;
+                        v += values.map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0) / 3.0;
                     }
-                }
-                sum.map(|s| s / img.len() as f64)
-            };
-            println!("| image | mean R, G, B | RMSE vs reference |");
-            println!("|---|---|---|");
-            for path in std::iter::once(&args[1]).chain(&args[2..]) {
-                let img = read_rgb(Path::new(path));
-                assert_eq!(img.len(), reference.len(), "{path}: another size");
-                let squared: f64 = img
-                    .iter()
-                    .zip(&reference)
-                    .map(|(a, b)| {
-                        (0..3)
-                            .map(|c| (a[c] as f64 - b[c] as f64).powi(2))
-                            .sum::<f64>()
-                    })
-                    .sum();
-                let rmse = (squared / (3 * img.len()) as f64).sqrt();
-                let m = mean(&img);
-                println!(
-                    "| {path} | {:.5}, {:.5}, {:.5} | {rmse:.5} |",
-                    m[0], m[1], m[2]
-                );
-            }
+                    v
+                })
+                .collect();
+            variances.sort_by(f64::total_cmp);
+            let average = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+            // Fireflies (paths BRDF sampling alone finds) dominate the mean
+            // and are the same for any light sampling: also without the
+            // noisiest 1 % of pixels, and the median.
+            let kept = &variances[..pixels - pixels / 100];
+            println!(
+                "{} renders: mean {:.5}, {:.5}, {:.5}; pixel variance: mean {:.4e}, \
+                 without the top 1 % {:.4e}, median {:.4e}",
+                images.len(),
+                mean[0],
+                mean[1],
+                mean[2],
+                average(&variances),
+                average(kept),
+                variances[pixels / 2]
+            );
         }
         _ => {
-            eprintln!("usage: environment_maps write DIR | compare REF.exr A.exr [B.exr …]");
+            eprintln!("usage: environment_maps write DIR | spread A.exr B.exr [C.exr …]");
             std::process::exit(2);
         }
     }

@@ -384,8 +384,9 @@ pub struct EnvironmentMap {
     /// Row-major, row 0 straight up: packed radiance and alias bucket (see
     /// the type's documentation).
     texels: Vec<u64>,
-    /// What each shared exponent stands for, `intensity` included.
-    scales: [f64; 64],
+    /// What each shared exponent stands for, `intensity` included (boxed:
+    /// 512 bytes inline would make every [`Environment`] that large).
+    scales: Box<[f64; 64]>,
     /// Per row: how its texels' weights and densities follow from them.
     rows: Vec<RowSampling>,
     /// The distribution of rows; `None` when every texel is black.
@@ -498,7 +499,7 @@ impl EnvironmentMap {
         rotation_deg: f64,
     ) -> Result<Self, EnvironmentError> {
         use rayon::prelude::*;
-        let scales = exponent_scales(intensity);
+        let scales = Box::new(exponent_scales(intensity));
         let luminances: Vec<Result<f64, usize>> = texels
             .par_chunks_mut(width)
             .map(|row| build_row_table(row, &scales))
@@ -507,15 +508,13 @@ impl EnvironmentMap {
             .map(|row| (PI * row as f64 / height as f64).cos())
             .collect();
         let mut row_weights = Vec::with_capacity(height);
-        for (row, luminance) in luminances.iter().enumerate() {
-            let sum = luminance
-                .clone()
-                .map_err(|col| EnvironmentError::BadTexel {
-                    origin: origin.clone(),
-                    x: col,
-                    y: row,
-                    value: decode(texels[row * width + col], &scales),
-                })?;
+        for (row, &luminance) in luminances.iter().enumerate() {
+            let sum = luminance.map_err(|col| EnvironmentError::BadTexel {
+                origin: origin.clone(),
+                x: col,
+                y: row,
+                value: decode(texels[row * width + col], &scales),
+            })?;
             // ∝ Σ Y × Ω_row: the density per solid angle follows luminance.
             row_weights.push(sum * TAU * (z[row] - z[row + 1]));
         }
@@ -525,7 +524,7 @@ impl EnvironmentMap {
             .map(|row| {
                 let (z_top, z_bottom) = (z[row], z[row + 1]);
                 let probability = marginal.as_ref().map_or(0.0, |m| m.probability(row));
-                let sum = luminances[row].clone().unwrap_or(0.0);
+                let sum = luminances[row].unwrap_or(0.0);
                 RowSampling {
                     units_per_luminance: if probability > 0.0 {
                         row_units_per_luminance(sum, width)
@@ -679,9 +678,17 @@ impl EnvironmentMap {
 /// alias table samples.
 #[inline]
 fn texel_pdf(bits: u64, radiance: Rgb, row: &RowSampling) -> f64 {
-    let units =
-        (luminance(radiance) * row.units_per_luminance) as u64 + ((bits >> EXTRA_UNIT_SHIFT) & 1);
+    let units = floor_units(luminance(radiance), row.units_per_luminance)
+        + ((bits >> EXTRA_UNIT_SHIFT) & 1);
     units as f64 * row.pdf_per_unit
+}
+
+/// `⌊y s⌋` for `0 ≤ y s ≤ 2²⁹` (a texel's share of its row's units): the
+/// one expression both the table build and the density lookup use.
+/// Through `i64`, a few instructions cheaper than `u64`'s conversion.
+#[inline]
+fn floor_units(y: f64, s: f64) -> u64 {
+    (y * s) as i64 as u64
 }
 
 /// `s_r` for a row of `width` texels whose luminances sum to `sum > 0`: a
@@ -744,9 +751,9 @@ fn build_row_table(row: &mut [u64], scales: &[f64; 64]) -> Result<f64, usize> {
 /// overshoot the total or fall short by more than the lit texels (never,
 /// see [`row_units_per_luminance`]; such a row would then not be sampled).
 fn row_weights(luminances: &[f64], s: f64, total: u64) -> Option<(Vec<u64>, Vec<bool>)> {
-    let mut weights: Vec<u64> = luminances.iter().map(|&y| (y * s) as u64).collect();
+    let mut weights: Vec<u64> = luminances.iter().map(|&y| floor_units(y, s)).collect();
     let missing = total.checked_sub(weights.iter().sum())? as usize;
-    let mut lit: Vec<usize> = (0..luminances.len())
+    let lit: Vec<usize> = (0..luminances.len())
         .filter(|&i| luminances[i] > 0.0)
         .collect();
     if missing > lit.len() {
@@ -760,15 +767,22 @@ fn row_weights(luminances: &[f64], s: f64, total: u64) -> Option<(Vec<u64>, Vec<
             extra[i] = true;
         }
     } else if missing > 0 {
-        // The `missing` largest remainders (ties by column: a total order,
-        // so the set chosen does not depend on the selection algorithm).
-        let remainder = |i: usize| luminances[i] * s - weights[i] as f64;
-        lit.select_nth_unstable_by(missing - 1, |&a, &b| {
-            remainder(b).total_cmp(&remainder(a)).then(a.cmp(&b))
-        });
-        for &i in &lit[..missing] {
-            weights[i] += 1;
-            extra[i] = true;
+        // The `missing` largest remainders, ties by column: keys (bits of
+        // the remainder descending, column) in a total order, so the set
+        // chosen does not depend on the selection algorithm; a remainder
+        // is in [0, 1), where the order of the bits is the order of the
+        // values.
+        let mut keys: Vec<(u64, u32)> = lit
+            .iter()
+            .map(|&i| {
+                let remainder = luminances[i] * s - weights[i] as f64;
+                (u64::MAX - remainder.to_bits(), i as u32)
+            })
+            .collect();
+        keys.select_nth_unstable(missing - 1);
+        for &(_, i) in &keys[..missing] {
+            weights[i as usize] += 1;
+            extra[i as usize] = true;
         }
     }
     Some((weights, extra))
