@@ -358,7 +358,7 @@ impl Environment {
 /// the texel's extra unit (below). Radiance and sampling data of a texel
 /// share a cache line, so a light sample reads at most two texels and a
 /// density lookup one. Per row the map keeps a few numbers
-/// ([`RowSampling`]), and the rows themselves are drawn from an
+/// (`RowSampling`), and the rows themselves are drawn from an
 /// [`AliasTable`]: both O(1), whatever the map's size and contrast.
 ///
 /// # Sampling weights that the texel itself gives back
