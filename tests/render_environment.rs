@@ -7,9 +7,9 @@ mod common;
 use std::f64::consts::{PI, TAU};
 use std::path::PathBuf;
 
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 use lapidary::brdf::Rgb;
-use lapidary::render::distribution::{Distribution1D, Distribution2D, DistributionError};
+use lapidary::render::distribution::{AliasTable, DistributionError};
 use lapidary::render::environment::{
     luminance, Environment, EnvironmentError, EnvironmentMap, STUDIO_HEIGHT, STUDIO_WIDTH,
 };
@@ -23,140 +23,109 @@ fn dir_deg(theta_deg: f64, phi_deg: f64) -> DVec3 {
     DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
 }
 
-/// A 6 × 4 grid with a zero cell, a dominant cell and a 1:50 range.
-const GRID_W: usize = 6;
-const GRID_H: usize = 4;
-const GRID: [f64; GRID_W * GRID_H] = [
-    1.0, 2.0, 0.0, 4.0, 1.0, 1.0, //
-    0.5, 0.5, 0.5, 0.5, 0.5, 0.5, //
-    3.0, 25.0, 1.0, 1.0, 2.0, 1.0, //
-    0.0, 0.0, 0.0, 0.0, 0.0, 7.0, //
-];
+/// Six bins with a zero bin, a dominant bin and a 1:50 range.
+const WEIGHTS: [f64; 6] = [1.0, 2.0, 0.0, 25.0, 0.5, 7.0];
 
 #[test]
-fn distribution_2d_histogram_matches_weights_chi_square() {
-    let dist = Distribution2D::new(&GRID, GRID_W, GRID_H).unwrap();
-    let total: f64 = GRID.iter().sum();
-    // Each cell split 2 × 2, so uniformity inside a cell is tested too.
-    let (bw, bh) = (2 * GRID_W, 2 * GRID_H);
-    let mut counts = vec![0u64; bw * bh];
+fn alias_table_histogram_matches_weights_chi_square() {
+    let table = AliasTable::new(&WEIGHTS).unwrap();
+    let total: f64 = WEIGHTS.iter().sum();
+    // Each bin split in 4, so uniformity inside a bin is tested too.
+    let sub = 4;
+    let mut counts = vec![0u64; sub * WEIGHTS.len()];
     let n = 400_000;
     let mut rng = Rng::new(7, 0);
     for _ in 0..n {
-        let (uv, pdf) = dist.sample([rng.next_f64(), rng.next_f64()]);
-        assert!((0.0..1.0).contains(&uv.x) && (0.0..1.0).contains(&uv.y));
-        assert!(pdf > 0.0);
-        let (bx, by) = ((uv.x * bw as f64) as usize, (uv.y * bh as f64) as usize);
-        counts[by * bw + bx] += 1;
+        let (x, pdf, bin) = table.sample(rng.next_f64());
+        assert!((0.0..1.0).contains(&x) && pdf > 0.0 && table.bin(x) == bin);
+        counts[(x * (sub * WEIGHTS.len()) as f64) as usize] += 1;
     }
-    // Expected: the cell's share of the total weight, a quarter per sub-cell.
     let mut chi2 = 0.0;
     let mut dof = 0;
-    for by in 0..bh {
-        for bx in 0..bw {
-            let w = GRID[(by / 2) * GRID_W + bx / 2];
-            let expected = n as f64 * w / total / 4.0;
-            let observed = counts[by * bw + bx] as f64;
-            if w == 0.0 {
-                assert_eq!(observed, 0.0, "sample in zero-weight cell ({bx}, {by})");
-                continue;
-            }
-            chi2 += (observed - expected).powi(2) / expected;
-            dof += 1;
+    for (k, &observed) in counts.iter().enumerate() {
+        let w = WEIGHTS[k / sub];
+        if w == 0.0 {
+            assert_eq!(observed, 0, "sample in the zero-weight bin");
+            continue;
         }
+        let expected = n as f64 * w / total / sub as f64;
+        chi2 += (observed as f64 - expected).powi(2) / expected;
+        dof += 1;
     }
     let p = ChiSquared::new((dof - 1) as f64).unwrap().sf(chi2);
     assert!(p > 1e-4, "chi2 = {chi2} with {} dof, p = {p}", dof - 1);
 }
 
 #[test]
-fn distribution_2d_sample_pdf_agree_and_integrate_to_one() {
-    let dist = Distribution2D::new(&GRID, GRID_W, GRID_H).unwrap();
-    let mean: f64 = GRID.iter().sum::<f64>() / GRID.len() as f64;
-    // The density of a cell is its weight over the mean weight.
-    for row in 0..GRID_H {
-        for col in 0..GRID_W {
-            let centre = DVec2::new(
-                (col as f64 + 0.5) / GRID_W as f64,
-                (row as f64 + 0.5) / GRID_H as f64,
-            );
-            let want = GRID[row * GRID_W + col] / mean;
-            assert!((dist.pdf(centre) - want).abs() < 1e-12 * want.max(1.0));
-        }
-    }
-    // Midpoint rule with 5 × 5 points per cell: exact for a step function.
-    let (nx, ny) = (5 * GRID_W, 5 * GRID_H);
+fn alias_table_sample_pdf_agree_and_integrate_to_one() {
+    let table = AliasTable::new(&WEIGHTS).unwrap();
+    let mean: f64 = WEIGHTS.iter().sum::<f64>() / WEIGHTS.len() as f64;
     let mut integral = 0.0;
-    for j in 0..ny {
-        for i in 0..nx {
-            let uv = DVec2::new((i as f64 + 0.5) / nx as f64, (j as f64 + 0.5) / ny as f64);
-            integral += dist.pdf(uv) / (nx * ny) as f64;
-        }
+    for (i, w) in WEIGHTS.iter().enumerate() {
+        let centre = (i as f64 + 0.5) / WEIGHTS.len() as f64;
+        assert!((table.pdf(centre) - w / mean).abs() < 1e-12 * (w / mean).max(1.0));
+        integral += table.probability(i);
     }
-    assert!((integral - 1.0).abs() < 1e-12, "∫ pdf = {integral}");
-    // Outside the unit square there is no density.
-    assert_eq!(dist.pdf(DVec2::new(1.0, 0.5)), 0.0);
-    assert_eq!(dist.pdf(DVec2::new(0.5, -1e-9)), 0.0);
-    // sample() reports the pdf of the point it returns, including
-    // u values at the edges of [0, 1).
+    assert!((integral - 1.0).abs() < 1e-15, "Σ p = {integral}");
+    assert_eq!(table.pdf(1.0), 0.0);
+    assert_eq!(table.pdf(-1e-9), 0.0);
+    // sample() reports the pdf of the point it returns, including u at the
+    // ends of [0, 1) and outside it.
     let mut rng = Rng::new(3, 1);
-    let mut us: Vec<[f64; 2]> = (0..20_000)
-        .map(|_| [rng.next_f64(), rng.next_f64()])
-        .collect();
-    us.extend([
-        [0.0, 0.0],
-        [1.0_f64.next_down(), 1.0_f64.next_down()],
-        [0.5, 0.0],
-    ]);
+    let mut us: Vec<f64> = (0..20_000).map(|_| rng.next_f64()).collect();
+    us.extend([0.0, 1.0_f64.next_down(), 1.0, -0.5, f64::NAN, 0.5]);
     for u in us {
-        let (uv, pdf) = dist.sample(u);
-        assert_eq!(pdf, dist.pdf(uv), "u = {u:?} → uv = {uv}");
+        let (x, pdf, bin) = table.sample(u);
+        assert_eq!(pdf, table.pdf(x), "u = {u} → x = {x}");
+        assert_eq!(table.bin(x), bin);
         assert!(pdf > 0.0);
     }
 }
 
 #[test]
-fn distribution_1d_inverts_its_cdf() {
-    // Weights 1, 3 on [0, ½), [½, 1): density ½ then 3/2; the CDF reaches ¼
-    // at x = ½, so u = ¼ + ¾·t lands at x = ½ + t/2.
-    let d = Distribution1D::new(&[1.0, 3.0]).unwrap();
-    assert_eq!(d.integral(), 2.0);
-    let (x, pdf, bin) = d.sample(0.625);
-    assert_eq!(bin, 1);
-    assert!((x - 0.75).abs() < 1e-15 && (pdf - 1.5).abs() < 1e-15);
-    let (x, pdf, bin) = d.sample(0.125);
-    assert_eq!(bin, 0);
-    assert!((x - 0.25).abs() < 1e-15 && (pdf - 0.5).abs() < 1e-15);
+fn alias_table_samples_continuously_within_a_bin() {
+    // Weights 1, 3 on [0, ½), [½, 1): the probabilities are ¼ and ¾, and
+    // a fine grid of u spreads evenly over each half.
+    let table = AliasTable::new(&[1.0, 3.0]).unwrap();
+    assert_eq!(table.probability(0), 0.25);
+    assert_eq!(table.probability(1), 0.75);
+    let steps = 4096;
+    let mut xs: Vec<f64> = (0..steps)
+        .map(|k| table.sample((k as f64 + 0.5) / steps as f64).0)
+        .collect();
+    xs.sort_by(f64::total_cmp);
+    let (low, high) = xs.split_at(steps / 4);
+    for (k, x) in low.iter().enumerate() {
+        let want = 0.5 * (k as f64 + 0.5) / low.len() as f64;
+        assert!((x - want).abs() < 1e-3, "{x} vs {want}");
+    }
+    for (k, x) in high.iter().enumerate() {
+        let want = 0.5 + 0.5 * (k as f64 + 0.5) / high.len() as f64;
+        assert!((x - want).abs() < 1e-3, "{x} vs {want}");
+    }
 }
 
 #[test]
-fn distribution_refuses_bad_grids() {
-    assert_eq!(
-        Distribution2D::new(&[0.0; 6], 3, 2),
-        Err(DistributionError::AllZero)
-    );
-    let mut grid = [1.0; 6];
-    grid[4] = f64::NAN;
-    let err = Distribution2D::new(&grid, 3, 2).unwrap_err();
+fn alias_table_refuses_bad_weights() {
+    assert_eq!(AliasTable::new(&[0.0; 6]), Err(DistributionError::AllZero));
+    let mut weights = [1.0; 6];
+    weights[4] = f64::NAN;
+    let err = AliasTable::new(&weights).unwrap_err();
     assert!(
-        matches!(err, DistributionError::BadWeight { x: 1, y: 1, .. }),
+        matches!(err, DistributionError::BadWeight { index: 4, .. }),
         "{err}"
     );
-    grid[4] = f64::INFINITY;
-    assert!(Distribution2D::new(&grid, 3, 2).is_err());
-    grid[4] = -1.0;
-    let msg = Distribution2D::new(&grid, 3, 2).unwrap_err().to_string();
-    assert!(
-        msg.contains("column 1, row 1") && msg.contains("≥ 0"),
-        "{msg}"
-    );
+    weights[4] = f64::INFINITY;
+    assert!(AliasTable::new(&weights).is_err());
+    weights[4] = -1.0;
+    let msg = AliasTable::new(&weights).unwrap_err().to_string();
+    assert!(msg.contains("weight 4") && msg.contains("≥ 0"), "{msg}");
     assert!(matches!(
-        Distribution2D::new(&[1.0; 5], 3, 2),
-        Err(DistributionError::BadShape { .. })
+        AliasTable::new(&[]),
+        Err(DistributionError::BadLength { len: 0 })
     ));
-    assert!(Distribution2D::new(&[], 0, 0).is_err());
     assert_eq!(
-        Distribution1D::new(&[0.0, 0.0]),
+        AliasTable::new(&[f64::MAX, f64::MAX]),
         Err(DistributionError::AllZero)
     );
 }
@@ -187,6 +156,7 @@ fn sample_returns_radiance_and_pdf_of_its_direction() {
     let envs = [
         Environment::studio(1.0, 20.0),
         Environment::Map(small_map(30.0)),
+        Environment::Map(sun_map(-70.0)),
         Environment::constant(Rgb::new(0.5, 0.6, 0.7)),
     ];
     for env in &envs {
@@ -196,37 +166,38 @@ fn sample_returns_radiance_and_pdf_of_its_direction() {
                 .sample([rng.next_f64(), rng.next_f64()])
                 .expect("a lit environment always samples");
             assert!((s.direction.length() - 1.0).abs() < 1e-12);
-            // The sample's radiance and density come from the map cell it
-            // was drawn in; the direction converted back must find the same
-            // texel and, to rounding, the same density (a direction exactly
-            // on a texel edge, probability ~1e-13, could differ).
+            // The sample's radiance and density come from the texel it was
+            // drawn in; the direction converted back must find the same
+            // texel and so the same density, to the bit (a direction within
+            // rounding of a texel edge, probability ~1e-13, could differ).
             assert_eq!(s.radiance, env.radiance(s.direction));
-            let pdf = env.pdf(s.direction);
-            assert!((s.pdf / pdf - 1.0).abs() < 1e-9, "{} vs {pdf}", s.pdf);
+            assert_eq!(s.pdf, env.pdf(s.direction));
             assert!(s.pdf > 0.0 && s.pdf.is_finite());
         }
     }
 }
 
-#[test]
-fn map_sampling_matches_its_pdf_chi_square() {
-    // The χ² harness of tests/common integrates the pdf in (cosθ, φ) cells;
-    // inside a texel this density varies as 1/sinθ (uniform in uv, eq.
-    // p(ω) = p(u, v) / 2π² sinθ), singular at the poles, and texel edges
-    // in θ are jumps, which makes that quadrature slow and inexact. Here the
-    // histogram is regular in (θ, φ) instead, with each texel split 2 × 2
-    // and bin edges turned with the map. Since dω = sinθ dθ dφ, the
-    // expected probability of a bin is ∫ p(ω) sinθ dθ dφ, and p(ω) sinθ is
-    // constant on a texel, so the midpoint rule is exact.
-    let rotation_deg = 30.0;
-    let map = small_map(rotation_deg);
-    let env = Environment::Map(map.clone());
-    let (bw, bh) = (2 * map.width(), 2 * map.height());
+/// χ² of a map's samples against its pdf: bins regular in (θ, φ), each
+/// texel of the `w × h` map split `sub × sub`, edges turned with the map.
+/// The density is constant per solid angle on a texel, so a bin's
+/// probability is exactly pdf(midpoint) × Δφ × (cosθ₀ − cosθ₁). Also
+/// checks that the bins' probabilities sum to 1 and that no sample lands
+/// where the pdf is 0. Returns the p-value.
+fn map_chi_square(
+    env: &Environment,
+    (w, h): (usize, usize),
+    rotation_deg: f64,
+    sub: usize,
+    n: usize,
+    seed: u64,
+) -> f64 {
+    let (bw, bh) = (sub * w, sub * h);
     let (d_phi, d_theta) = (TAU / bw as f64, PI / bh as f64);
     let rot = rotation_deg.to_radians();
     let mut expected = vec![0.0; bw * bh];
     for by in 0..bh {
-        let theta = (by as f64 + 0.5) * d_theta;
+        let (t0, t1) = (by as f64 * d_theta, (by + 1) as f64 * d_theta);
+        let theta = 0.5 * (t0 + t1);
         for bx in 0..bw {
             let phi = rot + (bx as f64 + 0.5) * d_phi;
             let d = DVec3::new(
@@ -234,15 +205,14 @@ fn map_sampling_matches_its_pdf_chi_square() {
                 theta.sin() * phi.sin(),
                 theta.cos(),
             );
-            expected[by * bw + bx] = env.pdf(d) * theta.sin() * d_theta * d_phi;
+            expected[by * bw + bx] = env.pdf(d) * d_phi * (t0.cos() - t1.cos());
         }
     }
     let total: f64 = expected.iter().sum();
     assert!((total - 1.0).abs() < 1e-12, "∫ p dω = {total}");
 
-    let n = 300_000;
     let mut counts = vec![0u64; bw * bh];
-    let mut rng = Rng::new(5, 3);
+    let mut rng = Rng::new(seed, 3);
     for _ in 0..n {
         let s = env.sample([rng.next_f64(), rng.next_f64()]).unwrap();
         let theta = s.direction.z.clamp(-1.0, 1.0).acos();
@@ -251,23 +221,102 @@ fn map_sampling_matches_its_pdf_chi_square() {
         let bx = ((phi / d_phi) as usize).min(bw - 1);
         counts[by * bw + bx] += 1;
     }
-    let (mut chi2, mut cells) = (0.0, 0);
+    // Bins expecting fewer than 5 samples (near the poles, where a bin's
+    // solid angle vanishes) are pooled into one.
+    let (mut chi2, mut cells, mut pooled) = (0.0, 0, (0.0, 0.0));
     for (&o, &p) in counts.iter().zip(&expected) {
         let e = p * n as f64;
         if p == 0.0 {
-            assert_eq!(o, 0, "sample in a black texel");
-            continue;
+            assert_eq!(o, 0, "sample where the density is 0");
+        } else if e < 5.0 {
+            pooled = (pooled.0 + o as f64, pooled.1 + e);
+        } else {
+            chi2 += (o as f64 - e).powi(2) / e;
+            cells += 1;
         }
-        assert!(e >= 5.0, "every lit bin expects enough samples");
-        chi2 += (o as f64 - e).powi(2) / e;
+    }
+    if pooled.1 > 0.0 {
+        assert!(pooled.1 >= 5.0, "the pooled bins expect {}", pooled.1);
+        chi2 += (pooled.0 - pooled.1).powi(2) / pooled.1;
         cells += 1;
     }
     let p_value = ChiSquared::new((cells - 1) as f64).unwrap().sf(chi2);
-    assert!(
-        p_value > 1e-4,
-        "chi2 = {chi2}, {} dof, p = {p_value}",
-        cells - 1
-    );
+    eprintln!("chi2 = {chi2}, {} dof, p = {p_value}", cells - 1);
+    p_value
+}
+
+#[test]
+fn map_sampling_matches_its_pdf_chi_square() {
+    let map = small_map(30.0);
+    let env = Environment::Map(map.clone());
+    let p = map_chi_square(&env, (map.width(), map.height()), 30.0, 2, 300_000, 5);
+    assert!(p > 1e-4, "p = {p}");
+}
+
+/// A 64 × 32 sky (a gradient, a dark ground, a few texels a billion times
+/// dimmer than the rest) with a one-texel sun 20 000 times the sky, which
+/// carries most of the map's power.
+fn sun_map(rotation_deg: f64) -> EnvironmentMap {
+    let (w, h) = (64, 32);
+    let mut texels = Vec::new();
+    for row in 0..h {
+        for col in 0..w {
+            let sky = if row < h / 2 {
+                Rgb::new(0.4, 0.6, 1.0) * (1.0 - row as f64 / h as f64)
+            } else {
+                Rgb::new(0.08, 0.07, 0.05)
+            };
+            texels.push(if (col + row) % 29 == 3 {
+                sky * 1e-9
+            } else {
+                sky
+            });
+        }
+    }
+    texels[7 * w + 41] = Rgb::new(2.0e4, 1.9e4, 1.7e4);
+    EnvironmentMap::new(w, h, texels, rotation_deg).unwrap()
+}
+
+#[test]
+fn sun_map_sampling_matches_its_pdf_chi_square() {
+    let map = sun_map(-20.0);
+    let env = Environment::Map(map.clone());
+    // The sun has ~97 % of the power: its texel must be split finely and
+    // the sky still get ≥ 5 samples per bin.
+    let p = map_chi_square(&env, (map.width(), map.height()), -20.0, 2, 3_000_000, 6);
+    assert!(p > 1e-4, "p = {p}");
+}
+
+#[test]
+fn map_pdf_integrates_to_one_texel_by_texel() {
+    // The density is constant on each texel: Σ pdf × texel solid angle is
+    // the exact integral.
+    let envs = [
+        (Environment::Map(sun_map(15.0)), 15.0),
+        (Environment::Map(small_map(30.0)), 30.0),
+        (Environment::studio(1.0, 20.0), 20.0),
+    ];
+    for (env, rotation_deg) in &envs {
+        let Environment::Map(map) = env else {
+            unreachable!()
+        };
+        let (w, h) = (map.width(), map.height());
+        let mut integral = 0.0;
+        for row in 0..h {
+            let solid_angle = texel_solid_angle(row, h, w);
+            for col in 0..w {
+                let centre = dir_deg(
+                    180.0 * (row as f64 + 0.5) / h as f64,
+                    360.0 * (col as f64 + 0.5) / w as f64 + rotation_deg,
+                );
+                integral += env.pdf(centre) * solid_angle;
+            }
+        }
+        assert!(
+            (integral - 1.0).abs() < 1e-12,
+            "{w}×{h}: ∫ p dω = {integral}"
+        );
+    }
 }
 
 #[test]
@@ -666,21 +715,6 @@ fn radiance_and_pdf_together_equal_the_separate_calls() {
     }
 }
 
-#[test]
-fn large_maps_are_sampled_by_blocks_small_and_odd_ones_by_texels() {
-    use lapidary::render::environment::sampling_block;
-    // The studio (1024 × 512) by 4 × 4 blocks: a 256 × 128 grid.
-    assert_eq!(sampling_block(1024, 512), 4);
-    // A 4k × 2k HDR by 16 × 16, a 2k × 1k one by 8 × 8.
-    assert_eq!(sampling_block(4096, 2048), 16);
-    assert_eq!(sampling_block(2048, 1024), 8);
-    // Never below a 256-wide grid, and only by blocks that tile the map.
-    assert_eq!(sampling_block(512, 256), 2);
-    assert_eq!(sampling_block(8, 4), 1);
-    assert_eq!(sampling_block(1023, 512), 1);
-    assert_eq!(sampling_block(1000, 500), 2);
-}
-
 /// The studio bake as it was first written: per sub-sample, the direction
 /// from its own `sin_cos` of θ and φ, and per soft box its frame worked out
 /// again (the gnomonic test of `studio_radiance`, spelled out here).
@@ -738,26 +772,39 @@ fn studio_texels_per_subsample(width: usize, height: usize, intensity: f64) -> V
 #[test]
 fn studio_bake_with_hoisted_angles_is_bit_identical_to_the_per_subsample_formula() {
     let bits = |t: &Rgb| t.to_array().map(f64::to_bits);
-    // The studio itself, through the public constructor, with 1 and 3 threads.
-    let expected = studio_texels_per_subsample(STUDIO_WIDTH, STUDIO_HEIGHT, 1.7);
+    // The studio itself, with 1 and 3 threads: the bake bit for bit, and
+    // the map's stored texels (9 significant bits, intensity applied when
+    // read) within the format's bound of it and equal across threads.
+    let expected = studio_texels_per_subsample(STUDIO_WIDTH, STUDIO_HEIGHT, 1.0);
+    let mut maps = Vec::new();
     for threads in [1, 3] {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .expect("a pool");
+        let baked = pool.install(|| {
+            lapidary::render::environment::bake_studio_texels(STUDIO_WIDTH, STUDIO_HEIGHT, 1.0)
+        });
+        assert_eq!(
+            baked.iter().map(bits).collect::<Vec<_>>(),
+            expected.iter().map(bits).collect::<Vec<_>>(),
+            "{threads} threads"
+        );
         let Environment::Map(map) = pool.install(|| Environment::studio(1.7, 25.0)) else {
             panic!("the studio is a map")
         };
         for row in 0..STUDIO_HEIGHT {
             for col in 0..STUDIO_WIDTH {
-                assert_eq!(
-                    bits(&map.texel(col, row)),
-                    bits(&expected[row * STUDIO_WIDTH + col]),
-                    "texel ({col}, {row}), {threads} threads"
-                );
+                let source = expected[row * STUDIO_WIDTH + col] * 1.7;
+                assert_within_format_bound(map.texel(col, row), source, (col, row));
             }
         }
+        maps.push(map);
     }
+    assert_eq!(
+        maps[0], maps[1],
+        "the map does not depend on the thread count"
+    );
     // Other sizes (odd, tiny, one row) and intensities.
     for (width, height, intensity) in [(37, 19, 1.0), (1, 1, 0.5), (64, 1, 3.0), (3, 200, 0.0)] {
         let hoisted = lapidary::render::environment::bake_studio_texels(width, height, intensity);
@@ -768,4 +815,117 @@ fn studio_bake_with_hoisted_angles_is_bit_identical_to_the_per_subsample_formula
             "{width} × {height}"
         );
     }
+}
+
+/// A stored texel is within 2⁻⁹ × the brightest channel of its source
+/// (plus the rounding of multiplying by an intensity), channel by channel.
+fn assert_within_format_bound(stored: Rgb, source: Rgb, (col, row): (usize, usize)) {
+    let bound = source.max_element() * (2f64.powi(-9) + 1e-15);
+    assert!(
+        (stored - source).abs().max_element() <= bound,
+        "texel ({col}, {row}): stored {stored}, source {source}"
+    );
+}
+
+#[test]
+fn stored_texels_are_within_the_format_bound_of_the_source() {
+    // Magnitudes from 10⁻⁸ to 10⁹, channels up to 10⁴ apart, through the
+    // in-memory constructor and through an EXR file (f32 texels) with an
+    // intensity.
+    let (w, h) = (64, 32);
+    let mut rng = Rng::new(17, 18);
+    let source: Vec<[f32; 3]> = (0..w * h)
+        .map(|_| {
+            let max = 10f64.powf(rng.next_f64() * 17.0 - 8.0);
+            let rgb = [0; 3].map(|_| 1e-4f64.powf(rng.next_f64()));
+            let brightest = rgb[0].max(rgb[1]).max(rgb[2]);
+            rgb.map(|c| (max * c / brightest) as f32)
+        })
+        .collect();
+    let rgb = |t: [f32; 3]| Rgb::new(t[0] as f64, t[1] as f64, t[2] as f64);
+    let map = EnvironmentMap::new(w, h, source.iter().map(|&t| rgb(t)).collect(), 0.0).unwrap();
+    let dir = TempDir::new("bound");
+    let path = dir.0.join("random.exr");
+    exr::prelude::write_rgb_file(&path, w, h, |x, y| {
+        let [r, g, b] = source[y * w + x];
+        (r, g, b)
+    })
+    .unwrap();
+    let Environment::Map(loaded) = Environment::from_file(&path, 0.0, 2.5).unwrap() else {
+        panic!("a file is a map")
+    };
+    for row in 0..h {
+        for col in 0..w {
+            let t = rgb(source[row * w + col]);
+            assert_within_format_bound(map.texel(col, row), t, (col, row));
+            assert_within_format_bound(loaded.texel(col, row), t * 2.5, (col, row));
+        }
+    }
+}
+
+#[test]
+fn too_bright_texels_are_refused_with_the_limit() {
+    use lapidary::render::environment::MAX_TEXEL_RADIANCE;
+    let mut texels = vec![Rgb::ONE; 8];
+    texels[5] = Rgb::new(1.0, 5e9, 1.0);
+    let err = EnvironmentMap::new(4, 2, texels, 0.0).unwrap_err();
+    let msg = err.to_string();
+    assert!(
+        matches!(err, EnvironmentError::TooBright { x: 1, y: 1, .. }) && msg.contains("intensity"),
+        "{msg}"
+    );
+    let mut texels = vec![Rgb::ONE; 8];
+    texels[2] = Rgb::splat(MAX_TEXEL_RADIANCE);
+    assert!(EnvironmentMap::new(4, 2, texels, 0.0).is_ok());
+    // In a file, the first such texel in reading order, named with the file.
+    let dir = TempDir::new("bright");
+    let path = dir.0.join("sun.exr");
+    exr::prelude::write_rgb_file(&path, 4, 2, |x, y| {
+        let v = if y == 1 && x >= 2 { 1e10f32 } else { 1.0 };
+        (v, v, v)
+    })
+    .unwrap();
+    let err = error_text(&path);
+    assert!(
+        err.contains("x = 2, y = 1") && err.contains("above"),
+        "{err}"
+    );
+}
+
+#[test]
+fn hdr_scanlines_read_as_the_image_crate_reads_them() {
+    // Wide enough for run-length encoded scanlines, with runs (flat areas)
+    // and literals (noise), compared with `image`'s own whole-image decode.
+    let dir = TempDir::new("rle");
+    let path = dir.0.join("rle.hdr");
+    let (w, h) = (97, 13);
+    let value = |col: usize, row: usize| -> [f32; 3] {
+        if col < 40 {
+            [0.5, 0.25, 2.0]
+        } else {
+            let t = lapidary::sampling::mix64((row * w + col) as u64) as f32 / u64::MAX as f32;
+            [t * 100.0, t * t, 0.001 + t]
+        }
+    };
+    write_hdr(&path, w, h, value);
+    let reference = image::open(&path).unwrap().into_rgb32f();
+    let Environment::Map(map) = Environment::from_file(&path, 0.0, 1.0).unwrap() else {
+        panic!("a file is a map")
+    };
+    for row in 0..h {
+        for col in 0..w {
+            let [r, g, b] = reference.get_pixel(col as u32, row as u32).0;
+            // RGBE values fit the texel format exactly.
+            assert_eq!(
+                map.texel(col, row),
+                Rgb::new(r as f64, g as f64, b as f64),
+                "texel ({col}, {row})"
+            );
+        }
+    }
+    // The same file cut short in the middle of its scanlines.
+    let bytes = std::fs::read(&path).unwrap();
+    let cut = dir.0.join("cut.hdr");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    assert!(error_text(&cut).contains("corrupt"));
 }

@@ -1,301 +1,289 @@
-//! Piecewise-constant 1-D and 2-D distributions for importance sampling
-//! (pbrt-v4, section A.5 "Sampling 1D functions" and "Piecewise-constant 2D
-//! distributions"; the environment light samples its texels with them).
+//! Alias tables: sampling a piecewise-constant density over `n` equal bins
+//! of `[0, 1)` in constant time (Walker's alias method, built by Vose's
+//! algorithm; pbrt-v4 section A.1.4 `AliasTable`). The environment light
+//! samples its rows with an [`AliasTable`] and the texels of a row with the
+//! same construction packed beside its texels (`environment.rs`).
 //!
-//! A [`Distribution1D`] over `n` equal bins of `[0, 1)` has density
-//! `p(x) = f[i] / I` in bin `i = ⌊x n⌋`, with `I = Σ f / n` the integral of
-//! the step function, and is sampled by inverting its CDF. A
-//! [`Distribution2D`] over a `width × height` grid factors the joint density
-//! into a marginal over rows and a conditional over the columns of each row,
-//! `p(u, v) = p(v) p(u | v) = f[row][col] / I`, so that sampling costs two
-//! binary searches (pbrt-v4 eq. A.12–A.13 / `PiecewiseConstant2D`).
+//! # Exact integer weights
 //!
-//! Everything is in `f64`, including the CDFs, so that a 1024 × 512
-//! environment map with a dynamic range of 10⁵ keeps its dim texels
-//! reachable. Bins of weight zero are never sampled and have pdf zero.
+//! Every table here is built from **integer** weights whose sum is exactly
+//! `n × capacity`, so Vose's construction runs in integers: each bin `j`
+//! keeps `threshold[j]` units of its own and lends `capacity − threshold[j]`
+//! to `alias[j]`, and the probability that a uniform `u` picks bin `i` is
+//! exactly `weight[i] / (n × capacity)`. A density reported from the
+//! integer weight is then the density sampled, with no floating-point
+//! rounding between them (a table built in floating point, like pbrt's,
+//! samples each bin with a probability off by rounding from the one it
+//! reports). Real weights become integers by the largest-remainder rule;
+//! a bin whose share is below one unit gets weight 0, is never sampled and
+//! has density 0 (a multiple-importance-sampled estimator stays unbiased:
+//! the other strategy covers it with weight 1).
+//!
+//! # Continuous samples, and what the alias method gives up
+//!
+//! One uniform `u` does both jobs: `⌊u n⌋` picks bin `j`, and the rest of
+//! `u` (times the capacity) is compared with `threshold[j]` and then
+//! *remapped* to a uniform position inside the bin chosen (the part below
+//! the threshold for bin `j`, the part above it for its alias). So a
+//! sample is a continuous point, uniform within its bin, and no second
+//! random number is spent. The trade-off against inverting a CDF: that
+//! warp is monotone, so stratified or low-discrepancy `u` stay stratified
+//! over the bins, while the alias warp is monotone only on each of its
+//! (at most `2n`) pieces; a bin heavier than one bucket gathers pieces
+//! from many buckets, whose samples are stratified piece by piece. In
+//! exchange a sample costs one multiplication, one comparison and at most
+//! two reads, whatever `n` and whatever the weights.
 
-/// Why a grid of weights cannot become a distribution.
+/// Units each bucket of an [`AliasTable`] holds: 2⁴⁰, so that the `n ×
+/// capacity` total of a table of up to 2²³ bins fits in a `u64` and every
+/// threshold is an `f64` exactly.
+const TABLE_CAPACITY: u64 = 1 << 40;
+
+/// Most bins an [`AliasTable`] takes (its total must fit in a `u64`).
+pub const MAX_BINS: usize = 1 << 23;
+
+/// Why a list of weights cannot become a distribution.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DistributionError {
-    /// A grid with no cells, or a weight slice whose length does not match
-    /// the stated size.
-    #[error(
-        "distribution grid is {width}×{height} with {len} weights; it needs width ≥ 1, \
-         height ≥ 1 and exactly width × height weights"
-    )]
-    BadShape {
-        /// Columns requested.
-        width: usize,
-        /// Rows requested.
-        height: usize,
+    /// No weights, or more than [`MAX_BINS`].
+    #[error("distribution has {len} weights; it needs between 1 and {MAX_BINS}")]
+    BadLength {
         /// Weights given.
         len: usize,
     },
     /// A NaN, infinite or negative weight.
-    #[error(
-        "distribution weight at column {x}, row {y} is {value}; weights must be finite and ≥ 0"
-    )]
+    #[error("distribution weight {index} is {value}; weights must be finite and ≥ 0")]
     BadWeight {
-        /// Column of the first bad weight.
-        x: usize,
-        /// Row of the first bad weight.
-        y: usize,
+        /// Position of the first bad weight.
+        index: usize,
         /// The refused value.
         value: f64,
     },
-    /// Every weight is zero, so there is nothing to sample.
-    #[error("distribution weights are all zero; at least one must be > 0")]
+    /// Every weight is zero (or the weights sum to infinity), so there is
+    /// nothing to sample.
+    #[error(
+        "distribution weights are all zero or sum to infinity; their sum must be finite and > 0"
+    )]
     AllZero,
 }
 
-/// A piecewise-constant density over `n` equal bins of `[0, 1)`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Distribution1D {
-    /// Non-negative bin weights `f[i]`.
-    func: Vec<f64>,
-    /// `cdf[i] = Σ_{j<i} f[j] / Σ f`, with `cdf[0] = 0` and `cdf[n] = 1`.
-    cdf: Vec<f64>,
-    /// `∫₀¹ f = Σ f / n` (zero only for the all-zero rows that
-    /// [`Distribution2D`] keeps and never samples).
-    integral: f64,
-    /// Guide table (Chen & Asau's cutpoints): `guide[k]` is the largest `i`
-    /// with `cdf[i] ≤ k / n`, for `k = 0…n`. A sample `u` in `[k/n,
-    /// (k+1)/n)` inverts the CDF within `guide[k−1]…guide[k+2]`: a search
-    /// over a few entries instead of a binary search over all `n + 1`, with
-    /// exactly the same result (the environment map's 513- and 1025-entry
-    /// CDFs cost a fifth of a studio render with the full search).
-    guide: Vec<u32>,
+/// One bucket of an [`AliasTable`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct AliasBin {
+    /// Units of the bucket that stay with this bin, in `0..=TABLE_CAPACITY`.
+    threshold: u64,
+    /// The bin the rest of the bucket goes to.
+    alias: u32,
+    /// This bin's integer weight; the weights sum to `n × TABLE_CAPACITY`.
+    weight: u64,
 }
 
-impl Distribution1D {
-    /// A distribution proportional to `weights` (bin `i` covers
-    /// `[i/n, (i+1)/n)`). Refuses an empty slice, a NaN, infinite or
-    /// negative weight, and all-zero weights.
+/// A piecewise-constant density over `n` equal bins of `[0, 1)`, sampled in
+/// constant time by the alias method (see the module documentation).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AliasTable {
+    bins: Vec<AliasBin>,
+}
+
+impl AliasTable {
+    /// A distribution proportional to `weights` (bin `i` covers `[i/n,
+    /// (i+1)/n)`), rounded to integer weights out of `n × 2⁴⁰`. Refuses an
+    /// empty or over-long slice, a NaN, infinite or negative weight, and
+    /// weights that are all zero or sum to infinity.
     pub fn new(weights: &[f64]) -> Result<Self, DistributionError> {
-        check_weights(weights, weights.len(), 1)?;
-        let d = Self::build(weights);
-        if d.integral > 0.0 {
-            Ok(d)
-        } else {
-            Err(DistributionError::AllZero)
-        }
-    }
-
-    /// Builds from already-checked weights; an all-zero row gets a uniform
-    /// CDF (it is never sampled, as its marginal weight is zero).
-    fn build(weights: &[f64]) -> Self {
         let n = weights.len();
-        let mut cdf = Vec::with_capacity(n + 1);
-        cdf.push(0.0);
-        let mut running = 0.0;
-        for &w in weights {
-            running += w;
-            cdf.push(running);
+        if n == 0 || n > MAX_BINS {
+            return Err(DistributionError::BadLength { len: n });
         }
-        let total = running;
-        if total > 0.0 {
-            for c in &mut cdf[1..] {
-                *c /= total;
-            }
-        } else {
-            for (i, c) in cdf.iter_mut().enumerate() {
-                *c = i as f64 / n as f64;
-            }
+        if let Some(index) = weights.iter().position(|w| !(w.is_finite() && *w >= 0.0)) {
+            return Err(DistributionError::BadWeight {
+                index,
+                value: weights[index],
+            });
         }
-        // Exactly 1 at the end, whatever the rounding of the running sum.
-        cdf[n] = 1.0;
-        let mut guide = Vec::with_capacity(n + 1);
-        let mut i = 0;
-        for k in 0..=n {
-            let cut = k as f64 / n as f64;
-            while i < n && cdf[i + 1] <= cut {
-                i += 1;
-            }
-            guide.push(i as u32);
-        }
-        Self {
-            func: weights.to_vec(),
-            cdf,
-            integral: total / n as f64,
-            guide,
-        }
-    }
-
-    /// The largest `i` with `cdf[i] ≤ u`, for `u` in `[0, 1)`, found
-    /// between the guide table's cutpoints around `u` (one cutpoint of slack
-    /// on each side absorbs the rounding of `u·n`).
-    fn invert_cdf(&self, u: f64) -> usize {
-        let n = self.func.len();
-        let k = bin_of_scaled(u * n as f64, n);
-        let lo = self.guide[k.saturating_sub(1)] as usize;
-        let hi = self.guide[(k + 2).min(n)] as usize;
-        // cdf[lo] ≤ u, and every i with cdf[i] ≤ u is ≤ hi.
-        lo + self.cdf[lo..=hi].partition_point(|&c| c <= u).max(1) - 1
+        let total = n as u64 * TABLE_CAPACITY;
+        let integer = round_to_total(weights, total).ok_or(DistributionError::AllZero)?;
+        let table = alias_table(&integer, TABLE_CAPACITY);
+        let bins = table
+            .into_iter()
+            .zip(integer)
+            .map(|((threshold, alias), weight)| AliasBin {
+                threshold,
+                alias,
+                weight,
+            })
+            .collect();
+        Ok(Self { bins })
     }
 
     /// Number of bins.
     pub fn len(&self) -> usize {
-        self.func.len()
+        self.bins.len()
     }
 
-    /// Always `false`: a distribution has at least one bin (kept for the
+    /// Always `false`: a table has at least one bin (kept for the
     /// `len`/`is_empty` convention).
     pub fn is_empty(&self) -> bool {
-        self.func.is_empty()
+        self.bins.is_empty()
     }
 
-    /// `∫₀¹ f(x) dx = Σ f / n`, the normalisation constant of the density.
-    pub fn integral(&self) -> f64 {
-        self.integral
+    /// The probability of bin `i` (its integer weight over the total,
+    /// rounded once); 0 outside the table.
+    pub fn probability(&self, i: usize) -> f64 {
+        match self.bins.get(i) {
+            Some(bin) => bin.weight as f64 / (self.bins.len() as u64 * TABLE_CAPACITY) as f64,
+            None => 0.0,
+        }
     }
 
-    /// The bin holding `x` (`⌊x n⌋`, clamped into `0..n`); the one rule that
+    /// The bin holding `x` (`⌊x n⌋`, clamped into `0..n`); the rule that
     /// both [`Self::sample`] and [`Self::pdf`] use, so they agree.
     pub fn bin(&self, x: f64) -> usize {
-        let n = self.func.len();
+        let n = self.bins.len();
         bin_of_scaled(x * n as f64, n)
     }
 
-    /// Inverts the CDF at `u ∈ [0, 1)`: returns the continuous point
-    /// `x ∈ [0, 1)`, its density `f[i] / I` and its bin `i`. Bins of zero
-    /// weight are never returned, and `self.bin(x) == i` always holds.
-    pub fn sample(&self, u: f64) -> (f64, f64, usize) {
-        let (x, i) = self.sample_point(u);
-        let pdf = if self.integral > 0.0 {
-            self.func[i] / self.integral
-        } else {
-            0.0
-        };
-        (x, pdf, i)
-    }
-
-    /// [`Self::sample`] without the density: the point `x` and its bin `i`
-    /// (what [`Distribution2D::sample`] needs, a division fewer).
-    fn sample_point(&self, u: f64) -> (f64, usize) {
-        let n = self.func.len();
-        // Clamp into [0, 1): the last bin of positive weight ends at a CDF of
-        // exactly 1, so any u < 1 lands in a bin of positive weight.
-        let u = if u.is_finite() {
-            u.clamp(0.0, 1.0_f64.next_down())
-        } else {
-            0.0
-        };
-        // Largest i with cdf[i] ≤ u; then cdf[i + 1] > u, so f[i] > 0.
-        let i = self.invert_cdf(u).min(n - 1);
-        let width = self.cdf[i + 1] - self.cdf[i];
-        let du = if width > 0.0 {
-            ((u - self.cdf[i]) / width).clamp(0.0, 1.0)
-        } else {
-            0.5
-        };
-        (self.snap_into_bin((i as f64 + du) / n as f64, i), i)
-    }
-
-    /// Nudges `x` into `[0, 1)` and then by ulps until [`Self::bin`] maps it
-    /// to bin `i` (rounding at `(i + 1)/n` could otherwise report the
-    /// neighbouring bin).
-    fn snap_into_bin(&self, x: f64, i: usize) -> f64 {
-        // The last bin is closed by clamping in `bin`; keep x inside [0, 1).
-        let mut x = x.clamp(0.0, 1.0_f64.next_down());
-        if self.is_in_bin(x, i) {
-            return x;
-        }
-        for _ in 0..8 {
-            match self.bin(x).cmp(&i) {
-                std::cmp::Ordering::Equal => return x,
-                std::cmp::Ordering::Greater => x = x.next_down(),
-                std::cmp::Ordering::Less => x = x.next_up(),
-            }
-        }
-        // Unreachable for n < 2⁵²; the bin centre is always safe.
-        (i as f64 + 0.5) / self.func.len() as f64
-    }
-
-    /// Whether [`Self::bin`] maps `x ∈ [0, 1)` to bin `i < n`, by two
-    /// comparisons instead of a float-to-integer conversion: ⌊x n⌋ = i ⇔
-    /// i ≤ x n < i + 1, exact as long as i + 1 ≤ 2⁵³ (no distribution that
-    /// fits in memory has more bins); the last bin also takes x n = n.
-    fn is_in_bin(&self, x: f64, i: usize) -> bool {
-        let n = self.func.len();
-        let scaled = x * n as f64;
-        scaled >= i as f64 && (scaled < (i + 1) as f64 || i + 1 == n)
-    }
-
-    /// Density at `x` with respect to length on `[0, 1)`; zero outside it.
+    /// Density at `x` with respect to length on `[0, 1)`: the probability
+    /// of its bin times `n`; zero outside `[0, 1)`.
     pub fn pdf(&self, x: f64) -> f64 {
-        if !(0.0..1.0).contains(&x) || self.integral <= 0.0 {
+        if !(0.0..1.0).contains(&x) {
             return 0.0;
         }
-        self.func[self.bin(x)] / self.integral
+        self.probability(self.bin(x)) * self.bins.len() as f64
+    }
+
+    /// Draws from `u ∈ [0, 1)` (clamped into it; NaN counts as 0): the
+    /// continuous point `x ∈ [0, 1)`, its density ([`Self::pdf`] at `x`)
+    /// and its bin `i`, with `self.bin(x) == i`. Bins of weight zero are
+    /// never returned.
+    pub fn sample(&self, u: f64) -> (f64, f64, usize) {
+        let (i, within) = self.sample_bin(u);
+        let n = self.bins.len();
+        let x = snap_into_bin((i as f64 + within) / n as f64, i, n);
+        (x, self.probability(i) * n as f64, i)
+    }
+
+    /// The bin drawn from `u` and the sample's position inside it, in
+    /// `[0, 1)`: what a caller that maps bins to something else needs.
+    pub fn sample_bin(&self, u: f64) -> (usize, f64) {
+        draw(u, self.bins.len(), TABLE_CAPACITY, |j| {
+            let bin = &self.bins[j];
+            (bin.threshold, bin.alias as usize)
+        })
     }
 }
 
-/// A piecewise-constant density over `[0, 1)²` from a `width × height` grid
-/// of weights: column `⌊u·width⌋`, row `⌊v·height⌋`, row-major storage.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Distribution2D {
-    /// One distribution over the columns of each row, `p(u | v)`.
-    conditional: Vec<Distribution1D>,
-    /// The distribution of rows, weighted by each row's integral, `p(v)`.
-    marginal: Distribution1D,
+/// The draw of an alias table with `n` buckets of `capacity` units, whose
+/// bucket `j` is `entry(j) = (threshold, alias)`: the bin `⌊u n⌋` when the
+/// rest of `u`, scaled to the capacity, falls below its threshold, its
+/// alias otherwise, each with the rest of `u` remapped to a uniform
+/// position in `[0, 1)` inside the bin drawn. `u` is clamped into `[0, 1)`
+/// (NaN counts as 0). `capacity` is a power of two at most 2⁵², so
+/// thresholds and the scaled rest compare exactly as `f64`.
+#[inline]
+pub(crate) fn draw(
+    u: f64,
+    n: usize,
+    capacity: u64,
+    entry: impl Fn(usize) -> (u64, usize),
+) -> (usize, f64) {
+    let u = if u > 0.0 {
+        u.min(1.0_f64.next_down())
+    } else {
+        0.0
+    };
+    let scaled = u * n as f64;
+    let j = bin_of_scaled(scaled, n);
+    let capacity = capacity as f64;
+    // The fraction of the bucket, in units; exact up to the rounding of
+    // u·n, and below the capacity.
+    let rest = ((scaled - j as f64) * capacity).clamp(0.0, capacity.next_down());
+    let (threshold, alias) = entry(j);
+    let threshold = threshold as f64;
+    let (bin, within) = if rest < threshold {
+        (j, rest / threshold)
+    } else {
+        (alias, (rest - threshold) / (capacity - threshold))
+    };
+    (bin, within.min(1.0_f64.next_down()))
 }
 
-impl Distribution2D {
-    /// A distribution proportional to `weights[row * width + col]`. Refuses
-    /// an empty grid, a length other than `width × height`, any NaN,
-    /// infinite or negative weight (naming its column and row) and an
-    /// all-zero grid.
-    pub fn new(weights: &[f64], width: usize, height: usize) -> Result<Self, DistributionError> {
-        check_weights(weights, width, height)?;
-        let conditional: Vec<Distribution1D> = weights
-            .chunks_exact(width)
-            .map(Distribution1D::build)
-            .collect();
-        let row_integrals: Vec<f64> = conditional.iter().map(|c| c.integral).collect();
-        let marginal = Distribution1D::build(&row_integrals);
-        if marginal.integral > 0.0 {
-            Ok(Self {
-                conditional,
-                marginal,
-            })
-        } else {
-            Err(DistributionError::AllZero)
+/// Vose's construction over integer `weights` that sum to exactly
+/// `weights.len() × capacity`: per bucket `j`, the units kept by bin `j`
+/// (`0..=capacity`) and the bin the rest goes to. In integers, so that the
+/// probability of bin `i`, Σ of its own and its lent units over the total,
+/// is exactly `weights[i] / total`; bins of weight 0 keep nothing. A
+/// bucket that lends nothing is its own alias. Deterministic (index
+/// order, two stacks).
+pub(crate) fn alias_table(weights: &[u64], capacity: u64) -> Vec<(u64, u32)> {
+    let n = weights.len();
+    let mut table: Vec<(u64, u32)> = (0..n as u32).map(|i| (capacity, i)).collect();
+    let mut left = weights.to_vec();
+    let (mut small, mut large): (Vec<u32>, Vec<u32>) =
+        (0..n as u32).partition(|&i| left[i as usize] < capacity);
+    // Each step fills a small bin's bucket from a large bin; with an exact
+    // total the last ones standing hold exactly `capacity` each.
+    while let (Some(&s), Some(&l)) = (small.last(), large.last()) {
+        small.pop();
+        let lent = capacity - left[s as usize];
+        table[s as usize] = (left[s as usize], l);
+        let rest = &mut left[l as usize];
+        *rest = rest.saturating_sub(lent);
+        if *rest < capacity {
+            large.pop();
+            small.push(l);
         }
     }
+    table
+}
 
-    /// Number of columns (bins along `u`).
-    pub fn width(&self) -> usize {
-        self.conditional[0].len()
+/// Integer weights proportional to `weights` that sum to exactly `total`:
+/// each `⌊w total / Σw⌋`, and the units left over to the bins with the
+/// largest remainders (the largest-remainder rule), never to a bin of
+/// weight 0. `None` when the weights are all zero or sum to infinity.
+/// The weights must be finite and ≥ 0.
+pub(crate) fn round_to_total(weights: &[f64], total: u64) -> Option<Vec<u64>> {
+    let sum: f64 = weights.iter().sum();
+    if !(sum > 0.0 && sum.is_finite()) {
+        return None;
     }
-
-    /// Number of rows (bins along `v`).
-    pub fn height(&self) -> usize {
-        self.marginal.len()
+    let scale = total as f64 / sum;
+    let mut integer: Vec<u64> = weights.iter().map(|&w| (w * scale) as u64).collect();
+    let assigned: u64 = integer.iter().sum();
+    if assigned > total {
+        // Rounding of `scale` can overshoot by a few units in 2⁶⁴: take
+        // them from the largest weight.
+        let largest = (0..integer.len()).max_by_key(|&i| integer[i])?;
+        integer[largest] -= (assigned - total).min(integer[largest]);
+        return Some(integer);
     }
-
-    /// Draws a point `(u, v) ∈ [0, 1)²` from two uniform numbers (`u[1]`
-    /// picks the row from the marginal, `u[0]` the column from that row's
-    /// conditional) and returns it with its density with respect to
-    /// `du dv`, which equals [`Self::pdf`] at the returned point.
-    pub fn sample(&self, u: [f64; 2]) -> (glam::DVec2, f64) {
-        let (v, row) = self.marginal.sample_point(u[1]);
-        let (x, col) = self.conditional[row].sample_point(u[0]);
-        // f / I directly, as in `pdf`: the product p(v) p(u|v) is the same
-        // number mathematically but not always to the last bit.
-        let pdf = self.conditional[row].func[col] / self.marginal.integral;
-        (glam::DVec2::new(x, v), pdf)
+    let missing = total - assigned;
+    let mut lit: Vec<usize> = (0..weights.len()).filter(|&i| weights[i] > 0.0).collect();
+    let remainder = |i: usize| weights[i] * scale - integer[i] as f64;
+    // Largest remainders first, ties by index (a total order, so the
+    // result does not depend on the sort). Rounding can leave more units
+    // missing than there are bins: every bin then gets the same share.
+    lit.sort_by(|&a, &b| remainder(b).total_cmp(&remainder(a)).then(a.cmp(&b)));
+    let (each, extra) = (missing / lit.len() as u64, missing % lit.len() as u64);
+    for (k, &i) in lit.iter().enumerate() {
+        integer[i] += each + u64::from((k as u64) < extra);
     }
+    Some(integer)
+}
 
-    /// Density at `uv` with respect to `du dv`: `f[row][col] / I` with `I`
-    /// the mean weight; zero outside `[0, 1)²` and for non-finite input.
-    pub fn pdf(&self, uv: glam::DVec2) -> f64 {
-        if !(0.0..1.0).contains(&uv.x) || !(0.0..1.0).contains(&uv.y) {
-            return 0.0;
+/// Nudges `x` into `[0, 1)` and then by ulps until `⌊x n⌋ = i` (rounding
+/// at `(i + 1)/n` could otherwise report the neighbouring bin).
+fn snap_into_bin(x: f64, i: usize, n: usize) -> f64 {
+    let mut x = x.clamp(0.0, 1.0_f64.next_down());
+    for _ in 0..8 {
+        match bin_of_scaled(x * n as f64, n).cmp(&i) {
+            std::cmp::Ordering::Equal => return x,
+            std::cmp::Ordering::Greater => x = x.next_down(),
+            std::cmp::Ordering::Less => x = x.next_up(),
         }
-        let row = &self.conditional[self.marginal.bin(uv.y)];
-        // p(v) p(u|v) = (I_row / I) (f / I_row) = f / I.
-        row.func[row.bin(uv.x)] / self.marginal.integral
     }
+    // Unreachable for n < 2⁵²; the bin centre is always safe.
+    (i as f64 + 0.5) / n as f64
 }
 
 /// The bin `⌊scaled⌋` of `scaled = x n`, clamped into `0..n` (NaN and
@@ -308,210 +296,73 @@ pub(crate) fn bin_of_scaled(scaled: f64, n: usize) -> usize {
     ((scaled as i64).max(0) as usize).min(n - 1)
 }
 
-/// Checks shape and values: `width × height` finite, non-negative weights.
-fn check_weights(weights: &[f64], width: usize, height: usize) -> Result<(), DistributionError> {
-    if width == 0 || height == 0 || width.checked_mul(height) != Some(weights.len()) {
-        return Err(DistributionError::BadShape {
-            width,
-            height,
-            len: weights.len(),
-        });
-    }
-    if let Some(i) = weights.iter().position(|w| !(w.is_finite() && *w >= 0.0)) {
-        return Err(DistributionError::BadWeight {
-            x: i % width,
-            y: i / width,
-            value: weights[i],
-        });
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::sampling::Rng;
 
-    /// The plain binary search the guide table replaces.
-    fn invert_by_full_search(d: &Distribution1D, u: f64) -> usize {
-        d.cdf.partition_point(|&c| c <= u).max(1) - 1
-    }
-
-    /// The bin rule before [`bin_of_scaled`]: `Distribution1D::bin`'s
-    /// (clamped at 0 first) and the texel lookup's (without the clamp).
-    fn bin_through_usize(scaled: f64, n: usize, clamp_at_zero: bool) -> usize {
-        let scaled = if clamp_at_zero {
-            scaled.max(0.0)
-        } else {
-            scaled
-        };
-        (scaled as usize).min(n - 1)
+    /// Each bin's probability from the table itself: its own units plus
+    /// the units every bucket lends it, over the total.
+    fn probabilities_from_table(table: &[(u64, u32)], capacity: u64) -> Vec<u64> {
+        let mut units = vec![0u64; table.len()];
+        for (j, &(threshold, alias)) in table.iter().enumerate() {
+            units[j] += threshold;
+            units[alias as usize] += capacity - threshold;
+        }
+        units
     }
 
     #[test]
-    fn bins_through_i64_equal_bins_through_usize_for_every_kind_of_input() {
-        let mut rng = Rng::new(21, 22);
-        let mut scaled = vec![
-            f64::NAN,
-            -f64::NAN,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::MAX,
-            f64::MIN,
-            0.0,
-            -0.0,
-            f64::MIN_POSITIVE,
-            -f64::MIN_POSITIVE,
-            2f64.powi(31),
-            2f64.powi(32),
-            2f64.powi(63),
-            2f64.powi(63).next_down(),
-            2f64.powi(64),
-            1e30,
-            -1e30,
-        ];
-        for k in -3..1100 {
-            let k = k as f64;
-            scaled.extend([k, k.next_up(), k.next_down()]);
-        }
-        scaled.extend((0..20_000).map(|_| (rng.next_f64() - 0.25) * 2000.0));
-        for n in [1, 2, 3, 256, 1024, 16384, usize::MAX >> 1] {
-            for &t in &scaled {
-                for clamp in [true, false] {
-                    assert_eq!(
-                        bin_of_scaled(t, n),
-                        bin_through_usize(t, n, clamp),
-                        "n = {n}, scaled = {t}"
-                    );
-                }
-            }
-        }
-    }
-
-    /// [`Distribution1D::sample`] before the snap's fast path: the ulp
-    /// loop run from the start, through the `usize` bin rule.
-    fn sample_by_snap_loop(d: &Distribution1D, u: f64) -> (f64, f64, usize) {
-        let n = d.func.len();
-        let u = if u.is_finite() {
-            u.clamp(0.0, 1.0_f64.next_down())
-        } else {
-            0.0
-        };
-        let i = invert_by_full_search(d, u).min(n - 1);
-        let width = d.cdf[i + 1] - d.cdf[i];
-        let du = if width > 0.0 {
-            ((u - d.cdf[i]) / width).clamp(0.0, 1.0)
-        } else {
-            0.5
-        };
-        let old_bin = |x: f64| bin_through_usize(x * n as f64, n, true);
-        let mut x = ((i as f64 + du) / n as f64).clamp(0.0, 1.0_f64.next_down());
-        let mut snapped = None;
-        for _ in 0..8 {
-            match old_bin(x).cmp(&i) {
-                std::cmp::Ordering::Equal => {
-                    snapped = Some(x);
-                    break;
-                }
-                std::cmp::Ordering::Greater => x = x.next_down(),
-                std::cmp::Ordering::Less => x = x.next_up(),
-            }
-        }
-        let x = snapped.unwrap_or((i as f64 + 0.5) / n as f64);
-        let pdf = if d.integral > 0.0 {
-            d.func[i] / d.integral
-        } else {
-            0.0
-        };
-        (x, pdf, i)
-    }
-
-    #[test]
-    fn sampling_with_the_snap_fast_path_equals_the_ulp_loop_bit_for_bit() {
-        let mut rng = Rng::new(31, 32);
-        let cases: Vec<Vec<f64>> = vec![
-            vec![1.0],
-            vec![0.0, 0.0, 3.0, 0.0],
-            vec![1.0; 3],
-            vec![1.0; 49],
-            (0..256).map(|i| 1.0 + (i as f64 * 0.3).sin()).collect(),
-            (0..1024)
-                .map(|i| if i % 97 == 5 { 1e12 } else { 1.0 })
-                .collect(),
-            (0..777).map(|_| rng.next_f64().powi(8)).collect(),
-        ];
-        for weights in &cases {
-            let d = Distribution1D::new(weights).unwrap();
-            let n = weights.len();
-            let mut us: Vec<f64> = (0..20_000).map(|_| rng.next_f64()).collect();
-            us.extend([
-                0.0,
-                -0.0,
-                1.0,
-                1.0_f64.next_down(),
-                1.0_f64.next_down().next_down(),
-                -1.0,
-                2.0,
-                f64::NAN,
-                f64::INFINITY,
-            ]);
-            // Every bin edge in u (CDF values) and in x (k / n), with their
-            // neighbouring floats.
-            for k in 0..=n {
-                for c in [d.cdf[k], k as f64 / n as f64] {
-                    us.extend([c, c.next_up(), c.next_down()]);
-                }
-            }
-            for u in us {
-                let (x, pdf, i) = d.sample(u);
-                let (x_ref, pdf_ref, i_ref) = sample_by_snap_loop(&d, u);
-                assert_eq!(
-                    (x.to_bits(), pdf.to_bits(), i),
-                    (x_ref.to_bits(), pdf_ref.to_bits(), i_ref),
-                    "n = {n}, u = {u}"
-                );
-                assert_eq!(d.bin(x), i, "n = {n}, u = {u}");
-            }
-        }
-    }
-
-    #[test]
-    fn guided_inversion_equals_the_full_binary_search() {
-        let mut rng = Rng::new(8, 9);
-        // Smooth, spiky (dynamic range 10¹²), runs of zero bins, one bin,
-        // and sizes that are not powers of two.
+    fn integer_tables_give_every_bin_exactly_its_weight() {
+        let mut rng = Rng::new(4, 5);
+        let capacity = 1 << 15;
         let mut cases: Vec<Vec<f64>> = vec![
             vec![1.0],
             vec![0.0, 0.0, 3.0, 0.0],
-            (0..1025).map(|i| 1.0 + (i as f64 * 0.1).sin()).collect(),
+            vec![1.0; 1000],
+            (0..4096)
+                .map(|i| if i == 77 { 1e9 } else { 1e-3 })
+                .collect(),
             (0..513)
                 .map(|i| if i % 97 == 5 { 1e12 } else { 1.0 })
-                .collect(),
-            (0..300)
-                .map(|i| if (40..260).contains(&i) { 0.0 } else { 2.0 })
                 .collect(),
         ];
         cases.push((0..777).map(|_| rng.next_f64().powi(8)).collect());
         for weights in &cases {
-            let d = Distribution1D::new(weights).unwrap();
-            let n = weights.len();
-            // Random u, every cutpoint k/n and its neighbouring floats, and
-            // every CDF value and its neighbours.
-            let mut us: Vec<f64> = (0..20_000).map(|_| rng.next_f64()).collect();
-            for k in 0..n {
-                let cut = k as f64 / n as f64;
-                us.extend([cut, cut.next_up(), cut.next_down().max(0.0)]);
+            let n = weights.len() as u64;
+            let integer = round_to_total(weights, n * capacity).unwrap();
+            assert_eq!(integer.iter().sum::<u64>(), n * capacity);
+            for (w, i) in weights.iter().zip(&integer) {
+                if *w == 0.0 {
+                    assert_eq!(*i, 0, "a bin of weight 0 gets no units");
+                }
             }
-            for &c in &d.cdf[..n] {
-                us.extend([c, c.next_up(), c.next_down().max(0.0)]);
-            }
-            for u in us.into_iter().filter(|u| (0.0..1.0).contains(u)) {
-                assert_eq!(
-                    d.invert_cdf(u),
-                    invert_by_full_search(&d, u),
-                    "n = {n}, u = {u}"
-                );
-            }
+            let table = alias_table(&integer, capacity);
+            assert!(table.iter().all(|&(t, a)| t <= capacity && (a as u64) < n));
+            assert_eq!(probabilities_from_table(&table, capacity), integer);
         }
+    }
+
+    #[test]
+    fn draws_land_in_each_bin_in_proportion_to_its_weight() {
+        // A fine grid of u covers each bucket evenly: bin i must receive
+        // weight[i] / total of it, up to one grid step per piece.
+        let weights = [1.0, 3.0, 0.0, 12.0, 0.5];
+        let table = AliasTable::new(&weights).unwrap();
+        let steps = 1 << 20;
+        let mut hits = [0u64; 5];
+        for k in 0..steps {
+            let (x, pdf, i) = table.sample((k as f64 + 0.5) / steps as f64);
+            assert_eq!(table.bin(x), i);
+            assert_eq!(pdf, table.pdf(x));
+            hits[i] += 1;
+        }
+        let sum: f64 = weights.iter().sum();
+        for i in 0..5 {
+            let share = hits[i] as f64 / steps as f64;
+            assert!((share - weights[i] / sum).abs() < 1e-5, "bin {i}: {share}");
+            assert!((table.probability(i) - weights[i] / sum).abs() < 1e-12);
+        }
+        assert_eq!(hits[2], 0);
     }
 }

@@ -16,17 +16,19 @@
 //!   up**, the last row straight down (the usual lat-long layout of HDR
 //!   panoramas, top row = sky).
 //! * Radiance is piecewise constant: a direction gets the texel it falls in
-//!   (no filtering), exactly the function the sampling density follows, so
-//!   `pdf(ω) > 0` wherever `radiance(ω) > 0` (except at the two poles, a set
-//!   of measure zero, where the pdf is reported as 0).
-//! * Sampling (pbrt-v4 §12.5.2, `ImageInfiniteLight`): a
-//!   [`Distribution2D`] over texels with weight `luminance × ΔΩ_texel /
-//!   Δu Δv`, so the density per solid angle follows luminance. The
-//!   change of variables `dω = sinθ dθ dφ = 2π² sinθ du dv` gives the
-//!   solid-angle density `p(ω) = p(u, v) / (2π² sinθ)`.
+//!   (no filtering), exactly the function the sampling density follows.
+//!   Texels are stored with 9 significant bits and a shared exponent
+//!   (8 bytes per texel with their sampling tables; see [`EnvironmentMap`]).
+//! * Sampling: a texel with probability ∝ luminance × its solid angle, by
+//!   two alias tables (a row, then a column of that row; O(1) per sample),
+//!   then a direction uniform in solid angle inside it, so the density per
+//!   solid angle is constant on each texel and ∝ its luminance (pbrt-v4
+//!   §12.5.2 samples the same texels uniformly in (u, v) instead, a
+//!   density ∝ 1/sinθ inside each). Texels far dimmer than their row's
+//!   mean may get density 0 and are left to BRDF sampling.
 //! * [`Environment::Constant`] is sampled uniformly over the sphere,
 //!   `p(ω) = 1/4π`.
-//! * `intensity` multiplies the radiance (it is baked into the texels).
+//! * `intensity` multiplies the radiance (applied when a texel is read).
 //!
 //! [`Environment::sample`] returns exactly [`Environment::radiance`] and
 //! [`Environment::pdf`] of the direction it returns (the integrator's MIS
@@ -34,12 +36,13 @@
 
 use std::f64::consts::{FRAC_1_PI, PI, TAU};
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 
 use glam::{DVec2, DVec3};
 
-use super::distribution::{Distribution2D, DistributionError};
+use super::distribution::{alias_table, draw, AliasTable};
+use super::shared_exponent::{decode, encode, exponent_scales, TEXEL_BITS, TEXEL_MASK};
 use crate::brdf::Rgb;
 use crate::sampling::sin_cos_turns;
 
@@ -52,9 +55,13 @@ pub const STUDIO_WIDTH: usize = 1024;
 /// Height of the baked studio map.
 pub const STUDIO_HEIGHT: usize = 512;
 
-/// Approximate bytes held per texel while loading a map: decoded f32 RGB
-/// (12), f64 radiance (24), sampling weight, conditional weight and CDF (24).
-const BYTES_PER_TEXEL: usize = 60;
+/// Bytes a map holds per texel: radiance and sampling tables (see
+/// [`EnvironmentMap`]); loading adds no copy of the image.
+const BYTES_PER_TEXEL: usize = 8;
+
+/// The brightest channel a map's texel may have in its file (before
+/// `intensity`), 511 × 2²³ ≈ 4.29 × 10⁹.
+pub use super::shared_exponent::MAX_RADIANCE as MAX_TEXEL_RADIANCE;
 
 /// Name used in errors for maps that come from memory, not from a file.
 const IN_MEMORY: &str = "<in-memory environment map>";
@@ -153,6 +160,22 @@ pub enum EnvironmentError {
         y: usize,
         /// Its radiance (after `intensity`).
         value: Rgb,
+    },
+    /// A texel brighter than [`MAX_TEXEL_RADIANCE`] (before `intensity`).
+    #[error(
+        "environment map {origin}: texel at x = {x}, y = {y} (column, row from the top-left) has \
+         a channel of {value}, above the {MAX_TEXEL_RADIANCE} a texel can hold; scale the map \
+         down and raise `intensity` instead"
+    )]
+    TooBright {
+        /// The file path, or a note that the map came from memory.
+        origin: String,
+        /// Column of the first such texel.
+        x: usize,
+        /// Row of the first such texel (0 = top = straight up).
+        y: usize,
+        /// Its brightest channel, as in the file.
+        value: f64,
     },
     /// An out-of-range parameter (`intensity`, `rotation_deg`, `radiance`).
     #[error("environment `{field}` = {value} is out of range: {allowed}")]
@@ -260,13 +283,10 @@ impl Environment {
     ) -> Result<Self, EnvironmentError> {
         check_intensity(intensity)?;
         check_rotation(rotation_deg)?;
-        let (width, height, rgb) = read_map_file(path)?;
+        let (width, height, texels) = read_map_file(path, intensity)?;
         let origin = path.display().to_string();
-        let texels = rgb
-            .into_iter()
-            .map(|[r, g, b]| Rgb::new(r as f64, g as f64, b as f64) * intensity)
-            .collect();
-        let map = EnvironmentMap::from_texels(origin, width, height, texels, rotation_deg)?;
+        let map =
+            EnvironmentMap::from_packed(origin, width, height, texels, intensity, rotation_deg)?;
         Ok(Environment::Map(map))
     }
 
@@ -297,8 +317,7 @@ impl Environment {
 
     /// Draws a direction with density proportional to luminance (a map)
     /// or uniform over the sphere (a constant). `None` for a map that is
-    /// black everywhere, and, with probability ~1e−16, when rounding puts
-    /// the direction on a pole or across a texel edge into a black texel.
+    /// black everywhere.
     pub fn sample(&self, u: [f64; 2]) -> Option<EnvironmentSample> {
         match self {
             Environment::Constant(c) => {
@@ -328,25 +347,99 @@ impl Environment {
 
 /// An equirectangular radiance map with its luminance sampling tables
 /// (conventions in the module documentation).
+///
+/// # Storage: 8 bytes per texel
+///
+/// Each texel is one `u64`: its radiance in the low 33 bits (three 9-bit
+/// mantissas and a shared exponent, see `shared_exponent.rs`: every
+/// channel within 2⁻⁹ × the brightest channel of the source), and in the
+/// other 31 bits the bucket of its row's alias table that sits at its
+/// column: a 16-bit threshold, the 14-bit column of its alias, and one bit,
+/// the texel's extra unit (below). Radiance and sampling data of a texel
+/// share a cache line, so a light sample reads at most two texels and a
+/// density lookup one. Per row the map keeps a few numbers
+/// (`RowSampling`), and the rows themselves are drawn from an
+/// [`AliasTable`]: both O(1), whatever the map's size and contrast.
+///
+/// # Sampling weights that the texel itself gives back
+///
+/// Within row `r`, texel `i` has the integer weight `w_i = ⌊Y_i s_r⌋ +
+/// extra_i` (`Y` its luminance, `s_r` the row's units per luminance,
+/// `extra_i` its stored bit), and the weights of a row sum to exactly
+/// `width × 2¹⁵`, the row table's total: the floors, plus one unit for
+/// each of the lit texels with the largest remainders. The row's alias
+/// table, built in integers, draws texel `i` with probability exactly
+/// `w_i / (width × 2¹⁵)`, and a density lookup recomputes `w_i` from the
+/// texel it reads anyway. Rows are drawn with probability ∝ `Σ Y × Ω_row`,
+/// and inside a texel the direction is uniform in solid angle (uniform in
+/// `cosθ` and in `φ`), so the density per solid angle is constant on each
+/// texel, ∝ its luminance, and finite at the poles. A texel whose
+/// luminance is below one unit of its row (2⁻¹⁵ of the row's mean) may get
+/// weight 0: it is then never light-sampled and reports density 0, which
+/// the integrator's MIS reads as "left to BRDF sampling" (unbiased).
 #[derive(Debug, Clone, PartialEq)]
 pub struct EnvironmentMap {
     width: usize,
     height: usize,
-    /// Row-major, row 0 straight up, radiance already times intensity.
-    texels: Vec<Rgb>,
+    /// Row-major, row 0 straight up: packed radiance and alias bucket (see
+    /// the type's documentation).
+    texels: Vec<u64>,
+    /// What each shared exponent stands for, `intensity` included (boxed:
+    /// 512 bytes inline would make every [`Environment`] that large).
+    scales: Box<[f64; 64]>,
+    /// Per row: how its texels' weights and densities follow from them.
+    rows: Vec<RowSampling>,
+    /// The distribution of rows; `None` when every texel is black.
+    marginal: Option<AliasTable>,
     rotation_deg: f64,
     rotation_rad: f64,
     /// The rotation in turns (of 2π), for [`sin_cos_turns`].
     rotation_turns: f64,
-    /// `None` when every texel is black (nothing to sample).
-    distribution: Option<Distribution2D>,
+}
+
+/// How one row of an [`EnvironmentMap`] turns a texel into its sampling
+/// weight and density.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct RowSampling {
+    /// `s_r`: a texel's weight is `⌊luminance × s_r⌋` + its extra unit
+    /// (0 for a row that is never sampled).
+    units_per_luminance: f64,
+    /// Density per unit solid angle of one unit of weight: the row's
+    /// probability over (2¹⁵ × its solid angle).
+    pdf_per_unit: f64,
+    /// cosθ at the row's upper edge.
+    z_top: f64,
+    /// cosθ at the row's lower edge.
+    z_bottom: f64,
+}
+
+/// Units of each bucket of a row's alias table (2¹⁵: a threshold fits in
+/// 16 bits, 0 to 2¹⁵ inclusive).
+const COLUMN_CAPACITY: u64 = 1 << 15;
+/// Where a texel's bucket threshold starts in its `u64`.
+const THRESHOLD_SHIFT: u32 = TEXEL_BITS;
+/// Where the texel's extra unit of weight is.
+const EXTRA_UNIT_SHIFT: u32 = THRESHOLD_SHIFT + 16;
+/// Where its bucket's alias column starts (14 bits, the rest of the word).
+const ALIAS_SHIFT: u32 = EXTRA_UNIT_SHIFT + 1;
+const _: () = assert!(ALIAS_SHIFT + 14 == 64 && MAX_MAP_WIDTH <= 1 << 14);
+
+/// A texel's bucket: (threshold, alias column).
+#[inline]
+fn bucket(bits: u64) -> (u64, usize) {
+    (
+        (bits >> THRESHOLD_SHIFT) & 0xffff,
+        (bits >> ALIAS_SHIFT) as usize,
+    )
 }
 
 impl EnvironmentMap {
     /// A map from row-major `texels` (row 0 straight up, column 0 at the
     /// map's +x), turned by `rotation_deg` about +z. Refuses an empty or
     /// oversized grid, a texel count other than `width × height`, a
-    /// NaN/infinite/negative texel and a non-finite rotation.
+    /// NaN/infinite/negative texel, one brighter than
+    /// [`MAX_TEXEL_RADIANCE`] and a non-finite rotation. The texels are
+    /// stored with 9 significant bits (see the type's documentation).
     pub fn new(
         width: usize,
         height: usize,
@@ -355,15 +448,23 @@ impl EnvironmentMap {
     ) -> Result<Self, EnvironmentError> {
         check_rotation(rotation_deg)?;
         check_size(IN_MEMORY, width, height)?;
-        Self::from_texels(IN_MEMORY.to_string(), width, height, texels, rotation_deg)
+        Self::from_texels(
+            IN_MEMORY.to_string(),
+            width,
+            height,
+            &texels,
+            1.0,
+            rotation_deg,
+        )
     }
 
-    /// Validates texels and builds the sampling distribution.
+    /// Validates and packs texels, then builds the sampling tables.
     fn from_texels(
         origin: String,
         width: usize,
         height: usize,
-        texels: Vec<Rgb>,
+        texels: &[Rgb],
+        intensity: f64,
         rotation_deg: f64,
     ) -> Result<Self, EnvironmentError> {
         check_size(&origin, width, height)?;
@@ -375,79 +476,95 @@ impl EnvironmentMap {
                 len: texels.len(),
             });
         }
-        if let Some(i) = texels
+        let packed = texels
             .iter()
-            .position(|t| !(t.is_finite() && t.min_element() >= 0.0))
-        {
-            return Err(EnvironmentError::BadTexel {
-                origin,
-                x: i % width,
-                y: i / width,
-                value: texels[i],
-            });
+            .enumerate()
+            .map(|(i, t)| {
+                pack_texel(t.to_array())
+                    .map_err(|bad| bad.into_error(origin.clone(), i % width, i / width, intensity))
+            })
+            .collect::<Result<Vec<u64>, _>>()?;
+        Self::from_packed(origin, width, height, packed, intensity, rotation_deg)
+    }
+
+    /// Builds the sampling tables of packed texels (radiance bits only)
+    /// whose radiance is scaled by `intensity`: every row's alias table in
+    /// parallel (each a pure function of its texels), then the rows'.
+    fn from_packed(
+        origin: String,
+        width: usize,
+        height: usize,
+        mut texels: Vec<u64>,
+        intensity: f64,
+        rotation_deg: f64,
+    ) -> Result<Self, EnvironmentError> {
+        use rayon::prelude::*;
+        let scales = Box::new(exponent_scales(intensity));
+        let luminances: Vec<Result<f64, usize>> = texels
+            .par_chunks_mut(width)
+            .map(|row| build_row_table(row, &scales))
+            .collect();
+        let z: Vec<f64> = (0..=height)
+            .map(|row| (PI * row as f64 / height as f64).cos())
+            .collect();
+        let mut row_weights = Vec::with_capacity(height);
+        for (row, &luminance) in luminances.iter().enumerate() {
+            let sum = luminance.map_err(|col| EnvironmentError::BadTexel {
+                origin: origin.clone(),
+                x: col,
+                y: row,
+                value: decode(texels[row * width + col], &scales),
+            })?;
+            // ∝ Σ Y × Ω_row: the density per solid angle follows luminance.
+            row_weights.push(sum * TAU * (z[row] - z[row + 1]));
         }
-        // Weight = luminance × (texel solid angle / texel uv area), so the
-        // density per solid angle follows luminance (pbrt-v4 §12.5.2 uses
-        // sinθ at the texel centre; the exact band area is used here),
-        // summed over blocks of `block × block` texels (see
-        // [`sampling_block`]).
-        let block = sampling_block(width, height);
-        let (grid_width, grid_height) = (width / block, height / block);
-        let mut weights = vec![0.0; grid_width * grid_height];
-        for row in 0..height {
-            let band = row_solid_angle(row, height) / (TAU / width as f64);
-            let per_uv = band * height as f64;
-            // Each grid cell sums its block's texels row by row, left to
-            // right (`block` divides `width`, see `sampling_block`).
-            let grid_row = &mut weights[(row / block) * grid_width..][..grid_width];
-            let texel_row = &texels[row * width..(row + 1) * width];
-            for (cell, block_texels) in grid_row.iter_mut().zip(texel_row.chunks_exact(block)) {
-                for t in block_texels {
-                    *cell += luminance(*t) * per_uv;
+        // Only all-black rows (or a sum overflowing to ∞) fail here.
+        let marginal = AliasTable::new(&row_weights).ok();
+        let rows = (0..height)
+            .map(|row| {
+                let (z_top, z_bottom) = (z[row], z[row + 1]);
+                let probability = marginal.as_ref().map_or(0.0, |m| m.probability(row));
+                let sum = luminances[row].unwrap_or(0.0);
+                RowSampling {
+                    units_per_luminance: if probability > 0.0 {
+                        row_units_per_luminance(sum, width)
+                    } else {
+                        0.0
+                    },
+                    pdf_per_unit: probability / (COLUMN_CAPACITY as f64 * TAU * (z_top - z_bottom)),
+                    z_top,
+                    z_bottom,
                 }
-            }
-        }
-        let distribution = match Distribution2D::new(&weights, grid_width, grid_height) {
-            Ok(d) => Some(d),
-            Err(DistributionError::AllZero) => None,
-            // Shape and values were checked above; a weight can still
-            // overflow for texels near f64::MAX.
-            Err(DistributionError::BadWeight { x, y, .. }) => {
-                let (x, y) = (x * block, y * block);
-                return Err(EnvironmentError::BadTexel {
-                    origin,
-                    x,
-                    y,
-                    value: texels[y * width + x],
-                });
-            }
-            Err(DistributionError::BadShape { len, .. }) => {
-                return Err(EnvironmentError::WrongTexelCount {
-                    origin,
-                    width,
-                    height,
-                    len,
-                })
-            }
-        };
+            })
+            .collect();
         Ok(Self {
             width,
             height,
             texels,
+            scales,
+            rows,
+            marginal,
             rotation_deg,
             rotation_rad: rotation_deg.to_radians(),
             rotation_turns: rotation_deg / 360.0,
-            distribution,
         })
     }
 
     /// Bakes [`studio_radiance`] with 4 × 4 samples per texel, so that the
-    /// soft-box edges are anti-aliased over one 0.35° texel.
+    /// soft-box edges are anti-aliased over one 0.35° texel; `intensity`
+    /// scales it when decoding, like a file's.
     fn bake_studio(intensity: f64, rotation_deg: f64) -> Self {
         let (w, h) = (STUDIO_WIDTH, STUDIO_HEIGHT);
-        let texels = bake_studio_texels(w, h, intensity);
-        Self::from_texels("<studio>".to_string(), w, h, texels, rotation_deg)
-            .expect("the studio's texels are finite and non-negative")
+        let texels = bake_studio_texels(w, h, 1.0);
+        Self::from_texels(
+            "<studio>".to_string(),
+            w,
+            h,
+            &texels,
+            intensity,
+            rotation_deg,
+        )
+        .expect("the studio's texels are finite, non-negative and below 12")
     }
 
     /// Columns (azimuth bins).
@@ -465,11 +582,11 @@ impl EnvironmentMap {
         self.rotation_deg
     }
 
-    /// Radiance of texel (`col`, `row`), intensity included; black outside
-    /// the map.
+    /// Radiance of texel (`col`, `row`), intensity included, as stored
+    /// (9 significant bits); black outside the map.
     pub fn texel(&self, col: usize, row: usize) -> Rgb {
         if col < self.width && row < self.height {
-            self.texels[row * self.width + col]
+            decode(self.texels[row * self.width + col], &self.scales)
         } else {
             Rgb::ZERO
         }
@@ -490,79 +607,224 @@ impl EnvironmentMap {
         Some(DVec2::new(u, v))
     }
 
-    /// The direction of map coordinates `uv` and its sinθ, by the polynomial
-    /// [`sin_cos_turns`] (to within 3·10⁻¹⁴, several times cheaper than
-    /// libm's `sin_cos`; one light sample of a map needs two).
-    fn uv_to_direction_and_sin_theta(&self, uv: DVec2) -> (DVec3, f64) {
-        // θ = πv is v/2 turns; φ = 2πu + rotation is u + rotation turns.
-        let (sin_theta, cos_theta) = sin_cos_turns(0.5 * uv.y);
-        let (sin_phi, cos_phi) = sin_cos_turns(uv.x + self.rotation_turns);
-        (
-            DVec3::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta),
-            sin_theta,
-        )
+    /// Row and column of the texel a direction falls in.
+    fn texel_index(&self, direction: DVec3) -> Option<(usize, usize)> {
+        let uv = self.direction_to_uv(direction)?;
+        let col = ((uv.x * self.width as f64) as usize).min(self.width - 1);
+        let row = ((uv.y * self.height as f64) as usize).min(self.height - 1);
+        Some((row, col))
     }
 
     /// Radiance from the unit world `direction`: the texel it falls in.
     pub fn radiance(&self, direction: DVec3) -> Rgb {
-        match self.direction_to_uv(direction) {
-            Some(uv) => self.texel_at(uv),
+        match self.texel_index(direction) {
+            Some((row, col)) => decode(self.texels[row * self.width + col], &self.scales),
             None => Rgb::ZERO,
         }
     }
 
-    /// The texel holding map coordinates `uv`.
-    fn texel_at(&self, uv: DVec2) -> Rgb {
-        let col = ((uv.x * self.width as f64) as usize).min(self.width - 1);
-        let row = ((uv.y * self.height as f64) as usize).min(self.height - 1);
-        self.texels[row * self.width + col]
-    }
-
-    /// Solid-angle density of [`Self::sample`]: `p(u, v) / (2π² sinθ)`.
+    /// Solid-angle density of [`Self::sample`] at `direction`: constant on
+    /// each texel (see the type's documentation).
     pub fn pdf(&self, direction: DVec3) -> f64 {
-        match self.direction_to_uv(direction) {
-            Some(uv) => self.pdf_at(uv),
-            None => 0.0,
-        }
-    }
-
-    /// [`Self::pdf`] at map coordinates `uv`.
-    fn pdf_at(&self, uv: DVec2) -> f64 {
-        let Some(dist) = &self.distribution else {
-            return 0.0;
-        };
-        per_solid_angle(dist.pdf(uv), (PI * uv.y).sin())
+        self.radiance_and_pdf(direction).1
     }
 
     /// [`Self::radiance`] and [`Self::pdf`] of one direction, from one
-    /// conversion to map coordinates; equal to the separate calls.
+    /// texel read; equal to the separate calls.
     pub fn radiance_and_pdf(&self, direction: DVec3) -> (Rgb, f64) {
-        match self.direction_to_uv(direction) {
-            Some(uv) => (self.texel_at(uv), self.pdf_at(uv)),
+        match self.texel_index(direction) {
+            Some((row, col)) => {
+                let bits = self.texels[row * self.width + col];
+                let radiance = decode(bits, &self.scales);
+                (radiance, texel_pdf(bits, radiance, &self.rows[row]))
+            }
             None => (Rgb::ZERO, 0.0),
         }
     }
 
     /// Draws a direction with density ∝ luminance per solid angle; radiance
     /// and pdf are those of the returned direction (see [`Environment::sample`]).
+    /// `u[1]` picks the row and the height in it, `u[0]` the column and
+    /// the azimuth in it, each by an alias table.
     pub fn sample(&self, u: [f64; 2]) -> Option<EnvironmentSample> {
-        let dist = self.distribution.as_ref()?;
-        let (uv, pdf_uv) = dist.sample(u);
-        let (direction, sin_theta) = self.uv_to_direction_and_sin_theta(uv);
-        // Radiance and density straight from the sampled uv: converting the
-        // direction back (an acos, an atan2, a sine) gives the same texel
-        // and, to rounding, the same density, except for directions on a
-        // texel edge, a set of measure zero that changes no estimate.
-        let pdf = per_solid_angle(pdf_uv, sin_theta);
+        let marginal = self.marginal.as_ref()?;
+        let (row, v_within) = marginal.sample_bin(u[1]);
+        let texels = &self.texels[row * self.width..][..self.width];
+        let (col, u_within) = draw(u[0], self.width, COLUMN_CAPACITY, |j| bucket(texels[j]));
+        let bits = texels[col];
+        let sampling = &self.rows[row];
+        let radiance = decode(bits, &self.scales);
+        let pdf = texel_pdf(bits, radiance, sampling);
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
+        // Uniform in solid angle over the texel: cosθ uniform over the
+        // row's band, φ uniform over the column (φ = 2π·turns + rotation).
+        let z = sampling.z_top - v_within * (sampling.z_top - sampling.z_bottom);
+        let sin_theta = ((1.0 - z) * (1.0 + z)).max(0.0).sqrt();
+        let turns = (col as f64 + u_within) / self.width as f64 + self.rotation_turns;
+        let (sin_phi, cos_phi) = sin_cos_turns(turns);
         Some(EnvironmentSample {
-            direction,
-            radiance: self.texel_at(uv),
+            direction: DVec3::new(sin_theta * cos_phi, sin_theta * sin_phi, z),
+            radiance,
             pdf,
         })
     }
+}
+
+/// The density of a texel read as `bits` (its decoded `radiance` passed
+/// in): its integer weight `⌊Y s_r⌋ + extra` times the row's density per
+/// unit; the same expression at build time made the weights the row's
+/// alias table samples.
+#[inline]
+fn texel_pdf(bits: u64, radiance: Rgb, row: &RowSampling) -> f64 {
+    let units = floor_units(luminance(radiance), row.units_per_luminance)
+        + ((bits >> EXTRA_UNIT_SHIFT) & 1);
+    units as f64 * row.pdf_per_unit
+}
+
+/// `⌊y s⌋` for `0 ≤ y s ≤ 2²⁹` (a texel's share of its row's units): the
+/// one expression both the table build and the density lookup use.
+/// Through `i64`, a few instructions cheaper than `u64`'s conversion.
+#[inline]
+fn floor_units(y: f64, s: f64) -> u64 {
+    (y * s) as i64 as u64
+}
+
+/// `s_r` for a row of `width` texels whose luminances sum to `sum > 0`: a
+/// hair under `width × 2¹⁵ / sum`, so that the floors `⌊Y_i s_r⌋` sum to
+/// at most the total and miss it by at most one unit per lit texel. (The
+/// computed Σ Y_i s_r is within a relative 2⁻³⁸ of the exact `(1 − 2⁻³⁰)
+/// × total` for rows of at most 2¹⁴ texels, so it lies below the total,
+/// and above it minus half a unit, as the total is at most 2²⁹; each floor
+/// loses less than one.)
+fn row_units_per_luminance(sum: f64, width: usize) -> f64 {
+    (width as u64 * COLUMN_CAPACITY) as f64 / sum * (1.0 - 2f64.powi(-30))
+}
+
+/// Fills the alias bits of one row of packed texels and returns the sum
+/// of their luminances (0 for a row that is not to be sampled), or the
+/// column of a texel whose luminance (or the row's sum) overflows. A black
+/// row gets buckets that keep all their units (never read: the row is
+/// never drawn).
+fn build_row_table(row: &mut [u64], scales: &[f64; 64]) -> Result<f64, usize> {
+    let width = row.len();
+    let luminances: Vec<f64> = row.iter().map(|&b| luminance(decode(b, scales))).collect();
+    if let Some(col) = luminances.iter().position(|y| !y.is_finite()) {
+        return Err(col);
+    }
+    let sum: f64 = luminances.iter().sum();
+    if !sum.is_finite() {
+        let brightest = (0..width).max_by(|&a, &b| luminances[a].total_cmp(&luminances[b]));
+        return Err(brightest.unwrap_or(0));
+    }
+    let total = width as u64 * COLUMN_CAPACITY;
+    let weights = (sum > 0.0)
+        .then(|| row_weights(&luminances, row_units_per_luminance(sum, width), total))
+        .flatten();
+    let Some((weights, extra)) = weights else {
+        for (col, bits) in row.iter_mut().enumerate() {
+            *bits = (*bits & TEXEL_MASK)
+                | COLUMN_CAPACITY << THRESHOLD_SHIFT
+                | (col as u64) << ALIAS_SHIFT;
+        }
+        // Black, or (never) weights that could not be made exact: a row
+        // the marginal leaves out.
+        return Ok(0.0);
+    };
+    for (col, ((threshold, alias), bits)) in alias_table(&weights, COLUMN_CAPACITY)
+        .into_iter()
+        .zip(row.iter_mut())
+        .enumerate()
+    {
+        *bits = (*bits & TEXEL_MASK)
+            | threshold << THRESHOLD_SHIFT
+            | u64::from(extra[col]) << EXTRA_UNIT_SHIFT
+            | (alias as u64) << ALIAS_SHIFT;
+    }
+    Ok(sum)
+}
+
+/// The integer weights `⌊Y_i s⌋ + extra_i` of a row and the extra bits:
+/// one extra unit to each of the lit texels with the largest remainders,
+/// as many as the floors fall short of `total`. `None` if the floors
+/// overshoot the total or fall short by more than the lit texels (never,
+/// see [`row_units_per_luminance`]; such a row would then not be sampled).
+fn row_weights(luminances: &[f64], s: f64, total: u64) -> Option<(Vec<u64>, Vec<bool>)> {
+    let mut weights: Vec<u64> = luminances.iter().map(|&y| floor_units(y, s)).collect();
+    let missing = total.checked_sub(weights.iter().sum())? as usize;
+    let lit: Vec<usize> = (0..luminances.len())
+        .filter(|&i| luminances[i] > 0.0)
+        .collect();
+    if missing > lit.len() {
+        return None;
+    }
+    let mut extra = vec![false; luminances.len()];
+    if missing == lit.len() {
+        // Every lit texel (a row of one colour, often): no selection.
+        for &i in &lit {
+            weights[i] += 1;
+            extra[i] = true;
+        }
+    } else if missing > 0 {
+        // The `missing` largest remainders, ties by column: keys (bits of
+        // the remainder descending, column) in a total order, so the set
+        // chosen does not depend on the selection algorithm; a remainder
+        // is in [0, 1), where the order of the bits is the order of the
+        // values.
+        let mut keys: Vec<(u64, u32)> = lit
+            .iter()
+            .map(|&i| {
+                let remainder = luminances[i] * s - weights[i] as f64;
+                (u64::MAX - remainder.to_bits(), i as u32)
+            })
+            .collect();
+        keys.select_nth_unstable(missing - 1);
+        for &(_, i) in &keys[..missing] {
+            weights[i as usize] += 1;
+            extra[i as usize] = true;
+        }
+    }
+    Some((weights, extra))
+}
+
+/// Why one texel cannot be stored.
+enum BadTexel {
+    /// NaN, infinite or negative.
+    Invalid([f64; 3]),
+    /// Above [`MAX_TEXEL_RADIANCE`].
+    TooBright([f64; 3]),
+}
+
+impl BadTexel {
+    /// The error for this texel at (`x`, `y`) of `origin`.
+    fn into_error(self, origin: String, x: usize, y: usize, intensity: f64) -> EnvironmentError {
+        match self {
+            BadTexel::Invalid(rgb) => EnvironmentError::BadTexel {
+                origin,
+                x,
+                y,
+                value: Rgb::from_array(rgb) * intensity,
+            },
+            BadTexel::TooBright(rgb) => EnvironmentError::TooBright {
+                origin,
+                x,
+                y,
+                value: rgb[0].max(rgb[1]).max(rgb[2]),
+            },
+        }
+    }
+}
+
+/// The radiance bits of one source texel.
+fn pack_texel(rgb: [f64; 3]) -> Result<u64, BadTexel> {
+    encode(rgb).ok_or_else(|| {
+        if rgb.iter().all(|c| c.is_finite() && *c >= 0.0) {
+            BadTexel::TooBright(rgb)
+        } else {
+            BadTexel::Invalid(rgb)
+        }
+    })
 }
 
 /// `angle_rad.rem_euclid(2π)`, the angle in `[0, 2π]`, without the `fmod`
@@ -581,40 +843,6 @@ fn wrap_to_full_turn(angle_rad: f64) -> f64 {
     }
 }
 
-/// A density over map coordinates as a density over solid angle at a
-/// point with polar sine `sin_theta`: p(ω) = p(u, v) / (2π² sinθ), since
-/// dω = 2π² sinθ du dv; 0 at the poles (sinθ ≤ 0), which are never sampled.
-fn per_solid_angle(pdf_uv: f64, sin_theta: f64) -> f64 {
-    if sin_theta <= 0.0 {
-        return 0.0;
-    }
-    pdf_uv / (2.0 * PI * PI * sin_theta)
-}
-
-/// Side in texels of the square blocks the environment is importance-
-/// sampled by: the largest power of two dividing both sides that keeps the
-/// sampling grid at least `SAMPLING_GRID_WIDTH` × `SAMPLING_GRID_WIDTH`/2.
-/// A 1024 × 512 map (the studio) is sampled by 4 × 4 blocks: its 256 × 128
-/// grid's tables (≈ 0.6 MB) stay in cache where the per-texel ones (≈ 10 MB)
-/// made every light sample wait on memory (a fifth of a studio render).
-/// Radiance is still looked up per texel and the density is that of the
-/// blocks, so sampling stays unbiased; within a block it is uniform in uv,
-/// which costs a little variance only where one texel outshines its block.
-pub fn sampling_block(width: usize, height: usize) -> usize {
-    let mut block = 1;
-    while width.is_multiple_of(2 * block)
-        && height.is_multiple_of(2 * block)
-        && width / (2 * block) >= SAMPLING_GRID_WIDTH
-        && height / (2 * block) >= SAMPLING_GRID_WIDTH / 2
-    {
-        block *= 2;
-    }
-    block
-}
-
-/// Smallest sampling-grid width [`sampling_block`] coarsens to.
-pub(crate) const SAMPLING_GRID_WIDTH: usize = 256;
-
 /// Rec. 709 / sRGB luminance of linear RGB, the importance of a texel.
 pub fn luminance(c: Rgb) -> f64 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
@@ -625,14 +853,6 @@ fn spherical_direction(theta: f64, phi: f64) -> DVec3 {
     let (st, ct) = theta.sin_cos();
     let (sp, cp) = phi.sin_cos();
     DVec3::new(st * cp, st * sp, ct)
-}
-
-/// Solid angle of the band of row `row` of `height`:
-/// `2π (cos θ₀ − cos θ₁)` with `θ = π row / height`.
-fn row_solid_angle(row: usize, height: usize) -> f64 {
-    let t0 = PI * row as f64 / height as f64;
-    let t1 = PI * (row + 1) as f64 / height as f64;
-    TAU * (t0.cos() - t1.cos())
 }
 
 // ---------------------------------------------------------------------------
@@ -962,18 +1182,21 @@ fn check_size(origin: &str, width: usize, height: usize) -> Result<(), Environme
     Ok(())
 }
 
-/// Width, height and row-major RGB texels (row 0 at the top) of a `.hdr`
-/// or `.exr` file.
-type RgbTexels = (usize, usize, Vec<[f32; 3]>);
+/// Width, height and row-major packed texels (radiance bits only, row 0 at
+/// the top) of a `.hdr` or `.exr` file.
+type PackedTexels = (usize, usize, Vec<u64>);
 
 /// Reads a map file by extension, turning every failure (a decoder panic
-/// included) into an error naming the path.
-fn read_map_file(path: &Path) -> Result<RgbTexels, EnvironmentError> {
+/// included) into an error naming the path. Texels are packed as they are
+/// decoded: no full-precision copy of the image is ever held. `intensity`
+/// only scales the values that errors report.
+fn read_map_file(path: &Path, intensity: f64) -> Result<PackedTexels, EnvironmentError> {
     let extension = path
         .extension()
         .map(|e| e.to_string_lossy().to_lowercase())
         .unwrap_or_default();
-    let reader: fn(&Path) -> Result<RgbTexels, EnvironmentError> = match extension.as_str() {
+    let reader: fn(&Path, f64) -> Result<PackedTexels, EnvironmentError> = match extension.as_str()
+    {
         "hdr" => read_hdr,
         "exr" => read_exr,
         _ => {
@@ -1004,7 +1227,7 @@ fn read_map_file(path: &Path) -> Result<RgbTexels, EnvironmentError> {
     }
     // Decoders of untrusted files have panicked on malformed input before;
     // a panic here must still come back as an error naming the file.
-    std::panic::catch_unwind(|| reader(path)).unwrap_or_else(|_| {
+    std::panic::catch_unwind(|| reader(path, intensity)).unwrap_or_else(|_| {
         Err(EnvironmentError::Decode {
             path: path.to_path_buf(),
             format: if extension == "hdr" {
@@ -1024,40 +1247,133 @@ fn io_error(path: &Path, e: &std::io::Error) -> EnvironmentError {
     }
 }
 
-/// Radiance RGBE through the `image` crate; the size is checked from the
-/// header before the texels are decoded.
-fn read_hdr(path: &Path) -> Result<RgbTexels, EnvironmentError> {
-    use image::ImageDecoder;
-    let decode = |message: String| EnvironmentError::Decode {
+/// Radiance RGBE: the header (and its size check) through the `image`
+/// crate, then the scanlines read here one at a time and packed, since
+/// `image` 0.25 decodes only into a whole-image `f32` buffer (12 bytes a
+/// texel). A texel is `m × 2^(e − 136)` as `image` reads it (0 for `e = 0`).
+fn read_hdr(path: &Path, intensity: f64) -> Result<PackedTexels, EnvironmentError> {
+    let decode_error = |message: String| EnvironmentError::Decode {
         path: path.to_path_buf(),
         format: "Radiance HDR",
         message,
     };
     let file = File::open(path).map_err(|e| io_error(path, &e))?;
-    let decoder = image::codecs::hdr::HdrDecoder::new(BufReader::new(file))
-        .map_err(|e| decode(e.to_string()))?;
-    let (w, h) = decoder.dimensions();
-    let (width, height) = (w as usize, h as usize);
-    check_size(&path.display().to_string(), width, height)?;
-    let image = image::DynamicImage::from_decoder(decoder)
-        .map_err(|e| decode(e.to_string()))?
-        .into_rgb32f();
-    let texels = image.pixels().map(|p| p.0).collect();
+    let mut reader = BufReader::new(file);
+    let (width, height) = {
+        use image::ImageDecoder;
+        let header = image::codecs::hdr::HdrDecoder::new(&mut reader)
+            .map_err(|e| decode_error(e.to_string()))?;
+        let (w, h) = header.dimensions();
+        (w as usize, h as usize)
+    };
+    let origin = path.display().to_string();
+    check_size(&origin, width, height)?;
+    let mut texels = Vec::with_capacity(width * height);
+    let mut line = vec![[0u8; 4]; width];
+    for y in 0..height {
+        read_rgbe_scanline(&mut reader, &mut line).map_err(decode_error)?;
+        for (x, &[r, g, b, e]) in line.iter().enumerate() {
+            let scale = if e == 0 {
+                0.0
+            } else {
+                2f64.powi(i32::from(e) - 136)
+            };
+            let rgb = [r, g, b].map(|m| f64::from(m) * scale);
+            texels.push(
+                pack_texel(rgb).map_err(|bad| bad.into_error(origin.clone(), x, y, intensity))?,
+            );
+        }
+    }
     Ok((width, height, texels))
+}
+
+/// One scanline of RGBE pixels, in the new (per-component run-length) or
+/// the old (run-marker) encoding, as `image` 0.25 reads them.
+fn read_rgbe_scanline(r: &mut impl Read, line: &mut [[u8; 4]]) -> Result<(), String> {
+    let width = line.len();
+    let byte = |r: &mut dyn Read| {
+        let mut b = [0u8];
+        r.read_exact(&mut b)
+            .map(|_| b[0])
+            .map_err(|e| e.to_string())
+    };
+    let too_long = |end: usize| format!("a run reaches column {end} of a {width}-texel scanline");
+    let mut first = [0u8; 4];
+    r.read_exact(&mut first).map_err(|e| e.to_string())?;
+    if first[0] == 2 && first[1] == 2 && first[2] < 128 {
+        for component in 0..4 {
+            let mut x = 0;
+            while x < width {
+                let count = byte(r)?;
+                if count <= 128 {
+                    let end = x + usize::from(count);
+                    if end > width {
+                        return Err(too_long(end));
+                    }
+                    let mut values = [0u8; 128];
+                    let values = &mut values[..usize::from(count)];
+                    r.read_exact(values).map_err(|e| e.to_string())?;
+                    for (pixel, &v) in line[x..end].iter_mut().zip(values.iter()) {
+                        pixel[component] = v;
+                    }
+                    x = end;
+                } else {
+                    let end = x + usize::from(count - 128);
+                    if end > width {
+                        return Err(too_long(end));
+                    }
+                    let v = byte(r)?;
+                    line[x..end]
+                        .iter_mut()
+                        .for_each(|pixel| pixel[component] = v);
+                    x = end;
+                }
+            }
+        }
+        return Ok(());
+    }
+    // The old encoding: (1, 1, 1, n) repeats the previous pixel n times,
+    // consecutive markers scaling by 256 each.
+    let is_marker = |p: [u8; 4]| p[..3] == [1, 1, 1];
+    if is_marker(first) {
+        return Err("the scanline starts with a run-length marker".to_string());
+    }
+    line[0] = first;
+    let (mut x, mut multiplier, mut previous) = (1usize, 1usize, first);
+    while x < width {
+        let mut pixel = [0u8; 4];
+        r.read_exact(&mut pixel).map_err(|e| e.to_string())?;
+        if is_marker(pixel) {
+            let end = x.saturating_add(usize::from(pixel[3]).saturating_mul(multiplier));
+            multiplier = multiplier.saturating_mul(256);
+            if end > width {
+                return Err(too_long(end));
+            }
+            line[x..end].fill(previous);
+            x = end;
+        } else {
+            multiplier = 1;
+            previous = pixel;
+            line[x] = pixel;
+            x += 1;
+        }
+    }
+    Ok(())
 }
 
 /// OpenEXR through the `exr` crate: the first layer with R, G and B
 /// channels, largest resolution level; its size is checked from the header
-/// before the texels are decoded.
-fn read_exr(path: &Path) -> Result<RgbTexels, EnvironmentError> {
-    let decode = |message: String| EnvironmentError::Decode {
+/// before the texels are decoded, and each texel is packed as the decoder
+/// delivers it (into its place, whatever the file's block order).
+fn read_exr(path: &Path, intensity: f64) -> Result<PackedTexels, EnvironmentError> {
+    let decode_error = |message: String| EnvironmentError::Decode {
         path: path.to_path_buf(),
         format: "OpenEXR",
         message,
     };
     let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| match e {
         exr::error::Error::Io(io) => io_error(path, &io),
-        other => decode(other.to_string()),
+        other => decode_error(other.to_string()),
     })?;
     let has =
         |h: &exr::meta::header::Header, name: &str| h.channels.list.iter().any(|c| c.name.eq(name));
@@ -1065,25 +1381,49 @@ fn read_exr(path: &Path) -> Result<RgbTexels, EnvironmentError> {
         .headers
         .iter()
         .find(|h| has(h, "R") && has(h, "G") && has(h, "B"))
-        .ok_or_else(|| decode("no layer has R, G and B channels".to_string()))?;
+        .ok_or_else(|| decode_error("no layer has R, G and B channels".to_string()))?;
     let (width, height) = (header.layer_size.width(), header.layer_size.height());
-    check_size(&path.display().to_string(), width, height)?;
+    let origin = path.display().to_string();
+    check_size(&origin, width, height)?;
+    /// The texels so far, and the first (row-major) that cannot be stored.
+    struct Packing {
+        width: usize,
+        texels: Vec<u64>,
+        first_bad: Option<(usize, BadTexel)>,
+    }
     let image = exr::prelude::read_first_rgba_layer_from_file(
         path,
-        |size, _| (size.width(), vec![[0.0f32; 3]; size.area()]),
-        |(w, texels): &mut (usize, Vec<[f32; 3]>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            texels[pos.y() * *w + pos.x()] = [r, g, b];
+        |size, _| Packing {
+            width: size.width(),
+            texels: vec![0; size.area()],
+            first_bad: None,
+        },
+        |packing: &mut Packing, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            let i = pos.y() * packing.width + pos.x();
+            match pack_texel([r, g, b].map(f64::from)) {
+                Ok(bits) => packing.texels[i] = bits,
+                Err(bad) => {
+                    if packing.first_bad.as_ref().is_none_or(|(j, _)| i < *j) {
+                        packing.first_bad = Some((i, bad));
+                    }
+                }
+            }
         },
     )
-    .map_err(|e| decode(e.to_string()))?;
-    let (w, texels) = image.layer_data.channel_data.pixels;
-    let h = texels.len().checked_div(w).unwrap_or(0);
+    .map_err(|e| decode_error(e.to_string()))?;
+    let packing = image.layer_data.channel_data.pixels;
+    if let Some((i, bad)) = packing.first_bad {
+        let x = i % packing.width.max(1);
+        return Err(bad.into_error(origin, x, i / packing.width.max(1), intensity));
+    }
+    let w = packing.width;
+    let h = packing.texels.len().checked_div(w).unwrap_or(0);
     if (w, h) != (width, height) {
-        return Err(decode(format!(
+        return Err(decode_error(format!(
             "the header says {width}×{height} but the first RGB layer is {w}×{h}"
         )));
     }
-    Ok((width, height, texels))
+    Ok((width, height, packing.texels))
 }
 
 #[cfg(test)]

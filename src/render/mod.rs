@@ -19,6 +19,7 @@ pub(crate) mod medium;
 pub mod prepare;
 pub(crate) mod refracted_light;
 pub(crate) mod sampler;
+pub(crate) mod shared_exponent;
 pub(crate) mod stone_grid;
 pub mod tiles;
 pub mod turntable;
