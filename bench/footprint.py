@@ -29,10 +29,9 @@ import sys
 import tempfile
 import time
 
-import mitsuba as mi
 import numpy as np
 
-mi.set_variant("scalar_rgb")
+from connections import load  # linear RGB and material_id of an EXR
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BINARY = os.environ.get("LAPIDARY_BINARY", os.path.join(ROOT, "target", "release", "lapidary"))
 # Rec. 709 luminance of linear RGB.
@@ -48,14 +47,6 @@ def render(gem, size, spp, seed, out, extra, frame=None):
     started = time.perf_counter()
     subprocess.run(command, check=True)
     return time.perf_counter() - started
-
-
-def load(path):
-    """Linear RGB (H, W, 3) and material_id (H, W) of an EXR."""
-    bitmap = mi.Bitmap(path)
-    names = [field.name for field in bitmap.struct_()]
-    pixels = np.array(bitmap, copy=False)
-    return pixels[..., :3].astype(np.float64), pixels[..., names.index("material_id")]
 
 
 def box_filter(image, factor):

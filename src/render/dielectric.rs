@@ -45,24 +45,42 @@ pub(crate) fn cross_smooth_interface(
     } else {
         (-normal, -cos_outside, 1.0 / ior)
     };
-    let reflected = || Crossing {
+    if u < fresnel::dielectric(cos_i, eta) {
+        return mirrored(direction, facing, cos_i, from_outside);
+    }
+    refracted(direction, facing, cos_i, eta, from_outside)
+        .unwrap_or_else(|| mirrored(direction, facing, cos_i, from_outside))
+}
+
+/// The mirror reflection of `direction` about `facing` (the normal on its
+/// side, cos_i = −direction·facing).
+fn mirrored(direction: DVec3, facing: DVec3, cos_i: f64, from_outside: bool) -> Crossing {
+    Crossing {
         direction: (direction + 2.0 * cos_i * facing).normalize(),
         refracted: false,
         from_outside,
-    };
-    if u < fresnel::dielectric(cos_i, eta) {
-        return reflected();
     }
+}
+
+/// The refraction of `direction` by Snell's law (eq. 3.2) into a medium of
+/// relative index `eta`, or None under total internal reflection.
+fn refracted(
+    direction: DVec3,
+    facing: DVec3,
+    cos_i: f64,
+    eta: f64,
+    from_outside: bool,
+) -> Option<Crossing> {
     let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
     if sin2_t >= 1.0 {
-        return reflected(); // total internal reflection
+        return None;
     }
     let cos_t = (1.0 - sin2_t).sqrt();
-    Crossing {
+    Some(Crossing {
         direction: (direction / eta + (cos_i / eta - cos_t) * facing).normalize(),
         refracted: true,
         from_outside,
-    }
+    })
 }
 
 /// One branch of a split crossing: where it goes and what it carries.
@@ -88,22 +106,14 @@ pub(crate) fn split_smooth_interface(
     let cos_i = -direction.dot(normal);
     debug_assert!(cos_i > 0.0, "split only from outside");
     let reflectance = fresnel::dielectric(cos_i, ior);
-    let sin2_t = (1.0 - cos_i * cos_i) / (ior * ior);
-    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
     let reflection = Branch {
-        crossing: Crossing {
-            direction: (direction + 2.0 * cos_i * normal).normalize(),
-            refracted: false,
-            from_outside: true,
-        },
+        crossing: mirrored(direction, normal, cos_i, true),
         weight: reflectance,
     };
+    // From outside into the denser body: always refracts.
     let refraction = Branch {
-        crossing: Crossing {
-            direction: (direction / ior + (cos_i / ior - cos_t) * normal).normalize(),
-            refracted: true,
-            from_outside: true,
-        },
+        crossing: refracted(direction, normal, cos_i, ior, true)
+            .unwrap_or_else(|| mirrored(direction, normal, cos_i, true)),
         weight: 1.0 - reflectance,
     };
     (reflection, refraction)
