@@ -314,6 +314,12 @@ mod tests {
                 })
                 .count();
             assert!((reflected as f64 / 100_000.0 - reflectance).abs() < 1e-4);
+            assert!((reflected as f64 / 100_000.0 - reflection.weight).abs() < 1e-4);
+            if theta_deg == 0.0 {
+                // Normal incidence: ((n − 1)/(n + 1))².
+                let f0 = ((ior - 1.0) / (ior + 1.0)).powi(2);
+                assert!((reflection.weight - f0).abs() < 1e-12);
+            }
         }
     }
 
