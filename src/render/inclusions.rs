@@ -14,7 +14,8 @@ use glam::{DVec3, IVec3};
 
 use crate::recipe::gem::{FlakeShape, Inclusions};
 use crate::render::integrator::TEXTURE_UNITS_PER_SCENE_UNIT;
-use crate::texture::hash::{derive_stream, hash_prefix, seed_key, unit_f64};
+use crate::sampling::sin_cos_turns;
+use crate::texture::hash::{derive_stream, mix64, seed_key, unit_f64, unit_triple_21bit};
 
 /// A ray's crossing of a flake.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -29,27 +30,68 @@ pub(crate) struct FlakeHit {
 /// the densities allowed, a stone's diameter is far fewer).
 const MAX_CELLS_WALKED: u32 = 1 << 16;
 
+/// The cell hash of the flake grid is `mix64(seed_key(seed) + x·Kx +
+/// y·Ky + z·Kz)` (wrapping), the K these three large odd constants: one
+/// mix per cell, and a step of the walk along an axis adds ±K of that axis
+/// to the sum. Distinct cells collide only by chance (the K are unrelated
+/// 64-bit odd numbers, so no short integer combination of them vanishes).
+const CELL_STRIDES: [u64; 3] = [
+    0x9e37_79b9_7f4a_7c15,
+    0xc2b2_ae3d_27d4_eb4f,
+    0x1656_67b1_9e37_79f9,
+];
+
+/// The hash of the flake cell `cell` under `seed` (see [`CELL_STRIDES`]).
+#[cfg(test)]
+fn cell_hash(cell: IVec3, seed: u64) -> u64 {
+    mix64(cell_sum(cell, seed))
+}
+
+/// The sum whose mix is the cell's hash.
+fn cell_sum(cell: IVec3, seed: u64) -> u64 {
+    (0..3).fold(seed_key(seed), |sum, axis| {
+        sum.wrapping_add((cell[axis] as i64 as u64).wrapping_mul(CELL_STRIDES[axis]))
+    })
+}
+
+/// ⌊v⌋ per component, without a call into libm (`f64::floor` is one on
+/// x86-64 below SSE4.1); exact for |v| < 2⁶³, far beyond any stone.
+fn floor(v: DVec3) -> DVec3 {
+    let truncated = v.as_i64vec3().as_dvec3();
+    truncated - DVec3::select(truncated.cmpgt(v), DVec3::ONE, DVec3::ZERO)
+}
+
+/// 2⁻¹⁶: a 16-bit field of a hash as a number in [0, 1).
+const INV_2_POW_16: f64 = 1.0 / 65_536.0;
+
+/// The 16-bit field `k` (0 to 3, from the low bits) of `h`, as a number
+/// in (0, 1): the middle of its 2⁻¹⁶ bin.
+#[inline(always)]
+fn field_16(h: u64, k: u32) -> f64 {
+    (f64::from((h >> (16 * k)) as u16) + 0.5) * INV_2_POW_16
+}
+
 impl Inclusions {
     /// The hash of `cell`, and its flake's centre and radius: enough to
     /// rule out a ray that passes farther than the radius from the centre.
     #[cfg(test)]
     pub(super) fn centre_and_radius(&self, cell: IVec3) -> (u64, DVec3, f64) {
-        let h = crate::texture::hash::hash_cell(cell, self.seed);
-        let (centre, radius) = self.centre_and_radius_of(cell, h);
+        let h = cell_hash(cell, self.seed);
+        let (centre, radius) = self.centre_and_radius_of(cell.as_dvec3(), h);
         (h, centre, radius)
     }
 
-    /// The centre and radius of the flake of `cell`, whose hash is `h`.
+    /// The centre and radius of the flake of the cell whose lowest corner
+    /// is `cell` (in cells) and whose hash is `h`: the radius and the three
+    /// coordinates from the hash's four 16-bit fields (a 2⁻¹⁶ of a cell is
+    /// nanometres).
     #[inline(always)]
-    fn centre_and_radius_of(&self, cell: IVec3, h: u64) -> (DVec3, f64) {
-        let u = |k: u64| unit_f64(derive_stream(h, k));
-        let radius = self.radius_mm * (1.0 + self.size_spread * (2.0 * u(0) - 1.0));
-        // The centre at least `radius` from every face: the flake, a disc
-        // of that radius at most, stays in its cell.
-        let margin = radius / self.cell_mm;
-        let inside = |v: f64| margin + v * (1.0 - 2.0 * margin);
-        let centre =
-            (cell.as_dvec3() + DVec3::new(inside(u(1)), inside(u(2)), inside(u(3)))) * self.cell_mm;
+    fn centre_and_radius_of(&self, cell: DVec3, h: u64) -> (DVec3, f64) {
+        let radius = self.radius_mm * (1.0 + self.size_spread * (2.0 * field_16(h, 0) - 1.0));
+        // The centre at least `radius` from every face, uniform between:
+        // the flake, a disc of that radius at most, stays in its cell.
+        let jitter = DVec3::new(field_16(h, 1), field_16(h, 2), field_16(h, 3));
+        let centre = cell * self.cell_mm + radius + jitter * (self.cell_mm - 2.0 * radius);
         (centre, radius)
     }
 
@@ -61,23 +103,25 @@ impl Inclusions {
     pub(crate) fn keeps(&self, h: u64, centre: DVec3) -> bool {
         self.density_modulation.is_none_or(|f| {
             let fraction = f.value(centre * TEXTURE_UNITS_PER_SCENE_UNIT);
-            unit_f64(derive_stream(h, 7)) < fraction.clamp(0.0, 1.0)
+            unit_f64(derive_stream(h, 1)) < fraction.clamp(0.0, 1.0)
         })
     }
 
-    /// The unit normal of the flake of the cell of hash `h`; `frame` is
-    /// the alignment axis's orthonormal pair (see [`Self::alignment_frame`]).
+    /// The unit normal of a flake and the angle of its in-plane turn, from
+    /// the three 21-bit numbers of its second hash; `frame` is the
+    /// alignment axis's orthonormal pair (see [`Self::alignment_frame`]).
     #[inline(always)]
-    fn flake_normal(&self, h: u64, frame: (DVec3, DVec3)) -> DVec3 {
-        let u = |k: u64| unit_f64(derive_stream(h, k));
-        let (cos_theta, phi) = match self.aligned {
-            None => (1.0 - 2.0 * u(4), std::f64::consts::TAU * u(5)),
-            Some((_, cos_max)) => (1.0 - u(4) * (1.0 - cos_max), std::f64::consts::TAU * u(5)),
+    fn flake_normal(&self, orientation: [f64; 3], frame: (DVec3, DVec3)) -> DVec3 {
+        let [u, v, _] = orientation;
+        let cos_theta = match self.aligned {
+            None => 1.0 - 2.0 * u,
+            Some((_, cos_max)) => 1.0 - u * (1.0 - cos_max),
         };
+        let (sin_phi, cos_phi) = sin_cos_turns(v);
         let axis = self.aligned.map_or(DVec3::Z, |(axis, _)| axis);
         let (t, b) = frame;
         let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-        (t * (sin_theta * phi.cos()) + b * (sin_theta * phi.sin()) + axis * cos_theta).normalize()
+        (t * (sin_theta * cos_phi) + b * (sin_theta * sin_phi) + axis * cos_theta).normalize()
     }
 
     /// The orthonormal pair about the axis the flakes' normals are drawn
@@ -88,11 +132,10 @@ impl Inclusions {
             .any_orthonormal_pair()
     }
 
-    /// The flake's unit in-plane axes, turned by its own angle.
-    fn in_plane_axes(h: u64, normal: DVec3) -> (DVec3, DVec3) {
+    /// The flake's unit in-plane axes, turned by the angle 2π·`turn`.
+    fn in_plane_axes(turn: f64, normal: DVec3) -> (DVec3, DVec3) {
         let (a0, a1) = normal.any_orthonormal_pair();
-        let (sin_turn, cos_turn) =
-            (std::f64::consts::TAU * unit_f64(derive_stream(h, 6))).sin_cos();
+        let (sin_turn, cos_turn) = sin_cos_turns(turn);
         (a0 * cos_turn + a1 * sin_turn, a1 * cos_turn - a0 * sin_turn)
     }
 
@@ -117,66 +160,60 @@ impl Inclusions {
         if !(origin.is_finite() && direction.is_finite() && t_max > 0.0) {
             return None;
         }
-        let p = origin / self.cell_mm;
-        let mut cell = p.floor().as_ivec3();
-        let step = IVec3::new(
-            if direction.x >= 0.0 { 1 } else { -1 },
-            if direction.y >= 0.0 { 1 } else { -1 },
-            if direction.z >= 0.0 { 1 } else { -1 },
-        );
+        // Amanatides & Woo. Which axis comes next is a coin toss, so the
+        // step is taken on all three axes at once, each by its own select
+        // (no branch, and no array indexed by the axis, whose stores and
+        // reloads would chain one cell to the next through memory).
+        let scaled = origin / self.cell_mm;
+        let mut cell = floor(scaled);
+        let step = DVec3::select(direction.cmpge(DVec3::ZERO), DVec3::ONE, -DVec3::ONE);
         // t (mm) at which the ray crosses the next cell face on each axis,
-        // and between two faces.
-        let next_face = |axis: usize| {
-            let boundary = f64::from(cell[axis] + i32::from(step[axis] > 0));
-            if direction[axis] == 0.0 {
-                f64::INFINITY
-            } else {
-                (boundary - p[axis]) * self.cell_mm / direction[axis]
-            }
-        };
-        let mut t_next = DVec3::new(next_face(0), next_face(1), next_face(2));
-        let t_delta = (self.cell_mm / direction.abs()).min(DVec3::splat(f64::INFINITY));
+        // and between two faces (infinite along an axis it does not move on).
+        let boundary = cell + DVec3::select(step.cmpgt(DVec3::ZERO), DVec3::ONE, DVec3::ZERO);
+        let moves = direction.cmpne(DVec3::ZERO);
+        let mut t_next = DVec3::select(
+            moves,
+            (boundary - scaled) * self.cell_mm / direction,
+            DVec3::INFINITY,
+        );
+        let t_delta = DVec3::select(moves, self.cell_mm / direction.abs(), DVec3::INFINITY);
+        // A step adds ±K of its axis to the hash's sum (see CELL_STRIDES).
+        let stride: [u64; 3] = std::array::from_fn(|axis| {
+            CELL_STRIDES[axis].wrapping_mul(if step[axis] > 0.0 { 1 } else { u64::MAX })
+        });
+        let mut sum = cell_sum(cell.as_ivec3(), self.seed);
         let frame = self.alignment_frame();
-        // The cell hash absorbs x, then y, then z (`hash_cell`): a step
-        // along z reuses the (x, y) prefix, a step along y the x prefix.
-        let key = seed_key(self.seed);
-        let mut prefix_x = hash_prefix(key, cell.x);
-        let mut prefix_xy = hash_prefix(prefix_x, cell.y);
         let mut t_enter = 0.0;
         for _ in 0..MAX_CELLS_WALKED {
             if t_enter >= t_max {
                 return None;
             }
-            let h = hash_prefix(prefix_xy, cell.z);
-            if let Some(hit) = self.crossing(cell, h, frame, origin, direction, t_max) {
+            if let Some(hit) = self.crossing(cell, mix64(sum), frame, origin, direction, t_max) {
                 return Some(hit);
             }
-            let axis = if t_next.x <= t_next.y && t_next.x <= t_next.z {
-                0
-            } else if t_next.y <= t_next.z {
-                1
-            } else {
-                2
-            };
-            t_enter = t_next[axis];
-            t_next[axis] += t_delta[axis];
-            cell[axis] += step[axis];
-            if axis == 0 {
-                prefix_x = hash_prefix(key, cell.x);
-            }
-            if axis <= 1 {
-                prefix_xy = hash_prefix(prefix_x, cell.y);
-            }
+            // The nearest face: x on ties with y or z, then y on ties with z.
+            let x_next = t_next.x <= t_next.y && t_next.x <= t_next.z;
+            let y_next = !x_next && t_next.y <= t_next.z;
+            let z_next = !x_next && !y_next;
+            let next = glam::BVec3::new(x_next, y_next, z_next);
+            t_enter = t_next.min_element();
+            t_next += DVec3::select(next, t_delta, DVec3::ZERO);
+            cell += DVec3::select(next, step, DVec3::ZERO);
+            sum = sum
+                .wrapping_add(stride[0] & u64::from(x_next).wrapping_neg())
+                .wrapping_add(stride[1] & u64::from(y_next).wrapping_neg())
+                .wrapping_add(stride[2] & u64::from(z_next).wrapping_neg());
         }
         None
     }
 
-    /// The ray's crossing of the flake of `cell` (hash `h`), for
-    /// 0 < t < `t_max`; `frame` as for [`Self::flake_normal`].
+    /// The ray's crossing of the flake of the cell with lowest corner
+    /// `cell` (hash `h`), for 0 < t < `t_max`; `frame` as for
+    /// [`Self::flake_normal`].
     #[inline(always)]
     fn crossing(
         &self,
-        cell: IVec3,
+        cell: DVec3,
         h: u64,
         frame: (DVec3, DVec3),
         origin: DVec3,
@@ -192,7 +229,8 @@ impl Inclusions {
         {
             return None;
         }
-        let normal = self.flake_normal(h, frame);
+        let orientation = unit_triple_21bit(derive_stream(h, 0));
+        let normal = self.flake_normal(orientation, frame);
         let along = direction.dot(normal);
         if along == 0.0 {
             return None;
@@ -207,10 +245,30 @@ impl Inclusions {
         if offset.length_squared() > radius * radius {
             return None;
         }
-        let axes = Self::in_plane_axes(h, normal);
+        let axes = Self::in_plane_axes(orientation[2], normal);
         self.outline_contains(offset.dot(axes.0), offset.dot(axes.1), radius)
             .then_some(FlakeHit { t, normal })
     }
+}
+
+/// The nearest flake of any of `populations` that the ray `origin +
+/// t·direction` (unit direction, object space, mm) crosses for 0 < t <
+/// `t_max`, and the index of its population: each population's walk stops
+/// at the nearest flake found so far.
+pub(crate) fn nearest_of(
+    populations: &[Inclusions],
+    origin: DVec3,
+    direction: DVec3,
+    t_max: f64,
+) -> Option<(FlakeHit, usize)> {
+    let mut best: Option<(FlakeHit, usize)> = None;
+    for (index, population) in populations.iter().enumerate() {
+        let limit = best.map_or(t_max, |(hit, _)| hit.t);
+        if let Some(hit) = population.nearest(origin, direction, limit) {
+            best = Some((hit, index));
+        }
+    }
+    best
 }
 
 /// Edge normals (cos a, sin a) of a hexagon's sides, a = 30° + k · 60°.
@@ -342,6 +400,40 @@ mod tests {
         field.density_modulation = None;
         let (h, centre, _) = field.centre_and_radius(IVec3::ZERO);
         assert!(field.keeps(h, centre));
+    }
+
+    #[test]
+    fn cell_hashes_differ_and_the_walk_reads_each_cells_own_flake() {
+        // No two cells of a 64³ block (either side of zero) share a hash.
+        let mut hashes: Vec<u64> = (-32..32)
+            .flat_map(|x| (-32..32).flat_map(move |y| (-32..32).map(move |z| (x, y, z))))
+            .map(|(x, y, z)| cell_hash(IVec3::new(x, y, z), 77))
+            .collect();
+        let cells = hashes.len();
+        hashes.sort_unstable();
+        hashes.dedup();
+        assert_eq!(hashes.len(), cells);
+        // Rays in every octant, walked incrementally: each crossing lies
+        // on the flake of the cell that holds it, as placed from scratch.
+        let field = population(FlakeShape::Disc, None);
+        let mut rng = Rng::new(8, 2);
+        let mut checked = 0;
+        for _ in 0..200 {
+            let [a, b, c] = rng.next_3();
+            let origin = (DVec3::new(a, b, c) - 0.5) * 8.0;
+            let [u, v, w] = rng.next_3();
+            let direction = (DVec3::new(u, v, w) - 0.5).normalize();
+            let Some(hit) = field.nearest(origin, direction, 30.0) else {
+                continue;
+            };
+            let point = origin + direction * hit.t;
+            let cell = (point / field.cell_mm).floor().as_ivec3();
+            let (_, centre, radius) = field.centre_and_radius(cell);
+            assert!((point - centre).length() <= radius * (1.0 + 1e-9));
+            assert!((point - centre).dot(hit.normal).abs() < 1e-9);
+            checked += 1;
+        }
+        assert!(checked > 100, "{checked} rays met a flake");
     }
 
     #[test]

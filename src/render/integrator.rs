@@ -13,7 +13,7 @@ use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem, Medium};
 use crate::render::dielectric::{cross_smooth_interface, split_smooth_interface, RoughInterface};
 use crate::render::environment::Environment;
-use crate::render::inclusions::FlakeHit;
+use crate::render::inclusions::{self, FlakeHit};
 use crate::render::lights::Light;
 use crate::render::medium::{
     beer_lambert, henyey_greenstein, sample_free_flight, sample_henyey_greenstein, SpectralPath,
@@ -870,20 +870,13 @@ impl RenderScene {
             return None;
         }
         let (o, d) = self.world.object_ray(stone, origin, direction);
-        let mut best: Option<(FlakeHit, u32)> = None;
-        for population in inclusions {
-            let limit = best.map_or(t_max, |(hit, _)| hit.t);
-            if let Some(hit) = population.nearest(o, d, limit) {
-                best = Some((hit, population.material));
-            }
-        }
-        best.map(|(hit, material)| {
+        inclusions::nearest_of(inclusions, o, d, t_max).map(|(hit, population)| {
             (
                 FlakeHit {
                     t: hit.t,
                     normal: instance.rotation * hit.normal,
                 },
-                &gem.brdfs[material as usize],
+                &gem.brdfs[inclusions[population].material as usize],
             )
         })
     }
