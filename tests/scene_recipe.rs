@@ -691,6 +691,23 @@ fn sun_diameter_is_at_most_20_degrees() {
 }
 
 #[test]
+fn an_absurd_environment_intensity_is_refused_at_its_field() {
+    // 1e305 overflowed the studio's texels (a panic while baking it).
+    for environment in [
+        "Studio(intensity: 1e305)",
+        "File(path: \"sky.hdr\", intensity: 2e6)",
+        "Studio(intensity: -1.0)",
+    ] {
+        expect_error(
+            "Constant(radiance: (0.1, 0.1, 0.1))",
+            environment,
+            "environment:",
+            &["`intensity`", "allowed: 0 <= intensity <= 1000000"],
+        );
+    }
+}
+
+#[test]
 fn negative_radiance_is_refused() {
     expect_error(
         "radiance: (5.0, 5.0, 5.0)",

@@ -331,7 +331,7 @@ pub enum EnvironmentKind {
     },
     /// The renderer's built-in studio (soft boxes over a dark floor).
     Studio {
-        /// Multiplier, ≥ 0 (default 1).
+        /// Multiplier, 0 to 10⁶ (default 1).
         #[serde(default = "one", deserialize_with = "intensity")]
         intensity: f64,
         /// Turn about world z, degrees (default 0).
@@ -345,13 +345,18 @@ pub enum EnvironmentKind {
         /// Turn about world z, degrees (default 0).
         #[serde(default, deserialize_with = "rotation_about_z_deg")]
         rotation_deg: f64,
-        /// Multiplier, ≥ 0 (default 1).
+        /// Multiplier, 0 to 10⁶ (default 1).
         #[serde(default = "one", deserialize_with = "intensity")]
         intensity: f64,
     },
 }
 
 // ---- Range-checked fields (messages as in `recipe::ranges`) -------------
+
+/// The largest multiplier of an environment: far beyond any exposure a
+/// scene needs, and small enough that the brightest studio texel times it
+/// stays within what an environment map stores.
+const MAX_ENVIRONMENT_INTENSITY: f64 = 1e6;
 
 /// Largest coordinate of a point in a scene, mm (100 m). The stones' BVH
 /// is built in f32 (obvhs), where 1e300 is infinite and its build panics;
@@ -464,7 +469,9 @@ scalar_field!(
     "0 < angular_diameter_deg <= 20 (degrees), at least 0.01",
     |v| (0.01..=20.0).contains(&v)
 );
-scalar_field!(intensity, "intensity", "intensity >= 0", |v| v >= 0.0);
+scalar_field!(intensity, "intensity", "0 <= intensity <= 1000000", |v| {
+    (0.0..=MAX_ENVIRONMENT_INTENSITY).contains(&v)
+});
 scalar_field!(
     rotation_about_z_deg,
     "rotation_deg",
