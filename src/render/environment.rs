@@ -34,12 +34,14 @@
 //! [`Environment::pdf`] of the direction it returns (the integrator's MIS
 //! weights rely on it).
 
-use std::f64::consts::{FRAC_1_PI, PI, TAU};
+use std::f64::consts::{FRAC_1_PI, FRAC_PI_2, PI, TAU};
 use std::fs::File;
 use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 
-use glam::{DVec2, DVec3};
+#[cfg(test)]
+use glam::DVec2;
+use glam::DVec3;
 
 use super::distribution::{alias_table, draw, AliasTable};
 use super::shared_exponent::{decode, encode, exponent_scales, TEXEL_BITS, TEXEL_MASK};
@@ -392,9 +394,17 @@ pub struct EnvironmentMap {
     /// The distribution of rows; `None` when every texel is black.
     marginal: Option<AliasTable>,
     rotation_deg: f64,
+    /// The rotation in radians, for the reference mapping in tests.
+    #[cfg(test)]
     rotation_rad: f64,
     /// The rotation in turns (of 2π), for [`sin_cos_turns`].
     rotation_turns: f64,
+    /// `(cos φ_c, sin φ_c)` of the world azimuth `φ_c = 2π (c/width +
+    /// rotation_turns)` where column `c` starts, for `c = 0..=width`: the
+    /// same expression as a sample drawn at the column's edge, so that a
+    /// lookup and the sampler split the azimuths alike (see
+    /// [`EnvironmentMap::column_of`]). 16 bytes a column.
+    column_edges: Vec<[f64; 2]>,
 }
 
 /// How one row of an [`EnvironmentMap`] turns a texel into its sampling
@@ -545,8 +555,16 @@ impl EnvironmentMap {
             rows,
             marginal,
             rotation_deg,
+            #[cfg(test)]
             rotation_rad: rotation_deg.to_radians(),
             rotation_turns: rotation_deg / 360.0,
+            column_edges: (0..=width)
+                .map(|col| {
+                    let (sin, cos) =
+                        sin_cos_turns(col as f64 / width as f64 + rotation_deg / 360.0);
+                    [cos, sin]
+                })
+                .collect(),
         })
     }
 
@@ -593,7 +611,10 @@ impl EnvironmentMap {
     }
 
     /// Map coordinates `(u, v) ∈ [0, 1)²` of a world direction (after
-    /// undoing the rotation); `None` for a zero or non-finite direction.
+    /// undoing the rotation) by `acos` and `atan2`; `None` for a zero or
+    /// non-finite direction: the reference [`Self::texel_index`] is tested
+    /// against.
+    #[cfg(test)]
     pub(crate) fn direction_to_uv(&self, direction: DVec3) -> Option<DVec2> {
         let len = direction.length();
         if !(len.is_finite() && len > 0.0) {
@@ -607,12 +628,68 @@ impl EnvironmentMap {
         Some(DVec2::new(u, v))
     }
 
-    /// Row and column of the texel a direction falls in.
+    /// Row and column of the texel a direction falls in; `None` for a zero
+    /// or non-finite direction. The texels of `θ = acos(z)` and `φ_map`
+    /// (module conventions), found without `acos` or `atan2`: polynomial
+    /// guesses within 2·10⁻⁸ rad, then the row's and the column's own
+    /// edges decide (one comparison each way; a texel is at least
+    /// π/8192 ≈ 3.8·10⁻⁴ rad across).
+    #[inline]
     fn texel_index(&self, direction: DVec3) -> Option<(usize, usize)> {
-        let uv = self.direction_to_uv(direction)?;
-        let col = ((uv.x * self.width as f64) as usize).min(self.width - 1);
-        let row = ((uv.y * self.height as f64) as usize).min(self.height - 1);
-        Some((row, col))
+        let len = direction.length();
+        if !(len.is_finite() && len > 0.0) {
+            return None;
+        }
+        let z = (direction.z / len).clamp(-1.0, 1.0);
+        Some((self.row_of(z), self.column_of(direction.x, direction.y)))
+    }
+
+    /// The row whose band of cosines `(z_bottom, z_top]` holds `z` (the
+    /// half-open band a sample of the row is drawn from): the guess
+    /// `⌊acos(z) H/π⌋`, moved one row where `z` lies beyond its edges.
+    #[inline]
+    fn row_of(&self, z: f64) -> usize {
+        let height = self.height;
+        // `as usize` saturates: a guess just below 0 is row 0.
+        let mut row = ((acos_approx(z) * (height as f64 * FRAC_1_PI)) as usize).min(height - 1);
+        let band = &self.rows[row];
+        if row > 0 && z > band.z_top {
+            row -= 1;
+        } else if row + 1 < height && z <= band.z_bottom {
+            row += 1;
+        }
+        row
+    }
+
+    /// The column whose azimuths run from its edge `c` (included) to edge
+    /// `c + 1`, for the direction's `(x, y)`: the guess from
+    /// [`atan2_approx`], moved one column (wrapping round) where the
+    /// direction lies clockwise of the column's first edge or not
+    /// clockwise of its last; `(x, y)` lies counter-clockwise of an edge
+    /// `e` when `e × (x, y) = e_x y − e_y x > 0` (a column spans less than
+    /// half a turn for any width from 3 up; widths 1 and 2 are exact
+    /// halves and whole turns, where the guess alone decides except on the
+    /// edges themselves).
+    #[inline]
+    fn column_of(&self, x: f64, y: f64) -> usize {
+        let width = self.width;
+        let turns = atan2_approx(y, x) * (0.5 * FRAC_1_PI) - self.rotation_turns;
+        // Into [0, 1]: `as i64` truncates towards zero.
+        let mut fraction = turns - (turns as i64) as f64;
+        if fraction < 0.0 {
+            fraction += 1.0;
+        }
+        let mut col = ((fraction * width as f64) as usize).min(width - 1);
+        if width < 3 {
+            return col;
+        }
+        let cross = |edge: [f64; 2]| edge[0] * y - edge[1] * x;
+        if cross(self.column_edges[col]) < 0.0 {
+            col = if col == 0 { width - 1 } else { col - 1 };
+        } else if cross(self.column_edges[col + 1]) >= 0.0 {
+            col = if col + 1 == width { 0 } else { col + 1 };
+        }
+        col
     }
 
     /// Radiance from the unit world `direction`: the texel it falls in.
@@ -827,6 +904,69 @@ fn pack_texel(rgb: [f64; 3]) -> Result<u64, BadTexel> {
     })
 }
 
+/// `acos(z)` for `z ∈ [−1, 1]` within 2·10⁻⁸ rad: Abramowitz & Stegun
+/// 4.4.46, `√(1 − |z|)` times a polynomial of degree 7 in `|z|`, and
+/// `π − acos(−z)` below 0. Only a guess of a texel's row (see
+/// [`EnvironmentMap::row_of`]).
+#[inline]
+fn acos_approx(z: f64) -> f64 {
+    const C: [f64; 8] = [
+        1.570_796_305_0,
+        -0.214_598_801_6,
+        0.088_978_987_4,
+        -0.050_174_304_6,
+        0.030_891_881_0,
+        -0.017_088_125_6,
+        0.006_670_090_1,
+        -0.001_262_491_1,
+    ];
+    let a = z.abs();
+    let poly = C[..7].iter().rev().fold(C[7], |acc, &c| acc * a + c);
+    let r = (1.0 - a).max(0.0).sqrt() * poly;
+    if z < 0.0 {
+        PI - r
+    } else {
+        r
+    }
+}
+
+/// `atan2(y, x) ∈ [−π, π]` within 2·10⁻⁸ rad: Abramowitz & Stegun 4.4.49
+/// (an odd polynomial of degree 17) on the octant `min/max(|x|, |y|) ≤ 1`,
+/// unfolded by the signs and the larger of `|x|`, `|y|`; 0 at the origin.
+/// Only a guess of a texel's column (see [`EnvironmentMap::column_of`]).
+#[inline]
+fn atan2_approx(y: f64, x: f64) -> f64 {
+    const C: [f64; 9] = [
+        1.0,
+        -0.333_331_452_8,
+        0.199_935_508_5,
+        -0.142_088_994_4,
+        0.106_562_639_3,
+        -0.075_289_640_0,
+        0.042_909_613_8,
+        -0.016_165_736_7,
+        0.002_866_225_7,
+    ];
+    let (ax, ay) = (x.abs(), y.abs());
+    // (Finite inputs: plain comparisons, not `min`/`max`'s NaN handling.)
+    let (small, large) = if ax < ay { (ax, ay) } else { (ay, ax) };
+    let a = if large > 0.0 { small / large } else { 0.0 };
+    let a2 = a * a;
+    let mut angle = a * C[..8].iter().rev().fold(C[8], |acc, &c| acc * a2 + c);
+    if ay > ax {
+        angle = FRAC_PI_2 - angle;
+    }
+    if x < 0.0 {
+        angle = PI - angle;
+    }
+    if y < 0.0 {
+        -angle
+    } else {
+        angle
+    }
+}
+
+#[cfg(test)]
 /// `angle_rad.rem_euclid(2π)`, the angle in `[0, 2π]`, without the `fmod`
 /// call when it is within one turn of zero (always for a map turned by less
 /// than a turn): there the remainder is the angle itself, exactly, and a
@@ -1464,5 +1604,95 @@ mod tests {
                 "angle {a}"
             );
         }
+    }
+
+    /// A map of `width × height` texels of one colour each (their
+    /// radiance does not matter to where a direction falls).
+    fn grey_map(width: usize, height: usize, rotation_deg: f64) -> EnvironmentMap {
+        EnvironmentMap::new(width, height, vec![Rgb::ONE; width * height], rotation_deg).unwrap()
+    }
+
+    #[test]
+    fn texel_index_without_acos_or_atan2_is_the_reference_texel() {
+        // The polynomial guesses corrected by the texel edges against
+        // ⌊acos(z) H/π⌋ and ⌊φ_map W/2π⌋: the same texel everywhere but
+        // within rounding of an edge (where either answer is the measure-
+        // zero boundary), over sizes from 1 to the largest, rotations of
+        // several turns either way, the poles and the axes.
+        let mut rng = Rng::new(43, 44);
+        let sizes = [
+            (1, 1),
+            (2, 1),
+            (3, 2),
+            (4, 2),
+            (7, 5),
+            (64, 32),
+            (2048, 1024),
+            (16384, 3),
+            (3, 8192),
+        ];
+        let mut checked = 0;
+        for (width, height) in sizes {
+            for rotation_deg in [0.0, 37.5, -200.0, 725.0, -1000.25] {
+                let map = grey_map(width, height, rotation_deg);
+                let mut directions = vec![
+                    DVec3::Z,
+                    -DVec3::Z,
+                    DVec3::X,
+                    -DVec3::X,
+                    DVec3::Y,
+                    -DVec3::Y,
+                    DVec3::new(1.0, 1.0, 0.0),
+                ];
+                directions.extend((0..20_000).map(|_| {
+                    let [a, b, c] = rng.next_3();
+                    DVec3::new(a - 0.5, b - 0.5, c - 0.5)
+                }));
+                for d in directions {
+                    let uv = map.direction_to_uv(d).unwrap();
+                    let (x, y) = (uv.x * width as f64, uv.y * height as f64);
+                    let reference = ((y as usize).min(height - 1), (x as usize).min(width - 1));
+                    let fast = map.texel_index(d).unwrap();
+                    let near_edge = |s: f64| (s - s.round()).abs() < 1e-9 * s.abs().max(1.0);
+                    let at_pole = d.x == 0.0 && d.y == 0.0;
+                    if fast.0 != reference.0 {
+                        assert!(
+                            near_edge(y),
+                            "{d} {width}×{height}: row {fast:?} {reference:?}"
+                        );
+                    }
+                    if fast.1 != reference.1 {
+                        let wrapped = x == 0.0 || near_edge(x);
+                        assert!(
+                            at_pole || wrapped,
+                            "{d} {width}×{height}: {fast:?} {reference:?}"
+                        );
+                    }
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 500_000);
+        let map = grey_map(8, 4, 0.0);
+        assert_eq!(map.texel_index(DVec3::ZERO), None);
+        assert_eq!(map.texel_index(DVec3::new(f64::NAN, 0.0, 1.0)), None);
+    }
+
+    #[test]
+    fn acos_and_atan2_guesses_are_within_their_bounds() {
+        let mut rng = Rng::new(45, 46);
+        for _ in 0..200_000 {
+            let z = 2.0 * rng.next_f64() - 1.0;
+            assert!((acos_approx(z) - z.acos()).abs() < 2.5e-8, "acos {z}");
+            let [a, b] = [rng.next_f64() - 0.5, rng.next_f64() - 0.5];
+            assert!(
+                (atan2_approx(b, a) - b.atan2(a)).abs() < 2.5e-8,
+                "atan2 {b} {a}"
+            );
+        }
+        for z in [-1.0, 1.0, 0.0, -0.0] {
+            assert!((acos_approx(z) - z.acos()).abs() < 2.5e-8);
+        }
+        assert_eq!(atan2_approx(0.0, 0.0), 0.0);
     }
 }
