@@ -530,6 +530,17 @@ fn in_memory_map_errors_name_the_problem() {
     let err = Environment::try_studio(-1.0, 0.0).unwrap_err().to_string();
     assert!(err.contains("intensity") && err.contains("≥ 0"), "{err}");
     assert!(Environment::try_studio(1.0, f64::INFINITY).is_err());
+    // An intensity whose studio no texel could store: an error, not a
+    // panic while baking; the infallible form takes the largest.
+    let err = Environment::try_studio(1e305, 0.0).unwrap_err().to_string();
+    assert!(
+        err.contains("intensity") && err.contains("at most"),
+        "{err}"
+    );
+    let Environment::Map(map) = Environment::studio(1e305, 0.0) else {
+        panic!("the studio is a map");
+    };
+    assert!(map.radiance(DVec3::Z).max_element().is_finite());
 }
 
 /// A fresh directory under the system temp dir, unique to this process and

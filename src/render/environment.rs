@@ -54,6 +54,10 @@ pub(crate) const MAX_MAP_WIDTH: usize = 16384;
 pub(crate) const MAX_MAP_HEIGHT: usize = 8192;
 /// Width of the baked studio map: 0.35° texels keep soft-box edges crisp.
 pub const STUDIO_WIDTH: usize = 1024;
+/// The largest intensity the studio takes: its brightest texel (below 12)
+/// times it stays within what a map texel stores
+/// ([`MAX_TEXEL_RADIANCE`]).
+pub const MAX_STUDIO_INTENSITY: f64 = MAX_TEXEL_RADIANCE / 12.0;
 /// Height of the baked studio map.
 pub const STUDIO_HEIGHT: usize = 512;
 
@@ -244,11 +248,12 @@ impl Environment {
     /// radiance scaled by `intensity` and turned by `rotation_deg` about +z,
     /// baked at [`STUDIO_WIDTH`] × [`STUDIO_HEIGHT`]. See [`studio_radiance`]
     /// for the layout. A non-finite rotation becomes 0° and a negative or
-    /// non-finite intensity 0 (use [`Environment::try_studio`] to refuse
-    /// them instead).
+    /// non-finite intensity 0, and one above [`MAX_STUDIO_INTENSITY`]
+    /// that maximum (use [`Environment::try_studio`] to refuse them
+    /// instead).
     pub fn studio(intensity: f64, rotation_deg: f64) -> Self {
         let intensity = if intensity.is_finite() && intensity > 0.0 {
-            intensity
+            intensity.min(MAX_STUDIO_INTENSITY)
         } else {
             0.0
         };
@@ -260,10 +265,18 @@ impl Environment {
         Environment::Map(EnvironmentMap::bake_studio(intensity, rotation_deg))
     }
 
-    /// [`Environment::studio`], refusing a negative or non-finite
-    /// intensity and a non-finite rotation with an error.
+    /// [`Environment::studio`], refusing a negative, non-finite or too
+    /// large (above [`MAX_STUDIO_INTENSITY`]) intensity and a non-finite
+    /// rotation with an error.
     pub fn try_studio(intensity: f64, rotation_deg: f64) -> Result<Self, EnvironmentError> {
         check_intensity(intensity)?;
+        if intensity > MAX_STUDIO_INTENSITY {
+            return Err(EnvironmentError::Parameter {
+                field: "intensity",
+                value: intensity,
+                allowed: "at most 3.6e8 for the studio (its brightest texel, 12, times it must stay storable)",
+            });
+        }
         check_rotation(rotation_deg)?;
         Ok(Environment::Map(EnvironmentMap::bake_studio(
             intensity,
