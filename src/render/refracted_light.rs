@@ -336,13 +336,11 @@ fn light_point_pdf(light: &Light, point: DVec3, y: DVec3, direction: DVec3) -> O
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{Base, Cabochon, CabochonParams, Outline};
-    use crate::recipe::gem::{compile_gem, GemSource, Tables};
+    use crate::recipe::gem::{GemSource, Tables};
     use crate::render::dielectric::cross_smooth_interface;
-    use crate::render::environment::Environment;
+    use crate::render::prepare::prepare_scene;
     use crate::render::sampler::PixelSampler;
-    use crate::render::world::StoneInstance;
-    use glam::DQuat;
+    use crate::scene::parse_scene;
     use std::f64::consts::PI;
 
     /// The peer scattering stone's cap (semi-axes 1 × 0.7 × 0.45, flat base
@@ -350,39 +348,25 @@ mod tests {
     /// made 1 unit wide (23° across from the stone), radiance 1, in a black
     /// sky: the scene where issue 26's bias showed.
     fn cap_under_a_large_light() -> RenderScene {
-        let text = r#"Gem(surface: "teflon", body: Translucent(ior: 1.5, absorption: (0, 0, 0)))"#;
-        let gem = compile_gem(&GemSource::new("test", text), None, Tables::Skipped).unwrap();
-        let shape = CabochonParams {
-            outline: Outline::Oval,
-            length: 2.0,
-            width: 1.4,
-            dome_height: 0.45,
-            profile_exponent: 2.0,
-            girdle_height: 0.0,
-            base: Base::Flat,
-            buff_top: None,
-        };
-        let stone = StoneInstance {
-            cabochon: Cabochon::new(shape).unwrap(),
-            rotation: DQuat::IDENTITY,
-            position: DVec3::ZERO,
-            gem: 0,
-        };
-        RenderScene {
-            world: World::new(vec![stone], None),
-            material_id_bases: RenderScene::material_id_bases(std::slice::from_ref(&gem)),
-            gems: vec![gem],
-            ground_brdf: None,
-            lights: vec![Light::Sphere {
-                centre: DVec3::new(2.5, -2.0, 3.9),
-                radius: 1.0,
-                radiance: Rgb::splat(1.0),
-            }],
-            environment: Environment::Constant(Rgb::ZERO),
-            max_bounces: 64,
-            ambient_occlusion: None,
-            connect_through_surfaces: true,
-        }
+        let scene = parse_scene(
+            r#"Scene(
+                camera: Orbit(target: (0, 0, 0), distance: 5, elevation_deg: 35,
+                              azimuth_deg: -90, vertical_fov_deg: 30),
+                stones: [Stone(shape: Cabochon(outline: Oval, length: 2.0, width: 1.4,
+                    dome_height: 0.45, profile_exponent: 2.0, girdle_height: 0.0,
+                    base: Flat))],
+                ground: None,
+                lights: [Sphere(centre: (2.5, -2.0, 3.9), radius: 1.0, radiance: (1, 1, 1))],
+                environment: Constant(radiance: (0, 0, 0)),
+            )"#,
+            None,
+        )
+        .unwrap();
+        let gem = GemSource::new(
+            "clear",
+            r#"Gem(surface: "teflon", body: Translucent(ior: 1.5, absorption: (0, 0, 0)))"#,
+        );
+        prepare_scene(&scene, &gem, None, 64, Tables::Skipped, &|_| {}).unwrap()
     }
 
     /// Light from the sphere reaching an isotropically scattering vertex at
