@@ -180,14 +180,19 @@ def clear_stone_mesh(mi, dr, scattering=False, semi_axes=STONE_SEMI_AXES, lift=C
     return mesh_of(mi, dr, pos, nrm, faces, props)
 
 
-def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True, clear=False, scattering=False):
+def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True, clear=False, scattering=False,
+               light_radius=LIGHT_RADIUS, environment=True):
     """The whole peer scene as a Mitsuba `load_dict` dictionary.
 
     `max_depth` follows Mitsuba's `path` convention: 1 = emitters seen
     directly, 2 = direct lighting, so lapidary's `--bounces B` is B + 2.
+    A `light_radius` other than LIGHT_RADIUS keeps the light's power (its
+    radiance scales by (LIGHT_RADIUS / light_radius)²); `environment` False
+    leaves the constant environment out.
     """
     t = mi.ScalarTransform4f
-    return {
+    radiance = LIGHT_RADIANCE * (LIGHT_RADIUS / light_radius) ** 2
+    scene = {
         "type": "scene",
         "integrator": {
             "type": "volpath" if clear or scattering else "path",
@@ -220,14 +225,17 @@ def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True, clear=False, scatte
         "light": {
             "type": "sphere",
             "center": list(LIGHT_CENTRE),
-            "radius": LIGHT_RADIUS,
-            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": LIGHT_RADIANCE}},
+            "radius": light_radius,
+            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": radiance}},
         },
         "environment": {
             "type": "constant",
             "radiance": {"type": "rgb", "value": ENVIRONMENT_RADIANCE},
         },
     }
+    if not environment:
+        del scene["environment"]
+    return scene
 
 
 # --- The benchmark suite's scenes (bench/suite/, issue 28) -------------------
@@ -541,14 +549,15 @@ def render(args):
         return
     scene = mi.load_dict(
         scene_dict(
-            mi, dr, args.size, args.spp, args.max_depth, not args.linear, args.clear, args.scattering
+            mi, dr, args.size, args.spp, args.max_depth, not args.linear, args.clear, args.scattering,
+            args.light_radius, not args.no_environment,
         )
     )
     if args.no_ground:
         scene = mi.load_dict(
             {k: v for k, v in scene_dict(
                 mi, dr, args.size, args.spp, args.max_depth, not args.linear, args.clear,
-                args.scattering,
+                args.scattering, args.light_radius, not args.no_environment,
             ).items() if k != "ground"}
         )
     image = mi.render(scene, spp=args.spp, seed=0)
@@ -630,6 +639,10 @@ def main(argv):
         help="the scattering stone of bench/peer-scene-scattering.ron (volpath)",
     )
     r.add_argument("--no-ground", action="store_true", help="leave the ground out")
+    r.add_argument("--light-radius", type=float, default=LIGHT_RADIUS,
+                   help="the sphere light's radius, its radiance scaled to keep its power")
+    r.add_argument("--no-environment", action="store_true",
+                   help="leave the constant environment out")
     r.add_argument("--suite-scene", choices=("env-softbox", "goldstone-clear", "orientation"),
                    help="render this scene of bench/suite/ instead of the peer scene")
     r.add_argument("--env", help="the generated environment map of --suite-scene env-softbox "
