@@ -99,6 +99,11 @@ pub struct RenderArgs {
     /// occlusion itself (white: open, black: enclosed) instead of the beauty.
     #[arg(long, value_name = "DIST")]
     pub(super) ao: Option<f64>,
+    /// Shade every flake inside a translucent stone by its own normal,
+    /// however many flakes a pixel covers (by default a pixel that covers
+    /// many shades them by their average lobe: less noise, the same mean).
+    #[arg(long)]
+    pub(super) exact_flakes: bool,
     /// Largest film memory to allow, in GiB (default 4); the render is
     /// refused up front above it, and always above the memory available.
     #[arg(long, value_name = "GIB", default_value_t = DEFAULT_MAX_MEMORY_GIB)]
@@ -505,6 +510,7 @@ impl Renderer {
                 TonemapArg::Linear => ToneCurve::Linear,
             },
             connections,
+            flake_footprints: !args.exact_flakes,
             frame: None,
             inputs_sha256: inputs.sha256,
         };
@@ -552,6 +558,9 @@ impl Renderer {
         )?;
         traced.ambient_occlusion = args.ao;
         traced.connect_through_surfaces = self.record.connections;
+        if !self.record.flake_footprints {
+            traced.shade_flakes_exactly();
+        }
         let stones = traced.world.stones().to_vec();
         self.traced = Some((traced, stones));
         Ok(self)

@@ -67,6 +67,8 @@ pub struct RenderRecord {
     /// Whether light is connected through translucent surfaces
     /// (`LAPIDARY_MNEE`).
     pub connections: bool,
+    /// Whether flakes are shaded by their footprint (not `--exact-flakes`).
+    pub flake_footprints: bool,
     /// The turntable frame, for an animation.
     pub frame: Option<FrameOf>,
     /// SHA-256 (hex) of the bytes of every input file the render read.
@@ -123,6 +125,7 @@ impl RenderRecord {
             ("exposure_ev", self.exposure_ev.to_string()),
             ("tonemap", format!("{:?}", self.tone_curve)),
             ("connections", self.connections.to_string()),
+            ("flake_footprints", self.flake_footprints.to_string()),
             ("frame", frame),
             ("inputs_sha256", self.inputs_sha256.clone()),
         ]
@@ -258,6 +261,7 @@ impl RenderRecord {
             exposure_ev: 0.0,
             tone_curve: ToneCurve::Filmic,
             connections: true,
+            flake_footprints: true,
             frame: None,
             inputs_sha256: String::new(),
         };
@@ -374,6 +378,7 @@ mod tests {
             exposure_ev: 0.1,
             tone_curve: ToneCurve::Filmic,
             connections: true,
+            flake_footprints: true,
             frame: Some(FrameOf {
                 frame: 3,
                 frames: 8,

@@ -64,6 +64,12 @@ impl PinholeCamera {
         }
     }
 
+    /// The angle one pixel spans at the film's centre, radians: the spread
+    /// of a camera ray's footprint.
+    pub fn pixel_angle_rad(&self) -> f64 {
+        self.film_units_per_px_y
+    }
+
     /// The ray through film point (x, y) in pixels, x to the right and y
     /// downward from the top-left corner; pixel (i, j) covers
     /// [i, i+1) × [j, j+1).

@@ -264,6 +264,7 @@ fn render_row_portable(
                 let radiance = scene.radiance(
                     camera.position(),
                     directions[lane as usize],
+                    camera.pixel_angle_rad(),
                     &mut stream,
                     &mut counts,
                     &mut first_hits,

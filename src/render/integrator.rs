@@ -7,12 +7,16 @@
 //! the varnish), so a path bounces between stones and the ground until it
 //! escapes to the environment, meets a light, or reaches `max_bounces`.
 
+use std::sync::Arc;
+
 use glam::DVec3;
 
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem, Medium};
 use crate::render::dielectric::{cross_smooth_interface, split_smooth_interface, RoughInterface};
 use crate::render::environment::Environment;
+use crate::render::flake_lobe::FlakeLobe;
+use crate::render::footprint::{aggregate_probability, RayCone};
 use crate::render::inclusions::{self, FlakeHit};
 use crate::render::lights::Light;
 use crate::render::medium::{
@@ -56,6 +60,11 @@ pub struct RenderScene {
     /// for every render; false leaves those paths to sampling alone, which
     /// converges far more slowly under small lights (for comparisons).
     pub connect_through_surfaces: bool,
+    /// Per gem, per flake population of its translucent body, the lobe that
+    /// shades a flake when the pixel's footprint holds many
+    /// ([`crate::render::footprint`]); empty (or None for a population):
+    /// every flake by its own normal.
+    pub(crate) flake_lobes: Vec<Arc<[Option<FlakeLobe>]>>,
 }
 
 /// Scattering events a path may take inside translucent bodies (which are
@@ -323,13 +332,14 @@ impl RenderScene {
         &self,
         origin: DVec3,
         direction: DVec3,
+        pixel_angle_rad: f64,
         stream: &mut SampleStream,
         counts: &mut RayCounts,
         first_hits: &mut FirstHitSums,
         first_sample: bool,
     ) -> Rgb {
         self.trace::<false>(
-            (origin, direction, 0, None),
+            (origin, direction, 0, None, RayCone::from_camera(pixel_angle_rad)),
             stream,
             counts,
             first_hits,
@@ -344,13 +354,13 @@ impl RenderScene {
     #[inline(never)]
     fn reflected_branch(
         &self,
-        (origin, direction, bounce, stone): (DVec3, DVec3, u32, Option<usize>),
+        (origin, direction, bounce, stone, cone): (DVec3, DVec3, u32, Option<usize>, RayCone),
         stream: &mut SampleStream,
         counts: &mut RayCounts,
     ) -> Rgb {
         let mut unused = FirstHitSums::default();
         self.trace::<true>(
-            (origin, direction, bounce, stone),
+            (origin, direction, bounce, stone, cone),
             stream,
             counts,
             &mut unused,
@@ -370,11 +380,12 @@ impl RenderScene {
     #[inline(always)]
     fn trace<const BRANCH: bool>(
         &self,
-        (mut origin, mut direction, start_bounce, start_leaving): (
+        (mut origin, mut direction, start_bounce, start_leaving, start_cone): (
             DVec3,
             DVec3,
             u32,
             Option<usize>,
+            RayCone,
         ),
         stream: &mut SampleStream,
         counts: &mut RayCounts,
@@ -402,6 +413,8 @@ impl RenderScene {
         // continuation may still meet a light the same way.
         let mut connected: Option<ConnectedVertex> = None;
         let mut bounce = start_bounce;
+        // The pixel's footprint along the current segment.
+        let mut cone = start_cone;
         // Scattering events inside bodies so far (they are not bounces).
         let mut scatterings = 0;
         loop {
@@ -414,7 +427,7 @@ impl RenderScene {
             if let (Some((medium, stone)), Some(hit)) = (inside, &hit) {
                 // The segment ends at the first flake or at the surface.
                 let flake = self.nearest_flake(stone, origin, direction, hit.t);
-                let t_end = flake.map_or(hit.t, |(f, _)| f.t);
+                let t_end = flake.map_or(hit.t, |(f, _, _)| f.t);
                 if medium.scattering_per_mm == Rgb::ZERO {
                     // Beer–Lambert along the segment inside the body (eq. 3.4),
                     // and ratio tracking for what zoning adds to it.
@@ -468,6 +481,7 @@ impl RenderScene {
                             exited: false,
                         });
                         scatterings += 1;
+                        cone = RayCone::UNBOUNDED;
                         if scatterings > SCATTERINGS_BEFORE_ROULETTE {
                             let survival = throughput.max_element().min(0.95);
                             if stream.next_1d() >= survival {
@@ -480,55 +494,94 @@ impl RenderScene {
                         continue;
                     }
                 }
-                if let Some((flake, brdf)) = flake {
+                if let Some((flake, brdf, population)) = flake {
                     // Only a camera ray refracted in runs inside at bounce
                     // 1, and it did not scatter: its first event inside.
                     first_hits.inclusions += u32::from(!BRANCH && bounce == 1 && scatterings == 0);
-                    // A flake reflects by its material's BRDF, from either
-                    // side; only its BRDF is sampled (no light reaches a
-                    // shadow ray through the smooth boundary).
                     if bounce > self.max_bounces {
                         break;
                     }
-                    let normal = if flake.normal.dot(direction) < 0.0 {
-                        flake.normal
-                    } else {
-                        -flake.normal
-                    };
-                    let frame = Frame::new(normal);
-                    let wo = frame.to_local(-direction);
-                    let brdf_at = brdf.at(wo);
-                    origin += direction * flake.t + normal * RAY_OFFSET;
                     let connects = self.connects_from(stone, bounce);
-                    if connects {
-                        radiance += throughput
-                            * self.refracted_light(
-                                stone,
-                                origin,
-                                |wi| {
-                                    let local = frame.to_local(wi);
-                                    if local.z <= 0.0 {
-                                        return (Rgb::ZERO, 0.0);
-                                    }
-                                    let (f, pdf) = brdf_at.eval_and_pdf(local);
-                                    (f * local.z, pdf)
-                                },
-                                stream,
-                                &mut counts.shadow,
-                            );
-                    }
-                    let Some(sample) = brdf_at.sample(stream.next_3d()) else {
-                        break;
+                    let lobe = self.flake_lobe(stone, population).filter(|lobe| {
+                        let p = aggregate_probability(
+                            cone.width_at(flake.t),
+                            lobe.projected_area_mm2,
+                        );
+                        p >= 1.0 || (p > 0.0 && stream.next_1d() < p)
+                    });
+                    cone = RayCone::UNBOUNDED;
+                    let on_flake_plane = lobe.is_some();
+                    let (sampled_direction, weight, pdf) = if let Some(lobe) = lobe {
+                        // The footprint holds many flakes: the population's
+                        // lobe shades this one, at its point on the flake,
+                        // whose own plane then stops no ray from it.
+                        let rotation = self.world.stones()[stone].rotation;
+                        let to_object = rotation.inverse();
+                        let lobe_at = lobe.at(to_object * -direction);
+                        origin += direction * flake.t;
+                        if connects {
+                            radiance += throughput
+                                * self.refracted_light(
+                                    stone,
+                                    origin,
+                                    |wi| lobe_at.eval(to_object * wi),
+                                    stream,
+                                    &mut counts.shadow,
+                                );
+                        }
+                        let Some((wi, weight, pdf)) = lobe_at.sample(stream.next_2d()) else {
+                            break;
+                        };
+                        (rotation * wi, weight, pdf)
+                    } else {
+                        // A flake reflects by its material's BRDF, from either
+                        // side; only its BRDF is sampled (no light reaches a
+                        // shadow ray through the smooth boundary).
+                        let normal = if flake.normal.dot(direction) < 0.0 {
+                            flake.normal
+                        } else {
+                            -flake.normal
+                        };
+                        let frame = Frame::new(normal);
+                        let wo = frame.to_local(-direction);
+                        let brdf_at = brdf.at(wo);
+                        origin += direction * flake.t + normal * RAY_OFFSET;
+                        if connects {
+                            radiance += throughput
+                                * self.refracted_light(
+                                    stone,
+                                    origin,
+                                    |wi| {
+                                        let local = frame.to_local(wi);
+                                        if local.z <= 0.0 {
+                                            return (Rgb::ZERO, 0.0);
+                                        }
+                                        let (f, pdf) = brdf_at.eval_and_pdf(local);
+                                        (f * local.z, pdf)
+                                    },
+                                    stream,
+                                    &mut counts.shadow,
+                                );
+                        }
+                        let Some(sample) = brdf_at.sample(stream.next_3d()) else {
+                            break;
+                        };
+                        (frame.to_world(sample.wi), sample.weight(), sample.pdf)
                     };
-                    throughput *= sample.weight();
-                    direction = frame.to_world(sample.wi);
+                    throughput *= weight;
+                    direction = sampled_direction;
                     connected = connects.then_some(ConnectedVertex {
                         point: origin,
                         direction,
-                        pdf: sample.pdf,
+                        pdf,
                         stone,
                         exited: false,
                     });
+                    if on_flake_plane {
+                        // Off the flake's plane along the new direction: the
+                        // lobe's point on it must not meet it again.
+                        origin += direction * RAY_OFFSET;
+                    }
                     leaving = None;
                     previous = None;
                     bounce += 1;
@@ -615,6 +668,7 @@ impl RenderScene {
                     leaving = if now_inside { None } else { stone };
                     origin = hit.point + hit.normal * (side * RAY_OFFSET);
                     direction = frame.to_world(sample.wi);
+                    cone = RayCone::UNBOUNDED;
                     // Light was sampled only outwards: an emitter met
                     // there is weighed against it; none shines inside.
                     previous = (!now_inside).then_some((origin, sample.pdf));
@@ -629,7 +683,13 @@ impl RenderScene {
                     radiance += throughput
                         * reflection.weight
                         * self.reflected_branch(
-                            (outwards, reflection.crossing.direction, bounce + 1, stone),
+                            (
+                                outwards,
+                                reflection.crossing.direction,
+                                bounce + 1,
+                                stone,
+                                cone.continued(hit.t, 1.0),
+                            ),
                             stream,
                             counts,
                         );
@@ -639,8 +699,15 @@ impl RenderScene {
                     cross_smooth_interface(direction, hit.normal, ior, stream.next_1d())
                 };
                 // Refracting in from outside, or reflecting from inside,
-                // the new segment runs inside; it starts on that side.
+                // the new segment runs inside; it starts on that side. A
+                // refraction scales the cone's spread by η₁/η₂.
                 let now_inside = crossing.refracted == crossing.from_outside;
+                let spread_factor = match (crossing.refracted, crossing.from_outside) {
+                    (false, _) => 1.0,
+                    (true, true) => 1.0 / ior,
+                    (true, false) => ior,
+                };
+                cone = cone.continued(hit.t, spread_factor);
                 let side = if now_inside { -1.0 } else { 1.0 };
                 inside = stone.filter(|_| now_inside).map(|index| (medium, index));
                 leaving = if now_inside { None } else { stone };
@@ -744,6 +811,7 @@ impl RenderScene {
             leaving = hit.stone_index();
             origin = point;
             direction = wi_world;
+            cone = RayCone::UNBOUNDED;
             bounce += 1;
         }
         if !BRANCH && !first_recorded {
@@ -853,14 +921,15 @@ impl RenderScene {
     }
 
     /// The nearest flake inside stone `stone` along the world ray for
-    /// 0 < t < `t_max`, with the normal in world space, and its material.
+    /// 0 < t < `t_max`, with the normal in world space, its material and
+    /// the index of its population.
     pub(crate) fn nearest_flake(
         &self,
         stone: usize,
         origin: DVec3,
         direction: DVec3,
         t_max: f64,
-    ) -> Option<(FlakeHit, &LayeredBrdf)> {
+    ) -> Option<(FlakeHit, &LayeredBrdf, usize)> {
         let instance = &self.world.stones()[stone];
         let gem = &self.gems[instance.gem];
         let Body::Translucent { inclusions, .. } = &gem.body else {
@@ -877,8 +946,22 @@ impl RenderScene {
                     normal: instance.rotation * hit.normal,
                 },
                 &gem.brdfs[inclusions[population].material as usize],
+                population,
             )
         })
+    }
+
+    /// Shades every flake by its own normal, however many a pixel's
+    /// footprint holds (`lapidary render --exact-flakes`, to compare).
+    pub fn shade_flakes_exactly(&mut self) {
+        self.flake_lobes.clear();
+    }
+
+    /// The aggregate lobe of flake population `population` of stone
+    /// `stone`'s body, when it has one.
+    fn flake_lobe(&self, stone: usize, population: usize) -> Option<&FlakeLobe> {
+        let gem = self.world.stones()[stone].gem;
+        self.flake_lobes.get(gem)?.get(population)?.as_ref()
     }
 
     /// The `material_id` AOV value of the gem of the stone hit (0 off the

@@ -11,6 +11,8 @@ pub mod dielectric;
 pub mod distribution;
 pub mod environment;
 pub mod film;
+pub(crate) mod flake_lobe;
+pub(crate) mod footprint;
 pub(crate) mod inclusions;
 pub mod integrator;
 pub mod lights;

@@ -136,9 +136,16 @@ impl RenderScene {
             if value.max_element() <= 0.0 {
                 return None;
             }
-            // Inside, the path must meet no flake and not scatter.
+            // Inside, the path must meet no flake and not scatter; the walk
+            // starts a ray offset along the path, so that a vertex on a
+            // flake's plane (an aggregate lobe's) does not meet that flake.
             if self
-                .nearest_flake(stone, point, path.inside_direction, path.exit.t)
+                .nearest_flake(
+                    stone,
+                    point + path.inside_direction * RAY_OFFSET,
+                    path.inside_direction,
+                    path.exit.t - RAY_OFFSET,
+                )
                 .is_some()
             {
                 return None;

@@ -123,6 +123,7 @@ fn scene(gem: Gem, light: Light) -> RenderScene {
         max_bounces: 8,
         ambient_occlusion: None,
         connect_through_surfaces: true,
+        flake_lobes: Vec::new(),
     }
 }
 
