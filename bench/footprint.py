@@ -105,9 +105,10 @@ def turntable(args, folder):
     for gem in args.gems:
         means = []
         for k in range(args.frames):
-            path = os.path.join(folder, f"frame-{k}.exr")
-            render(gem, args.size, args.spp, 1, path, args.extra, frame=(k, args.frames))
-            image, material = load(path)
+            # `--frame K` writes OUT-000K.exr beside OUT.exr.
+            render(gem, args.size, args.spp, 1, os.path.join(folder, "frame.exr"), args.extra,
+                   frame=(k, args.frames))
+            image, material = load(os.path.join(folder, f"frame-{k:04d}.exr"))
             means.append((image[material >= 2] @ LUMINANCE).mean())
         change = np.diff(np.array(means))
         print(f"| {gem} | {args.frames} | {args.size} | {args.spp} | {np.mean(means):.5f} "

@@ -77,6 +77,37 @@ fn thread_count_does_not_change_a_single_byte() {
 }
 
 #[test]
+fn flake_footprints_change_the_image_and_not_with_the_thread_count() {
+    // Goldstone's copper at 32 px: dozens of flakes to a pixel, so
+    // `--flake-footprints` shades them by their lobe (other bytes than the
+    // default's), and its image too is a pure function of the settings.
+    let dir = scratch("footprints");
+    let render = |name: &str, extra: &[&str]| {
+        let path = dir.join(name);
+        let mut args = vec![
+            "render",
+            "goldstone",
+            "-o",
+            path.to_str().unwrap(),
+            "--size",
+            "32",
+            "--spp",
+            "2",
+            "-q",
+        ];
+        args.extend_from_slice(extra);
+        let out = lapidary(&args);
+        assert!(out.status.success(), "{}", stderr(&out));
+        std::fs::read(&path).unwrap()
+    };
+    let exact = render("exact.png", &[]);
+    let one = render("one.png", &["--flake-footprints", "--threads", "1"]);
+    let two = render("two.png", &["--flake-footprints", "--threads", "2"]);
+    assert_eq!(one, two);
+    assert_ne!(one, exact);
+}
+
+#[test]
 fn the_seed_changes_the_noise() {
     let dir = scratch("seed");
     let a = dir.join("a.png");

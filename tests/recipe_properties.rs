@@ -18,6 +18,7 @@ use lapidary::recipe::gem::{compile_gem, Gem, GemSource, Tables};
 use lapidary::recipe::TableCache;
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, FilmSettings};
+use lapidary::render::flake_lobe::FlakeLobes;
 use lapidary::render::integrator::RenderScene;
 use lapidary::render::prepare::{camera_for, stone_instances};
 use lapidary::render::world::World;
@@ -334,6 +335,7 @@ fn default_scene_without_ground(gem: Gem) -> (Scene, RenderScene) {
         max_bounces: 4,
         ambient_occlusion: None,
         connect_through_surfaces: true,
+        flake_lobes: FlakeLobes::default(),
     };
     (scene, render_scene)
 }

@@ -10,6 +10,7 @@ use lapidary::recipe::TableCache;
 use lapidary::render::camera::PinholeCamera;
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, Film, FilmSettings};
+use lapidary::render::flake_lobe::FlakeLobes;
 use lapidary::render::integrator::RenderScene;
 use lapidary::render::world::{StoneInstance, World};
 
@@ -40,6 +41,7 @@ fn render_single_material(material: &str, sky: f64, size: u32, spp: u32, threads
         max_bounces: 4,
         ambient_occlusion: None,
         connect_through_surfaces: true,
+        flake_lobes: FlakeLobes::default(),
     };
     let camera = PinholeCamera::new(
         DVec3::new(0.0, 0.0, 60.0),

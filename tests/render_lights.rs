@@ -15,6 +15,7 @@ use lapidary::recipe::TableCache;
 use lapidary::render::camera::PinholeCamera;
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, FilmSettings};
+use lapidary::render::flake_lobe::FlakeLobes;
 use lapidary::render::integrator::RenderScene;
 use lapidary::render::lights::Light;
 use lapidary::render::world::{StoneInstance, World};
@@ -56,6 +57,7 @@ fn floor_radiance(lights: Vec<Light>, stones: Vec<StoneInstance>, spp: u32) -> f
         max_bounces: 0,
         ambient_occlusion: None,
         connect_through_surfaces: true,
+        flake_lobes: FlakeLobes::default(),
     };
     // Narrow field: the 3 × 3 block sees the floor within 0.01 of the origin.
     let camera = PinholeCamera::new(

@@ -9,6 +9,7 @@ use lapidary::recipe::gem::{compile_gem, GemSource, Tables};
 use lapidary::render::camera::PinholeCamera;
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, Film, FilmSettings};
+use lapidary::render::flake_lobe::FlakeLobes;
 use lapidary::render::integrator::RenderScene;
 use lapidary::render::lights::Light;
 use lapidary::render::world::{StoneInstance, World};
@@ -56,6 +57,7 @@ fn scene_of(
         max_bounces: 1024,
         ambient_occlusion: None,
         connect_through_surfaces: true,
+        flake_lobes: FlakeLobes::default(),
     }
 }
 
@@ -829,5 +831,92 @@ fn light_connected_through_the_surface_makes_glints_at_depth_converge() {
     assert!(
         connected < 0.1 * sampled,
         "connected {connected}, sampled alone {sampled}"
+    );
+}
+
+#[test]
+fn flakes_shaded_by_their_footprint_keep_the_mean_of_flakes_shaded_one_by_one() {
+    // Small copper platelets, dozens to a pixel at 24 px: shaded by their
+    // population's aggregate lobe (`FlakeLobes::of_gems`) or each by its
+    // own normal (the default), the stone's mean colour agrees within 4 %
+    // (measured: −2.3 % red, −0.9 % green, +1.2 % blue over six seeds; the
+    // jittered grid's flakes fill most of their cells, a near-regular
+    // lattice whose hits see normals and escapes a few per cent off the
+    // independent flakes the lobe averages).
+    let body = "Translucent(ior: 1.53, absorption: (0.05, 0.1, 0.2), inclusions: \
+         [Inclusions(shape: Hexagon, size_mm: 0.15, size_spread: 0.3, density_per_mm3: 60.0, \
+         orientation: Isotropic, material: \"copper\", seed: 4)])";
+    let scene = |lobes: bool| {
+        let light = Light::Sphere {
+            centre: DVec3::new(25.0, -30.0, 45.0),
+            radius: 3.0,
+            radiance: Rgb::splat(200.0),
+        };
+        let scene = scene_of(
+            body,
+            CabochonParams::default(),
+            Environment::Constant(Rgb::splat(0.2)),
+            vec![light],
+        );
+        RenderScene {
+            max_bounces: 4,
+            flake_lobes: if lobes {
+                FlakeLobes::of_gems(&scene.gems)
+            } else {
+                FlakeLobes::default()
+            },
+            ..scene
+        }
+    };
+    let (lobes, flakes) = (scene(true), scene(false));
+    let camera = three_quarter_camera(24);
+    let pixels_and_mean = |film: &Film| {
+        let stone = stone_pixels(film);
+        let sum = stone.iter().fold(DVec3::ZERO, |s, p| {
+            s + DVec3::new(p[0].into(), p[1].into(), p[2].into())
+        });
+        let mean = sum / stone.len() as f64;
+        (stone, mean)
+    };
+    let (_, lobe_mean) = pixels_and_mean(&render_scene(&lobes, &camera, 24, 1024, 1));
+    let (_, flake_mean) = pixels_and_mean(&render_scene(&flakes, &camera, 24, 1024, 2));
+    eprintln!("stone mean: lobes {lobe_mean}, flakes one by one {flake_mean}");
+    assert!(
+        ((lobe_mean / flake_mean) - 1.0).abs().max_element() < 0.04,
+        "lobes {lobe_mean} against flakes one by one {flake_mean}"
+    );
+}
+
+#[test]
+fn lossless_flakes_shaded_by_their_lobe_vanish_in_a_white_furnace() {
+    // The furnace of `lossless_flakes_in_a_clear_body_vanish_in_a_white_furnace`
+    // with smaller white platelets, a dozen to a pixel, shaded by their
+    // aggregate lobe: every path still ends in the sky with weight 1, so
+    // the lobe neither makes nor loses light.
+    let body = "Translucent(ior: 1.53, inclusions: [Inclusions(shape: Triangle, size_mm: 0.2, \
+         size_spread: 0.3, density_per_mm3: 30.0, orientation: Aligned(direction: (0, 1, 1), \
+         spread_deg: 30), material: \"white\", seed: 2)])";
+    let scene = scene_of(
+        body,
+        CabochonParams::default(),
+        Environment::Constant(Rgb::ONE),
+        vec![],
+    );
+    let scene = RenderScene {
+        flake_lobes: FlakeLobes::of_gems(&scene.gems),
+        ..scene
+    };
+    let film = render_scene(&scene, &three_quarter_camera(24), 24, 32, 5);
+    let stone = stone_pixels(&film);
+    assert!(
+        stone.len() > 150,
+        "the stone fills the middle ({})",
+        stone.len()
+    );
+    let mean = stone.iter().map(|p| f64::from(p[1])).sum::<f64>() / stone.len() as f64;
+    assert!((mean - 1.0).abs() < 0.01, "mean over the stone {mean}");
+    assert!(
+        stone.iter().all(|p| p.iter().all(|c| *c <= 1.0 + 1e-6)),
+        "energy created"
     );
 }

@@ -15,6 +15,7 @@ use lapidary::recipe::gem::parse_gem;
 use lapidary::recipe::library::DEFAULT_GEM;
 use lapidary::render::camera::PinholeCamera;
 use lapidary::render::film::{render, FilmSettings};
+use lapidary::render::flake_lobe::FlakeLobes;
 use lapidary::render::integrator::RenderScene;
 use lapidary::render::prepare::{camera_for, prepare_scene, stone_instances};
 use lapidary::render::world::{StoneInstance, World};
@@ -51,6 +52,7 @@ fuzz_target!(|data: &[u8]| {
     };
     let seed = gem.seed;
     let (base, stones, ground, camera) = base();
+    let flake_lobes = FlakeLobes::of_gems(std::slice::from_ref(&gem));
     let scene = RenderScene {
         world: World::new(stones.clone(), *ground),
         material_id_bases: RenderScene::material_id_bases(std::slice::from_ref(&gem)),
@@ -60,6 +62,8 @@ fuzz_target!(|data: &[u8]| {
         environment: base.environment.clone(),
         max_bounces: 4,
         ambient_occlusion: None,
+        connect_through_surfaces: true,
+        flake_lobes,
     };
     let settings = FilmSettings::new(1, 1, 1, seed);
     let film = render(&scene, camera, &settings, &|_| {});

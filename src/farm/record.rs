@@ -67,7 +67,7 @@ pub struct RenderRecord {
     /// Whether light is connected through translucent surfaces
     /// (`LAPIDARY_MNEE`).
     pub connections: bool,
-    /// Whether flakes are shaded by their footprint (not `--exact-flakes`).
+    /// Whether flakes are shaded by their footprint (`--flake-footprints`).
     pub flake_footprints: bool,
     /// The turntable frame, for an animation.
     pub frame: Option<FrameOf>,

@@ -39,7 +39,7 @@ use crate::recipe::TableCache;
 use crate::render::camera::PinholeCamera;
 use crate::render::environment::Environment;
 use crate::render::film::{render, FilmSettings};
-use crate::render::flake_lobe::lobes_of_gems;
+use crate::render::flake_lobe::FlakeLobes;
 use crate::render::integrator::RenderScene;
 use crate::render::prepare::{camera_for, environment_for_spec, stone_instances};
 use crate::render::world::World;
@@ -418,7 +418,6 @@ impl Studio {
         for stone in &mut stones {
             stone.rotation = turn * stone.rotation;
         }
-        let flake_lobes = lobes_of_gems(std::slice::from_ref(&gem));
         let render_scene = RenderScene {
             world: World::new(stones, self.scene.ground.as_ref().map(|g| g.height)),
             material_id_bases: RenderScene::material_id_bases(std::slice::from_ref(&gem)),
@@ -429,7 +428,7 @@ impl Studio {
             max_bounces: self.max_bounces,
             ambient_occlusion: None,
             connect_through_surfaces: true,
-            flake_lobes,
+            flake_lobes: FlakeLobes::default(),
         };
         let camera = camera_for(&self.scene, side_px, side_px);
         Ok(develop(

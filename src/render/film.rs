@@ -262,9 +262,11 @@ fn render_row_portable(
                 stream.skip_2d(); // the footprint, already in `directions`
                 let mut counts = RayCounts::default();
                 let radiance = scene.radiance(
-                    camera.position(),
-                    directions[lane as usize],
-                    camera.pixel_angle_rad(),
+                    (
+                        camera.position(),
+                        directions[lane as usize],
+                        camera.pixel_angle_rad(),
+                    ),
                     &mut stream,
                     &mut counts,
                     &mut first_hits,

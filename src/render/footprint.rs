@@ -75,7 +75,7 @@ impl RayCone {
 /// logarithm between.
 pub(crate) fn aggregate_probability(width_mm: f64, flake_area_mm2: f64) -> f64 {
     let flakes = width_mm * width_mm / flake_area_mm2;
-    if !(flakes > 1.0) {
+    if flakes.is_nan() || flakes <= 1.0 {
         return 0.0;
     }
     (flakes.ln() / FLAKES_FOR_AGGREGATE.ln()).min(1.0)

@@ -7,15 +7,13 @@
 //! the varnish), so a path bounces between stones and the ground until it
 //! escapes to the environment, meets a light, or reaches `max_bounces`.
 
-use std::sync::Arc;
-
 use glam::DVec3;
 
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem, Medium};
 use crate::render::dielectric::{cross_smooth_interface, split_smooth_interface, RoughInterface};
 use crate::render::environment::Environment;
-use crate::render::flake_lobe::FlakeLobe;
+use crate::render::flake_lobe::{FlakeLobe, FlakeLobes};
 use crate::render::footprint::{aggregate_probability, RayCone};
 use crate::render::inclusions::{self, FlakeHit};
 use crate::render::lights::Light;
@@ -61,10 +59,10 @@ pub struct RenderScene {
     /// converges far more slowly under small lights (for comparisons).
     pub connect_through_surfaces: bool,
     /// Per gem, per flake population of its translucent body, the lobe that
-    /// shades a flake when the pixel's footprint holds many
-    /// ([`crate::render::footprint`]); empty (or None for a population):
-    /// every flake by its own normal.
-    pub(crate) flake_lobes: Vec<Arc<[Option<FlakeLobe>]>>,
+    /// shades a flake when the pixel's footprint holds many (see
+    /// `render::footprint` and [`RenderScene::shade_flakes_by_footprint`]);
+    /// [`FlakeLobes::default`], as prepared: every flake by its own normal.
+    pub flake_lobes: FlakeLobes,
 }
 
 /// Scattering events a path may take inside translucent bodies (which are
@@ -318,8 +316,10 @@ impl RenderScene {
         }
     }
 
-    /// Radiance arriving at the camera along one ray; what the ray hit
-    /// first is added to `first_hits` (`first_sample`: see
+    /// Radiance arriving at the camera along one ray (origin, unit
+    /// direction, and the angle its pixel spans, radians, the spread of its
+    /// footprint); what the ray hit first is added to `first_hits`
+    /// (`first_sample`: see
     /// [`FirstHitSums::add`]). Consumes numbers from `stream` in a fixed
     /// order.
     ///
@@ -330,16 +330,20 @@ impl RenderScene {
     #[inline(always)]
     pub fn radiance(
         &self,
-        origin: DVec3,
-        direction: DVec3,
-        pixel_angle_rad: f64,
+        (origin, direction, pixel_angle_rad): (DVec3, DVec3, f64),
         stream: &mut SampleStream,
         counts: &mut RayCounts,
         first_hits: &mut FirstHitSums,
         first_sample: bool,
     ) -> Rgb {
         self.trace::<false>(
-            (origin, direction, 0, None, RayCone::from_camera(pixel_angle_rad)),
+            (
+                origin,
+                direction,
+                0,
+                None,
+                RayCone::from_camera(pixel_angle_rad),
+            ),
             stream,
             counts,
             first_hits,
@@ -503,10 +507,8 @@ impl RenderScene {
                     }
                     let connects = self.connects_from(stone, bounce);
                     let lobe = self.flake_lobe(stone, population).filter(|lobe| {
-                        let p = aggregate_probability(
-                            cone.width_at(flake.t),
-                            lobe.projected_area_mm2,
-                        );
+                        let p =
+                            aggregate_probability(cone.width_at(flake.t), lobe.projected_area_mm2);
                         p >= 1.0 || (p > 0.0 && stream.next_1d() < p)
                     });
                     cone = RayCone::UNBOUNDED;
@@ -529,7 +531,7 @@ impl RenderScene {
                                     &mut counts.shadow,
                                 );
                         }
-                        let Some((wi, weight, pdf)) = lobe_at.sample(stream.next_2d()) else {
+                        let Some((wi, weight, pdf)) = lobe_at.sample(stream.next_3d()) else {
                             break;
                         };
                         (rotation * wi, weight, pdf)
@@ -951,17 +953,19 @@ impl RenderScene {
         })
     }
 
-    /// Shades every flake by its own normal, however many a pixel's
-    /// footprint holds (`lapidary render --exact-flakes`, to compare).
-    pub fn shade_flakes_exactly(&mut self) {
-        self.flake_lobes.clear();
+    /// Shades the flakes inside translucent bodies by their pixel's
+    /// footprint: a flake met where the footprint holds many is shaded by
+    /// its population's aggregate lobe (`lapidary render
+    /// --flake-footprints`); by default every flake by its own normal.
+    pub fn shade_flakes_by_footprint(&mut self) {
+        self.flake_lobes = FlakeLobes::of_gems(&self.gems);
     }
 
     /// The aggregate lobe of flake population `population` of stone
     /// `stone`'s body, when it has one.
     fn flake_lobe(&self, stone: usize, population: usize) -> Option<&FlakeLobe> {
-        let gem = self.world.stones()[stone].gem;
-        self.flake_lobes.get(gem)?.get(population)?.as_ref()
+        self.flake_lobes
+            .get(self.world.stones()[stone].gem, population)
     }
 
     /// The `material_id` AOV value of the gem of the stone hit (0 off the

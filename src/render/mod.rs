@@ -11,7 +11,7 @@ pub mod dielectric;
 pub mod distribution;
 pub mod environment;
 pub mod film;
-pub(crate) mod flake_lobe;
+pub mod flake_lobe;
 pub(crate) mod footprint;
 pub(crate) mod inclusions;
 pub mod integrator;

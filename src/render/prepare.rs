@@ -91,7 +91,6 @@ pub fn prepare_scene(
         },
     );
     let gems = gems?;
-    let flake_lobes = crate::render::flake_lobe::lobes_of_gems(&gems);
     Ok(RenderScene {
         world: World::new(stones, scene.ground.as_ref().map(|g| g.height)),
         material_id_bases: RenderScene::material_id_bases(&gems),
@@ -102,7 +101,7 @@ pub fn prepare_scene(
         max_bounces,
         ambient_occlusion: None,
         connect_through_surfaces: true,
-        flake_lobes,
+        flake_lobes: crate::render::flake_lobe::FlakeLobes::default(),
     })
 }
 

@@ -123,7 +123,7 @@ fn scene(gem: Gem, light: Light) -> RenderScene {
         max_bounces: 8,
         ambient_occlusion: None,
         connect_through_surfaces: true,
-        flake_lobes: Vec::new(),
+        flake_lobes: crate::render::flake_lobe::FlakeLobes::default(),
     }
 }
 
