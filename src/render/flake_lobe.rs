@@ -30,15 +30,15 @@ use std::sync::Arc;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::brdf::albedo::directional_albedo;
 use crate::brdf::{LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, FlakeShape, Gem, Inclusions};
 use crate::sampling::{cosine_hemisphere, sin_cos_turns, Rng};
 
 /// Nodes of the albedo table, at cos θ = (k + ½)/N.
 const ALBEDO_NODES: usize = 24;
-/// Importance samples of the flake's BRDF per albedo node.
-const ALBEDO_SAMPLES: usize = 4096;
+/// Importance samples of the flake's BRDF per albedo node: a stratified
+/// grid of this many a side in the first two of the sample's numbers.
+const ALBEDO_STRATA: usize = 32;
 /// Nodes of the mean-projected-cosine table of a cone, at |a·ωo| = k/(N−1).
 const MEAN_COS_NODES: usize = 257;
 /// Midpoint nodes over the cone's cos θ when tabulating E.
@@ -91,10 +91,11 @@ impl FlakeLobe {
                     .collect(),
             },
         };
-        let albedo = std::array::from_fn(|k| {
-            let cos = (k as f64 + 0.5) / ALBEDO_NODES as f64;
-            directional_albedo(brdf, cos.acos().to_degrees(), 0.0, ALBEDO_SAMPLES, k as u64).mean
-        });
+        let nodes: Vec<Rgb> = (0..ALBEDO_NODES)
+            .into_par_iter()
+            .map(|k| directional_albedo(brdf, (k as f64 + 0.5) / ALBEDO_NODES as f64, k as u64))
+            .collect();
+        let albedo = std::array::from_fn(|k| nodes[k]);
         let mean_radius_squared =
             population.radius_mm.powi(2) * (1.0 + population.size_spread.powi(2) / 3.0);
         Some(Self {
@@ -275,6 +276,25 @@ fn lobes_of_gems(gems: &[Gem]) -> Vec<Arc<[Option<FlakeLobe>]>> {
         });
     }
     lobes
+}
+
+/// The directional albedo ∫ f cosθi dωi of `brdf` seen at cos θo = `cos`:
+/// the mean weight of its importance samples over a stratified grid (the
+/// third number from a generator seeded by `seed`).
+fn directional_albedo(brdf: &LayeredBrdf, cos: f64, seed: u64) -> Rgb {
+    let wo = DVec3::new((1.0 - cos * cos).max(0.0).sqrt(), 0.0, cos);
+    let mut rng = Rng::new(seed, 0xf1a4e);
+    let at = brdf.at(wo);
+    let strata = ALBEDO_STRATA as f64;
+    let sum = (0..ALBEDO_STRATA * ALBEDO_STRATA).fold(Rgb::ZERO, |sum, k| {
+        let u = [
+            ((k % ALBEDO_STRATA) as f64 + rng.next_f64()) / strata,
+            ((k / ALBEDO_STRATA) as f64 + rng.next_f64()) / strata,
+            rng.next_f64(),
+        ];
+        sum + at.sample(u).map_or(Rgb::ZERO, |s| s.weight())
+    });
+    sum / (strata * strata)
 }
 
 /// Area of the outline of circumscribed radius 1.
