@@ -200,7 +200,7 @@ fn shoot(
 /// Where the chain of the ray from `origin` (inside a body of index `ior`)
 /// along unit `direction` through `reflections` internal reflections
 /// leaves the body, and its refracted direction: the forward map that
-/// [`connect`] solves, so a target met along it is one the solve from
+/// [`Start::solve`] solves, so a target met along it is one the solve from
 /// `origin` can recover `direction` for. None when the ray misses the
 /// surface or is totally reflected where it should leave.
 pub(crate) fn trace(
@@ -284,23 +284,8 @@ fn towards(from: DVec3, target: Target) -> DVec3 {
     }
 }
 
-/// Finds the chain from `origin` (inside a body of index `ior`) through
-/// `reflections` (0 ..= [`MAX_REFLECTIONS`]) mirror reflections at the
-/// surface and one refraction out to `target`, by Gauss–Newton from a
-/// start that treats the surface as planes; None when it does not converge
-/// to a physical chain (no solution near the start, a grazing exit, or a
-/// stencil across a crease of the surface). The solution is a function of
-/// the origin, the target and the chain alone (one per call, when the
-/// chain has several).
-///
-/// The unknown is the direction at the origin; the forward map traces it,
-/// mirrors it at each reflection, and the residual is Snell's law at the
-/// exit point the last segment reaches, written as the generalised half
-/// vector n·ωᵢ − ωₒ being parallel to the normal (ωᵢ along the last
-/// segment, ωₒ from the exit towards the target): the cross product
-/// (n·ωᵢ − ωₒ) × N. Unlike the refracted ray's miss distance it is defined
-/// at every exit point, total internal reflection included, so a start
-/// whose line cannot leave the body still converges.
+/// [`Start::new`] and [`Start::solve`] in one call.
+#[cfg(test)]
 pub(crate) fn connect(
     boundary: &impl Boundary,
     ior: f64,
@@ -308,21 +293,139 @@ pub(crate) fn connect(
     target: Target,
     reflections: usize,
 ) -> Option<Connection> {
-    debug_assert!(reflections <= MAX_REFLECTIONS);
-    let start = if reflections == 0 {
-        let straight = towards(origin, target);
-        if !straight.is_finite() {
-            return None;
-        }
-        backward_refraction(boundary, ior, origin, straight, target).unwrap_or(straight)
-    } else {
-        mirrored_start(boundary, ior, origin, target)?
-    };
+    let start = Start::new(boundary, ior, origin, target, reflections)?;
+    start.solve(boundary, ior)
+}
+
+/// Where the solve of a chain starts, before it runs ([`Start::solve`]):
+/// the direction at the origin that its start guess takes (a function of
+/// the origin, the target and the chain alone), and what the traces of
+/// that guess say of the chain ([`Start::preview`]), known before paying
+/// for the solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Start {
+    origin: DVec3,
+    target: Target,
+    reflections: usize,
+    direction: DVec3,
+    preview: Preview,
+}
+
+/// What a [`Start`]'s plane construction says of its chain: roughly the
+/// solution's chain, where the surface is nearly plane over the distance
+/// between the start and the solution.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Preview {
+    /// The total length of the inner segments.
+    pub inner_length: f64,
+    /// The Fresnel reflectance F of the internal reflections, multiplied
+    /// (1 beyond the critical angle; 1 for a chain without reflection).
+    pub reflectance: f64,
+}
+
+impl Start {
+    /// The start of the solve for the chain from `origin` (inside a body
+    /// of index `ior`) through `reflections` (0 ..= [`MAX_REFLECTIONS`])
+    /// internal reflections and one refraction to `target`: the straight
+    /// line refined by [`refraction_towards`] without reflection,
+    /// [`mirrored_start`] with one. None when there is none.
+    pub(crate) fn new(
+        boundary: &impl Boundary,
+        ior: f64,
+        origin: DVec3,
+        target: Target,
+        reflections: usize,
+    ) -> Option<Self> {
+        debug_assert!(reflections <= MAX_REFLECTIONS);
+        let (direction, preview) = if reflections == 0 {
+            let straight = towards(origin, target);
+            if !straight.is_finite() {
+                return None;
+            }
+            let exit = boundary.exit(origin, straight);
+            let direction = exit
+                .and_then(|exit| refraction_towards(&exit, ior, target))
+                .unwrap_or(straight);
+            let preview = Preview {
+                inner_length: exit.map_or(0.0, |exit| exit.t),
+                reflectance: 1.0,
+            };
+            (direction, preview)
+        } else {
+            mirrored_start(boundary, ior, origin, target)?
+        };
+        Some(Self {
+            origin,
+            target,
+            reflections,
+            direction,
+            preview,
+        })
+    }
+
+    /// The chain as the start's construction sees it (its inner length
+    /// and its reflections' Fresnel factors), for no further trace.
+    pub(crate) fn preview(&self) -> Preview {
+        self.preview
+    }
+
+    /// The internal reflections of the chain it starts.
+    pub(crate) fn reflections(&self) -> usize {
+        self.reflections
+    }
+
+    /// Finds the chain from the origin (inside a body of index `ior`)
+    /// through the start's reflections (0 ..= [`MAX_REFLECTIONS`]) at the
+    /// surface and one refraction out to its target, by Gauss–Newton from
+    /// the start, which treats the surface as planes; None when it does not
+    /// converge to a physical chain (no solution near the start, a grazing
+    /// exit, or a stencil across a crease of the surface). The solution is a function of
+    /// the origin, the target and the chain alone (one per call, when the
+    /// chain has several).
+    ///
+    /// The unknown is the direction at the origin; the forward map traces it,
+    /// mirrors it at each reflection, and the residual is Snell's law at the
+    /// exit point the last segment reaches, written as the generalised half
+    /// vector n·ωᵢ − ωₒ being parallel to the normal (ωᵢ along the last
+    /// segment, ωₒ from the exit towards the target): the cross product
+    /// (n·ωᵢ − ωₒ) × N. Unlike the refracted ray's miss distance it is defined
+    /// at every exit point, total internal reflection included, so a start
+    /// whose line cannot leave the body still converges.
+    pub(crate) fn solve(&self, boundary: &impl Boundary, ior: f64) -> Option<Connection> {
+        let Self {
+            origin,
+            target,
+            reflections,
+            direction: start,
+            ..
+        } = *self;
+        solve(boundary, ior, origin, target, reflections, start)
+    }
+}
+
+/// Gauss–Newton for the chain of [`Start::solve`] from the direction
+/// `start`.
+fn solve(
+    boundary: &impl Boundary,
+    ior: f64,
+    origin: DVec3,
+    target: Target,
+    reflections: usize,
+    start: DVec3,
+) -> Option<Connection> {
     let chart = Chart::around(start);
     let evaluate = |a: f64, b: f64| -> Option<DVec3> {
-        let inner = trace_inner(boundary, origin, chart.direction(a, b), reflections)?;
-        let out = towards(inner.exit.point, target);
-        Some((inner.last_direction() * ior - out).cross(inner.exit.normal))
+        let direction = chart.direction(a, b);
+        // Straight out, the one exit is the whole chain: traced without
+        // building its segments (the solve's inner loop).
+        let (last, exit) = if reflections == 0 {
+            (direction, boundary.exit(origin, direction)?)
+        } else {
+            let inner = trace_inner(boundary, origin, direction, reflections)?;
+            (inner.last_direction(), inner.exit)
+        };
+        let out = towards(exit.point, target);
+        Some((last * ior - out).cross(exit.normal))
     };
     // Gauss–Newton on the normal equations of the 3 × 2 system J·δ = −r,
     // J by finite differences at the start and then by Broyden's rank-one
@@ -434,18 +537,12 @@ pub(crate) fn connect(
 }
 
 /// A better start than the straight line: where the straight line leaves
-/// the body, the direction inside that the surface there (taken as its
-/// tangent plane) refracts towards the target. Exact for a plane and a
-/// direction target; otherwise off by the surface's curvature over the
-/// distance between this exit and the solution's.
-fn backward_refraction(
-    boundary: &impl Boundary,
-    ior: f64,
-    origin: DVec3,
-    straight: DVec3,
-    target: Target,
-) -> Option<DVec3> {
-    let exit = boundary.exit(origin, straight)?;
+/// the body (`exit`), the direction inside that the surface there (taken
+/// as its tangent plane) refracts towards the target; None when the
+/// target lies behind that plane. Exact for a plane and a direction
+/// target; otherwise off by the surface's curvature over the distance
+/// between this exit and the solution's.
+fn refraction_towards(exit: &Exit, ior: f64, target: Target) -> Option<DVec3> {
     let out = towards(exit.point, target);
     let cos_out = out.dot(exit.normal);
     if cos_out.is_nan() || cos_out <= 0.0 {
@@ -460,14 +557,19 @@ fn backward_refraction(
 /// The start of a chain with one reflection: the surface behind the
 /// origin (seen away from the target) taken as a mirror plane, the
 /// origin's image in it joined to the target by a line, and that line's
-/// direction after the plane refined by [`backward_refraction`] where it
+/// direction after the plane refined by [`refraction_towards`] where it
 /// leaves, then mirrored back. Exact for a slab and a direction target.
+///
+/// Also the chain's preview read off the same traces, the surface taken as
+/// the mirror plane and the tangent plane where the line leaves: the
+/// start's run to the mirror plane plus its mirrored run on to the exit's
+/// plane, and the Fresnel reflectance at the mirror.
 fn mirrored_start(
     boundary: &impl Boundary,
     ior: f64,
     origin: DVec3,
     target: Target,
-) -> Option<DVec3> {
+) -> Option<(DVec3, Preview)> {
     let away = -towards(origin, target);
     if !away.is_finite() {
         return None;
@@ -484,16 +586,31 @@ fn mirrored_start(
         return None;
     }
     let crossing = image + line * ((plane - image).dot(normal) / speed);
-    let refined = backward_refraction(
-        boundary,
-        ior,
-        crossing - normal * REFLECTION_OFFSET,
-        line,
-        target,
-    )
-    .filter(|inside| inside.dot(normal) < 0.0)
-    .map(reflect);
-    Some(refined.unwrap_or_else(|| reflect(line)))
+    let exit = boundary.exit(crossing - normal * REFLECTION_OFFSET, line);
+    let refined = exit
+        .and_then(|exit| refraction_towards(&exit, ior, target))
+        .filter(|inside| inside.dot(normal) < 0.0)
+        .map(reflect);
+    let start = refined.unwrap_or_else(|| reflect(line));
+    // The preview's chain: the start to the mirror plane, mirrored, on to
+    // the tangent plane where the line left.
+    let cos_mirror = start.dot(normal);
+    let to_mirror = (plane - origin).dot(normal) / cos_mirror;
+    let onwards = reflect(start);
+    let to_exit = exit.map_or(0.0, |exit| {
+        let speed = onwards.dot(exit.normal);
+        let from_mirror = origin + start * to_mirror;
+        if speed > 0.0 {
+            (exit.point - from_mirror).dot(exit.normal) / speed
+        } else {
+            exit.t
+        }
+    });
+    let preview = Preview {
+        inner_length: to_mirror.max(0.0) + to_exit.max(0.0),
+        reflectance: fresnel::dielectric(cos_mirror, 1.0 / ior),
+    };
+    Some((start, preview))
 }
 
 /// |d(target measure) / dω| at the solution: the area swept across the
@@ -700,6 +817,52 @@ mod tests {
                 normal,
             })
         }
+    }
+
+    #[test]
+    fn in_a_plate_the_preview_of_a_reflected_chain_is_its_solution_s() {
+        // For a plate and a direction target the mirror-plane start is the
+        // solution, so its preview's inner length and reflectance are the
+        // solved chain's (up to the reflection's offset off the surface,
+        // 10⁻⁵); for a point target they are close (the start is off by the
+        // target's parallax over the plate).
+        let (ior, h) = (1.54, 3.0);
+        let origin = DVec3::new(0.4, -0.2, -1.1);
+        for (target, tolerance) in [
+            (
+                Target::Direction(DVec3::new(0.5, -0.3, 0.8).normalize()),
+                1e-5,
+            ),
+            (Target::Point(DVec3::new(7.0, 3.0, 10.0)), 0.05),
+        ] {
+            let start = Start::new(&Plate(h), ior, origin, target, 1).unwrap();
+            let preview = start.preview();
+            let chain = start.solve(&Plate(h), ior).expect("a chain");
+            let segments = chain.inner_segments();
+            let length = segments[0].length + segments[1].length;
+            let reflectance = fresnel::dielectric(segments[0].direction.dot(-DVec3::Z), 1.0 / ior);
+            assert!(
+                (preview.inner_length / length - 1.0).abs() < tolerance,
+                "{target:?}: {} vs {length}",
+                preview.inner_length
+            );
+            assert!(
+                (preview.reflectance / reflectance - 1.0).abs() < tolerance,
+                "{target:?}: {} vs {reflectance}",
+                preview.reflectance
+            );
+        }
+        // Without reflection: the straight line's run to the surface.
+        let start = Start::new(
+            &Slab,
+            ior,
+            origin,
+            Target::Point(DVec3::new(0.4, -0.2, 9.0)),
+            0,
+        );
+        let preview = start.unwrap().preview();
+        assert!((preview.inner_length - 1.1).abs() < 1e-12);
+        assert_eq!(preview.reflectance, 1.0);
     }
 
     #[test]
