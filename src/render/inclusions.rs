@@ -156,10 +156,10 @@ impl Inclusions {
 
     /// How many of these flakes a straight path crosses per mm on average,
     /// for isotropic normals and every cell kept: density × the outline's
-    /// mean area × E|cos| = 1/2 (E[r²] = r̄²(1 + s²/3) for a radius uniform
-    /// in r̄[1 − s, 1 + s]). An estimate for aligned or thinned
-    /// populations, whose paths cross more or fewer depending on direction
-    /// and place.
+    /// mean area × E|cos| = 1/2 (the mean of r² is r̄²(1 + s²/3) for a
+    /// radius uniform in r̄[1 − s, 1 + s]). An estimate for aligned or
+    /// thinned populations, whose paths cross more or fewer depending on
+    /// direction and place.
     pub(crate) fn crossings_per_mm(&self) -> f64 {
         let unit_area = match self.shape {
             FlakeShape::Disc => std::f64::consts::PI,
