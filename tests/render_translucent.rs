@@ -808,6 +808,47 @@ fn light_connected_through_the_surface_adds_up_to_what_path_sampling_finds() {
 }
 
 #[test]
+fn light_connected_after_a_reflection_inside_adds_up_to_what_path_sampling_finds() {
+    // One bounce more than `light_connected_through_the_surface_adds_up…`:
+    // the vertex's light may now also arrive after an internal reflection
+    // at the surface (camera → surface → vertex → reflection → refraction →
+    // light), which the connection makes too (with its Fresnel factor F,
+    // its two inner segments' Beer–Lambert and flakes, and its longer
+    // Jacobian), weighted against the same chain sampled. What the bounce
+    // adds (3 bounces less 2, each pair with one seed, so the part both
+    // share mostly cancels) must agree with sampling alone in the mean.
+    // In a clear body (partial reflections off the base) and a scattering
+    // one (total internal reflections from every side).
+    let camera = three_quarter_camera(40);
+    for extra in ["", "scattering: (0.15, 0.15, 0.15), anisotropy: 0.4,"] {
+        let mask = mirror_image(glints_under_a_sphere(extra, 6.0), &camera, 40);
+        let mut added = [0.0; 2];
+        for (strategy, connect) in [true, false].into_iter().enumerate() {
+            let mut films = Vec::new();
+            for bounces in [2, 3] {
+                let mut scene = glints_under_a_sphere(extra, 6.0);
+                scene.max_bounces = bounces;
+                scene.connect_through_surfaces = connect;
+                films.push(render_scene(&scene, &camera, 40, 4096, 3 + strategy as u64));
+            }
+            let pixels = glint_pixels(&mask, &[&films[0], &films[1]]);
+            let mean = |v: &Vec<f64>| v.iter().sum::<f64>() / v.len() as f64;
+            added[strategy] = mean(&pixels[1]) - mean(&pixels[0]);
+            eprintln!(
+                "{extra}: connect {connect}: 2 bounces {:.5}, 3 bounces {:.5}",
+                mean(&pixels[0]),
+                mean(&pixels[1])
+            );
+        }
+        let [connected, sampled] = added;
+        assert!(
+            (connected / sampled - 1.0).abs() < 0.05,
+            "{extra}: the third bounce adds {connected} connected, {sampled} sampled alone"
+        );
+    }
+}
+
+#[test]
 fn light_connected_through_the_surface_makes_glints_at_depth_converge() {
     // The goal: at equal time, the stone's error against a long
     // render at least 4× lower than with path sampling alone. A connection

@@ -17,6 +17,7 @@ use crate::render::flake_lobe::{FlakeLobe, FlakeLobes};
 use crate::render::footprint::{aggregate_probability, RayCone};
 use crate::render::inclusions::{self, FlakeHit};
 use crate::render::lights::Light;
+use crate::render::manifold::MAX_REFLECTIONS;
 use crate::render::medium::{
     beer_lambert, henyey_greenstein, sample_free_flight, sample_henyey_greenstein, SpectralPath,
 };
@@ -461,9 +462,9 @@ impl RenderScene {
                         }
                         origin += direction * t;
                         let g = medium.anisotropy;
-                        let connects = self.connects_from(stone, bounce);
+                        let chains = self.chains_from(stone, bounce);
                         let incoming = direction;
-                        if connects {
+                        if let Some(chains_up_to) = chains {
                             radiance += throughput
                                 * self.refracted_light(
                                     stone,
@@ -472,16 +473,19 @@ impl RenderScene {
                                         let phase = henyey_greenstein(wi.dot(incoming), g);
                                         (Rgb::splat(phase), phase)
                                     },
+                                    chains_up_to,
                                     stream,
                                     &mut counts.shadow,
                                 );
                         }
                         direction = sample_henyey_greenstein(direction, g, stream.next_2d());
-                        connected = connects.then_some(ConnectedVertex {
+                        connected = chains.map(|chains_up_to| ConnectedVertex {
                             point: origin,
                             direction,
                             pdf: henyey_greenstein(direction.dot(incoming), g),
                             stone,
+                            chains_up_to,
+                            reflections: 0,
                             exited: false,
                         });
                         scatterings += 1;
@@ -505,7 +509,7 @@ impl RenderScene {
                     if bounce > self.max_bounces {
                         break;
                     }
-                    let connects = self.connects_from(stone, bounce);
+                    let chains = self.chains_from(stone, bounce);
                     let lobe = self.flake_lobe(stone, population).filter(|lobe| {
                         let p =
                             aggregate_probability(cone.width_at(flake.t), lobe.projected_area_mm2);
@@ -521,12 +525,13 @@ impl RenderScene {
                         let to_object = rotation.inverse();
                         let lobe_at = lobe.at(to_object * -direction);
                         origin += direction * flake.t;
-                        if connects {
+                        if let Some(chains_up_to) = chains {
                             radiance += throughput
                                 * self.refracted_light(
                                     stone,
                                     origin,
                                     |wi| lobe_at.eval(to_object * wi),
+                                    chains_up_to,
                                     stream,
                                     &mut counts.shadow,
                                 );
@@ -548,7 +553,7 @@ impl RenderScene {
                         let wo = frame.to_local(-direction);
                         let brdf_at = brdf.at(wo);
                         origin += direction * flake.t + normal * RAY_OFFSET;
-                        if connects {
+                        if let Some(chains_up_to) = chains {
                             radiance += throughput
                                 * self.refracted_light(
                                     stone,
@@ -561,6 +566,7 @@ impl RenderScene {
                                         let (f, pdf) = brdf_at.eval_and_pdf(local);
                                         (f * local.z, pdf)
                                     },
+                                    chains_up_to,
                                     stream,
                                     &mut counts.shadow,
                                 );
@@ -572,11 +578,13 @@ impl RenderScene {
                     };
                     throughput *= weight;
                     direction = sampled_direction;
-                    connected = connects.then_some(ConnectedVertex {
+                    connected = chains.map(|chains_up_to| ConnectedVertex {
                         point: origin,
                         direction,
                         pdf,
                         stone,
+                        chains_up_to,
+                        reflections: 0,
                         exited: false,
                     });
                     if on_flake_plane {
@@ -594,9 +602,7 @@ impl RenderScene {
             if let Some((light, t, emitted)) = self.nearest_light(origin, direction, t_hit) {
                 let weight = match (previous, arriving.filter(|vertex| vertex.exited)) {
                     (_, Some(vertex)) => {
-                        let connection_pdf =
-                            self.connection_pdf(&vertex, light, origin, direction, t);
-                        power_heuristic(vertex.pdf, connection_pdf)
+                        self.sampled_chain_weight(&vertex, light, origin, direction, t)
                     }
                     (Some((p, brdf_pdf)), None) => {
                         power_heuristic(brdf_pdf, light.pdf(p, direction, t))
@@ -611,13 +617,10 @@ impl RenderScene {
             let Some(hit) = hit else {
                 let exited_from = arriving.filter(|vertex| vertex.exited);
                 let (sky, weight) = match (previous, exited_from) {
-                    (_, Some(vertex)) if self.samples_environment() => {
-                        let connection_pdf = self.environment_connection_pdf(&vertex, direction);
-                        (
-                            self.environment.radiance(direction),
-                            power_heuristic(vertex.pdf, connection_pdf),
-                        )
-                    }
+                    (_, Some(vertex)) if self.samples_environment() => (
+                        self.environment.radiance(direction),
+                        self.environment_sampled_chain_weight(&vertex, direction),
+                    ),
                     (Some((_, brdf_pdf)), _) if self.samples_environment() => {
                         let (sky, light_pdf) = self.environment.radiance_and_pdf(direction);
                         (sky, power_heuristic(brdf_pdf, light_pdf))
@@ -713,14 +716,11 @@ impl RenderScene {
                 let side = if now_inside { -1.0 } else { 1.0 };
                 inside = stone.filter(|_| now_inside).map(|index| (medium, index));
                 leaving = if now_inside { None } else { stone };
-                // Leaving straight from a connected vertex: what the next
-                // segment meets may be a connection's path.
-                connected = arriving
-                    .filter(|vertex| !vertex.exited && crossing.refracted && !now_inside)
-                    .map(|vertex| ConnectedVertex {
-                        exited: true,
-                        ..vertex
-                    });
+                // Leaving from a connected vertex, straight or after
+                // internal reflections that a connection's chain also
+                // takes: what the next segment meets outside may be a
+                // connection's path.
+                connected = arriving.and_then(|vertex| vertex.crossed(crossing.refracted));
                 origin = hit.point + hit.normal * (side * RAY_OFFSET);
                 direction = crossing.direction;
                 previous = None;
@@ -861,12 +861,15 @@ impl RenderScene {
     }
 
     /// Whether a vertex inside stone `stone` at `bounce` connects lights
-    /// through the surface: its body is smooth, connections are on, and a
-    /// sampled continuation could still leave and meet a light.
-    fn connects_from(&self, stone: usize, bounce: u32) -> bool {
-        self.connect_through_surfaces
+    /// through the surface, and the most internal reflections of its
+    /// chains: its body is smooth, connections are on, and a sampled
+    /// continuation could still reflect that often and leave and meet a
+    /// light (each crossing of the surface is a bounce).
+    fn chains_from(&self, stone: usize, bounce: u32) -> Option<usize> {
+        (self.connect_through_surfaces
             && bounce < self.max_bounces
-            && self.smooth_body_ior(stone).is_some()
+            && self.smooth_body_ior(stone).is_some())
+        .then(|| ((self.max_bounces - bounce - 1) as usize).min(MAX_REFLECTIONS))
     }
 
     /// Next-event estimation at a rough interface vertex: one sample of

@@ -19,7 +19,7 @@ use glam::DVec3;
 use crate::brdf::fresnel;
 
 /// Where a ray from inside a body leaves it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct Exit {
     /// Distance along the (unit) ray.
     pub t: f64,
@@ -44,11 +44,32 @@ pub(crate) enum Target {
     Direction(DVec3),
 }
 
-/// A path from an inner point through one refraction to a target.
+/// Mirror reflections inside the body that a chain may take before it
+/// leaves: a chain is `reflections` internal reflections at the surface,
+/// 0 ..= this, then one refraction out.
+pub(crate) const MAX_REFLECTIONS: usize = 1;
+
+/// A straight piece of a chain inside the body.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Segment {
+    /// Where it starts: the inner point, or just inside a reflection.
+    pub start: DVec3,
+    /// Its unit direction.
+    pub direction: DVec3,
+    /// Its length, to the surface.
+    pub length: f64,
+}
+
+/// A path from an inner point through `reflections` internal reflections
+/// and one refraction to a target.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Connection {
-    /// Unit direction at the inner point, towards the exit.
+    /// Unit direction at the inner point, towards the first surface point.
     pub inside_direction: DVec3,
+    /// The inner segments (the first `reflections + 1`), in order.
+    segments: [Segment; MAX_REFLECTIONS + 1],
+    /// Internal reflections before the exit.
+    pub reflections: usize,
     /// Where the path leaves the body, and the outward normal there.
     pub exit: Exit,
     /// Unit direction of the refracted ray, away from the body.
@@ -56,13 +77,24 @@ pub(crate) struct Connection {
     /// Distance from the exit to the target point (infinite for a
     /// direction target).
     pub outside_length: f64,
-    /// Fresnel transmittance 1 − F of the exit (eq. 3.1).
-    pub transmittance: f64,
+    /// The Fresnel factors of the chain (eq. 3.1): reflectance F at each
+    /// internal reflection (1 beyond the critical angle) times the
+    /// transmittance 1 − F of the exit. Also the probability with which
+    /// Fresnel choices follow the chain from the inner point.
+    pub fresnel: f64,
     /// |dω_inside / dA⊥| at the target point (area perpendicular to the
     /// refracted ray), or |dω_inside / dω_outside| for a direction target:
     /// the generalised geometry term that turns the light's measure into
-    /// solid angle at the inner point. Without refraction it is 1/d² (or 1).
+    /// solid angle at the inner point. Without refraction or reflection it
+    /// is 1/d² (or 1).
     pub inside_solid_angle_per_target_measure: f64,
+}
+
+impl Connection {
+    /// The chain's straight pieces inside the body, from the inner point.
+    pub(crate) fn inner_segments(&self) -> &[Segment] {
+        &self.segments[..=self.reflections]
+    }
 }
 
 /// Newton steps before a solve gives up.
@@ -79,17 +111,78 @@ const TOLERANCE: f64 = 1e-9;
 /// Unit directions closer than this agree (a solution's refracted ray and
 /// the direction to its target).
 const SAME_DIRECTION: f64 = 1e-7;
+/// How far inside a reflection point the next inner segment starts, so
+/// that it does not meet the surface it leaves (scene units, as the
+/// integrator's ray offset).
+const REFLECTION_OFFSET: f64 = 1e-5;
 
-/// The refracted ray of the ray from `origin` (inside a body of index
-/// `ior`) along unit `direction`: the exit and the direction in air, or
-/// None when the ray misses the surface or is totally reflected.
+/// The inner part of a chain traced from a direction: its segments and
+/// where the last one meets the surface.
+#[derive(Clone, Copy)]
+struct Inner {
+    segments: [Segment; MAX_REFLECTIONS + 1],
+    reflections: usize,
+    exit: Exit,
+}
+
+impl Inner {
+    /// The direction in which the last segment meets the exit.
+    fn last_direction(&self) -> DVec3 {
+        self.segments[self.reflections].direction
+    }
+}
+
+/// The ray from `origin` (inside a body) along unit `direction`, mirrored
+/// `reflections` times where it meets the surface: the segments and the
+/// point where the last one meets it, or None when a segment leaves no
+/// surface behind.
+fn trace_inner(
+    boundary: &impl Boundary,
+    origin: DVec3,
+    direction: DVec3,
+    reflections: usize,
+) -> Option<Inner> {
+    debug_assert!(reflections <= MAX_REFLECTIONS);
+    let mut segments = [Segment::default(); MAX_REFLECTIONS + 1];
+    let (mut start, mut direction) = (origin, direction);
+    for (i, segment) in segments.iter_mut().enumerate() {
+        let exit = boundary.exit(start, direction)?;
+        *segment = Segment {
+            start,
+            direction,
+            length: exit.t,
+        };
+        if i == reflections {
+            return Some(Inner {
+                segments,
+                reflections,
+                exit,
+            });
+        }
+        // Mirror reflection at the surface, from inside.
+        let cos = direction.dot(exit.normal);
+        if cos <= 0.0 {
+            return None;
+        }
+        direction = (direction - exit.normal * (2.0 * cos)).normalize();
+        start = exit.point - exit.normal * REFLECTION_OFFSET;
+    }
+    None
+}
+
+/// The chain of the ray from `origin` (inside a body of index `ior`)
+/// along unit `direction`: its inner part and the refracted direction in
+/// air, or None when it misses the surface or is totally reflected where
+/// it should leave.
 fn shoot(
     boundary: &impl Boundary,
     ior: f64,
     origin: DVec3,
     direction: DVec3,
-) -> Option<(Exit, DVec3)> {
-    let exit = boundary.exit(origin, direction)?;
+    reflections: usize,
+) -> Option<(Inner, DVec3)> {
+    let inner = trace_inner(boundary, origin, direction, reflections)?;
+    let (exit, direction) = (inner.exit, inner.last_direction());
     let cos_i = direction.dot(exit.normal);
     if cos_i <= 0.0 {
         return None;
@@ -101,7 +194,26 @@ fn shoot(
     }
     let cos_t = (1.0 - sin2_t).sqrt();
     let out = (direction * ior - exit.normal * (ior * cos_i - cos_t)).normalize();
-    Some((exit, out))
+    Some((inner, out))
+}
+
+/// Where the chain of the ray from `origin` (inside a body of index `ior`)
+/// along unit `direction` through `reflections` internal reflections
+/// leaves the body, and its refracted direction: the forward map that
+/// [`Start::solve`] solves, so a target met along it is one the solve from
+/// `origin` can recover `direction` for. None when the ray misses the
+/// surface or is totally reflected where it should leave.
+pub(crate) fn trace(
+    boundary: &impl Boundary,
+    ior: f64,
+    origin: DVec3,
+    direction: DVec3,
+    reflections: usize,
+) -> Option<(Exit, DVec3)> {
+    if reflections > MAX_REFLECTIONS {
+        return None;
+    }
+    shoot(boundary, ior, origin, direction, reflections).map(|(inner, out)| (inner.exit, out))
 }
 
 /// Tangent coordinates around a unit direction: (a, b) ↦ normalize(ω₀ +
@@ -164,51 +276,169 @@ impl Residual {
     }
 }
 
-/// Finds the refraction path from `origin` (inside a body of index `ior`)
-/// to `target` by Gauss–Newton from the straight line, or None when it
-/// does not converge to a physical refraction (no solution near the
-/// start, a grazing exit, or a stencil across a crease of the surface).
-///
-/// The unknown is the direction at the origin; the residual is Snell's
-/// law at the exit point that direction reaches, written as the
-/// generalised half vector n·ωᵢ − ωₒ being parallel to the normal
-/// (ωᵢ along the ray inside, ωₒ from the exit towards the target): the
-/// cross product (n·ωᵢ − ωₒ) × N. Unlike the refracted ray's miss
-/// distance it is defined at every exit point, total internal reflection
-/// included, so a start whose straight line cannot leave the body still
-/// converges.
+/// The unit direction from `from` towards `target`.
+fn towards(from: DVec3, target: Target) -> DVec3 {
+    match target {
+        Target::Point(y) => (y - from).normalize(),
+        Target::Direction(d) => d,
+    }
+}
+
+/// [`Start::new`] and [`Start::solve`] in one call.
+#[cfg(test)]
 pub(crate) fn connect(
     boundary: &impl Boundary,
     ior: f64,
     origin: DVec3,
     target: Target,
+    reflections: usize,
 ) -> Option<Connection> {
-    let start = match target {
-        Target::Point(y) => (y - origin).normalize(),
-        Target::Direction(d) => d,
-    };
-    if !start.is_finite() {
-        return None;
+    let start = Start::new(boundary, ior, origin, target, reflections)?;
+    start.solve(boundary, ior)
+}
+
+/// Where the solve of a chain starts, before it runs ([`Start::solve`]):
+/// the direction at the origin that its start guess takes (a function of
+/// the origin, the target and the chain alone), and what the traces of
+/// that guess say of the chain ([`Start::preview`]), known before paying
+/// for the solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Start {
+    origin: DVec3,
+    target: Target,
+    reflections: usize,
+    direction: DVec3,
+    preview: Preview,
+}
+
+/// What a [`Start`]'s plane construction says of its chain: roughly the
+/// solution's chain, where the surface is nearly plane over the distance
+/// between the start and the solution.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Preview {
+    /// The total length of the inner segments.
+    pub inner_length: f64,
+    /// The Fresnel reflectance F of the internal reflections, multiplied
+    /// (1 beyond the critical angle; 1 for a chain without reflection).
+    pub reflectance: f64,
+}
+
+impl Start {
+    /// The start of the solve for the chain from `origin` (inside a body
+    /// of index `ior`) through `reflections` (0 ..= [`MAX_REFLECTIONS`])
+    /// internal reflections and one refraction to `target`: the straight
+    /// line refined by [`refraction_towards`] without reflection,
+    /// [`mirrored_start`] with one. None when there is none.
+    pub(crate) fn new(
+        boundary: &impl Boundary,
+        ior: f64,
+        origin: DVec3,
+        target: Target,
+        reflections: usize,
+    ) -> Option<Self> {
+        debug_assert!(reflections <= MAX_REFLECTIONS);
+        let (direction, preview) = if reflections == 0 {
+            let straight = towards(origin, target);
+            if !straight.is_finite() {
+                return None;
+            }
+            let exit = boundary.exit(origin, straight);
+            let direction = exit
+                .and_then(|exit| refraction_towards(&exit, ior, target))
+                .unwrap_or(straight);
+            let preview = Preview {
+                inner_length: exit.map_or(0.0, |exit| exit.t),
+                reflectance: 1.0,
+            };
+            (direction, preview)
+        } else {
+            mirrored_start(boundary, ior, origin, target)?
+        };
+        Some(Self {
+            origin,
+            target,
+            reflections,
+            direction,
+            preview,
+        })
     }
-    let start = backward_refraction(boundary, ior, origin, start, target).unwrap_or(start);
+
+    /// The chain as the start's construction sees it (its inner length
+    /// and its reflections' Fresnel factors), for no further trace.
+    pub(crate) fn preview(&self) -> Preview {
+        self.preview
+    }
+
+    /// The internal reflections of the chain it starts.
+    pub(crate) fn reflections(&self) -> usize {
+        self.reflections
+    }
+
+    /// Finds the chain from the origin (inside a body of index `ior`)
+    /// through the start's reflections (0 ..= [`MAX_REFLECTIONS`]) at the
+    /// surface and one refraction out to its target, by Gauss–Newton from
+    /// the start, which treats the surface as planes; None when it does not
+    /// converge to a physical chain (no solution near the start, a grazing
+    /// exit, or a stencil across a crease of the surface). The solution is a function of
+    /// the origin, the target and the chain alone (one per call, when the
+    /// chain has several).
+    ///
+    /// The unknown is the direction at the origin; the forward map traces it,
+    /// mirrors it at each reflection, and the residual is Snell's law at the
+    /// exit point the last segment reaches, written as the generalised half
+    /// vector n·ωᵢ − ωₒ being parallel to the normal (ωᵢ along the last
+    /// segment, ωₒ from the exit towards the target): the cross product
+    /// (n·ωᵢ − ωₒ) × N. Unlike the refracted ray's miss distance it is defined
+    /// at every exit point, total internal reflection included, so a start
+    /// whose line cannot leave the body still converges.
+    pub(crate) fn solve(&self, boundary: &impl Boundary, ior: f64) -> Option<Connection> {
+        let Self {
+            origin,
+            target,
+            reflections,
+            direction: start,
+            ..
+        } = *self;
+        solve(boundary, ior, origin, target, reflections, start)
+    }
+}
+
+/// Gauss–Newton for the chain of [`Start::solve`] from the direction
+/// `start`.
+fn solve(
+    boundary: &impl Boundary,
+    ior: f64,
+    origin: DVec3,
+    target: Target,
+    reflections: usize,
+    start: DVec3,
+) -> Option<Connection> {
     let chart = Chart::around(start);
     let evaluate = |a: f64, b: f64| -> Option<DVec3> {
         let direction = chart.direction(a, b);
-        let exit = boundary.exit(origin, direction)?;
-        let out = match target {
-            Target::Point(y) => (y - exit.point).normalize(),
-            Target::Direction(d) => d,
+        // Straight out, the one exit is the whole chain: traced without
+        // building its segments (the solve's inner loop).
+        let (last, exit) = if reflections == 0 {
+            (direction, boundary.exit(origin, direction)?)
+        } else {
+            let inner = trace_inner(boundary, origin, direction, reflections)?;
+            (inner.last_direction(), inner.exit)
         };
-        Some((direction * ior - out).cross(exit.normal))
+        let out = towards(exit.point, target);
+        Some((last * ior - out).cross(exit.normal))
     };
     // Gauss–Newton on the normal equations of the 3 × 2 system J·δ = −r,
     // J by finite differences at the start and then by Broyden's rank-one
-    // updates (one trace per step instead of three).
+    // updates (one trace per step instead of three), by differences again
+    // where an updated one gives no step that lowers the residual.
+    let h = JACOBIAN_STEP;
+    let differences = |a: f64, b: f64, r: DVec3| -> Option<(DVec3, DVec3)> {
+        Some(((evaluate(a + h, b)? - r) / h, (evaluate(a, b + h)? - r) / h))
+    };
     let (mut a, mut b) = (0.0, 0.0);
     let mut r = evaluate(a, b)?;
-    let h = JACOBIAN_STEP;
-    let mut ja = (evaluate(h, 0.0)? - r) / h;
-    let mut jb = (evaluate(0.0, h)? - r) / h;
+    let (mut ja, mut jb) = differences(a, b, r)?;
+    let mut fresh = true;
     for _ in 0..MAX_STEPS {
         if r.length() <= TOLERANCE {
             break;
@@ -216,29 +446,37 @@ pub(crate) fn connect(
         let (aa, ab, bb) = (ja.dot(ja), ja.dot(jb), jb.dot(jb));
         let (ra, rb) = (ja.dot(r), jb.dot(r));
         let det = aa * bb - ab * ab;
-        if det.abs() <= f64::MIN_POSITIVE || !det.is_finite() {
-            return None;
-        }
-        let da = -(bb * ra - ab * rb) / det;
-        let db = -(aa * rb - ab * ra) / det;
-        // Damped: halve the step until the residual falls.
-        let mut step = 1.0;
-        let mut accepted = None;
-        for _ in 0..MAX_HALVINGS {
-            let (sa, sb) = (step * da, step * db);
-            if let Some(nr) = evaluate(a + sa, b + sb) {
-                if nr.length() < r.length() {
-                    accepted = Some((sa, sb, nr));
-                    break;
+        let step = (det.abs() > f64::MIN_POSITIVE && det.is_finite())
+            .then(|| {
+                let da = -(bb * ra - ab * rb) / det;
+                let db = -(aa * rb - ab * ra) / det;
+                // Damped: halve the step until the residual falls.
+                let mut step = 1.0;
+                for _ in 0..MAX_HALVINGS {
+                    let (sa, sb) = (step * da, step * db);
+                    if let Some(nr) = evaluate(a + sa, b + sb) {
+                        if nr.length() < r.length() {
+                            return Some((sa, sb, nr));
+                        }
+                    }
+                    step *= 0.5;
                 }
+                None
+            })
+            .flatten();
+        let Some((sa, sb, nr)) = step else {
+            if fresh {
+                return None;
             }
-            step *= 0.5;
-        }
-        let (sa, sb, nr) = accepted?;
+            (ja, jb) = differences(a, b, r)?;
+            fresh = true;
+            continue;
+        };
         // Broyden: J += (Δr − J·Δp)·Δpᵀ / |Δp|².
         let miss = (nr - r - ja * sa - jb * sb) / (sa * sa + sb * sb);
         ja += miss * sa;
         jb += miss * sb;
+        fresh = false;
         (a, b, r) = (a + sa, b + sb, nr);
     }
     if r.length() > TOLERANCE {
@@ -247,7 +485,8 @@ pub(crate) fn connect(
     // A physical refraction: leaving the body, on towards the target (the
     // cross product also vanishes for the half vector's other sign).
     let inside_direction = chart.direction(a, b);
-    let (exit, out) = shoot(boundary, ior, origin, inside_direction)?;
+    let (inner, out) = shoot(boundary, ior, origin, inside_direction, reflections)?;
+    let exit = inner.exit;
     let outside_length = match target {
         Target::Point(y) => {
             let to = y - exit.point;
@@ -268,39 +507,43 @@ pub(crate) fn connect(
         / spread(
             boundary,
             ior,
-            origin,
-            inside_direction,
+            (origin, inside_direction, reflections),
             target,
             (&exit, out),
         )?;
-    let cos_inside = inside_direction.dot(exit.normal);
+    // Fresnel (eq. 3.1) from inside, η = 1/ior: F at each reflection, 1 − F
+    // at the exit.
+    let cos_at = |segment: &Segment, normal: DVec3| segment.direction.dot(normal);
+    let reflectance: f64 = (0..reflections)
+        .map(|i| {
+            let next = &inner.segments[i + 1];
+            // The normal at reflection i, from the mirror pair of directions.
+            let normal = (inner.segments[i].direction - next.direction).normalize();
+            fresnel::dielectric(cos_at(&inner.segments[i], normal), 1.0 / ior)
+        })
+        .product();
+    let exit_transmittance =
+        1.0 - fresnel::dielectric(cos_at(&inner.segments[reflections], exit.normal), 1.0 / ior);
     Some(Connection {
         inside_direction,
+        segments: inner.segments,
+        reflections,
         exit,
         outside_direction: out,
         outside_length,
-        transmittance: 1.0 - fresnel::dielectric(cos_inside, 1.0 / ior),
+        fresnel: reflectance * exit_transmittance,
         inside_solid_angle_per_target_measure,
     })
 }
 
 /// A better start than the straight line: where the straight line leaves
-/// the body, the direction inside that the surface there (taken as its
-/// tangent plane) refracts towards the target. Exact for a plane and a
-/// direction target; otherwise off by the surface's curvature over the
-/// distance between this exit and the solution's.
-fn backward_refraction(
-    boundary: &impl Boundary,
-    ior: f64,
-    origin: DVec3,
-    straight: DVec3,
-    target: Target,
-) -> Option<DVec3> {
-    let exit = boundary.exit(origin, straight)?;
-    let out = match target {
-        Target::Point(y) => (y - exit.point).normalize(),
-        Target::Direction(d) => d,
-    };
+/// the body (`exit`), the direction inside that the surface there (taken
+/// as its tangent plane) refracts towards the target; None when the
+/// target lies behind that plane. Exact for a plane and a direction
+/// target; otherwise off by the surface's curvature over the distance
+/// between this exit and the solution's.
+fn refraction_towards(exit: &Exit, ior: f64, target: Target) -> Option<DVec3> {
+    let out = towards(exit.point, target);
     let cos_out = out.dot(exit.normal);
     if cos_out.is_nan() || cos_out <= 0.0 {
         return None;
@@ -311,6 +554,65 @@ fn backward_refraction(
     inside.is_finite().then_some(inside)
 }
 
+/// The start of a chain with one reflection: the surface behind the
+/// origin (seen away from the target) taken as a mirror plane, the
+/// origin's image in it joined to the target by a line, and that line's
+/// direction after the plane refined by [`refraction_towards`] where it
+/// leaves, then mirrored back. Exact for a slab and a direction target.
+///
+/// Also the chain's preview read off the same traces, the surface taken as
+/// the mirror plane and the tangent plane where the line leaves: the
+/// start's run to the mirror plane plus its mirrored run on to the exit's
+/// plane, and the Fresnel reflectance at the mirror.
+fn mirrored_start(
+    boundary: &impl Boundary,
+    ior: f64,
+    origin: DVec3,
+    target: Target,
+) -> Option<(DVec3, Preview)> {
+    let away = -towards(origin, target);
+    if !away.is_finite() {
+        return None;
+    }
+    let mirror = boundary.exit(origin, away)?;
+    let (plane, normal) = (mirror.point, mirror.normal);
+    let reflect = |v: DVec3| v - normal * (2.0 * v.dot(normal));
+    let image = origin - normal * (2.0 * (origin - plane).dot(normal));
+    // The image's line towards the target crosses the plane inwards at
+    // the mirror point; past it the reflected ray runs along the line.
+    let line = towards(image, target);
+    let speed = line.dot(normal);
+    if speed.is_nan() || speed >= 0.0 {
+        return None;
+    }
+    let crossing = image + line * ((plane - image).dot(normal) / speed);
+    let exit = boundary.exit(crossing - normal * REFLECTION_OFFSET, line);
+    let refined = exit
+        .and_then(|exit| refraction_towards(&exit, ior, target))
+        .filter(|inside| inside.dot(normal) < 0.0)
+        .map(reflect);
+    let start = refined.unwrap_or_else(|| reflect(line));
+    // The preview's chain: the start to the mirror plane, mirrored, on to
+    // the tangent plane where the line left.
+    let cos_mirror = start.dot(normal);
+    let to_mirror = (plane - origin).dot(normal) / cos_mirror;
+    let onwards = reflect(start);
+    let to_exit = exit.map_or(0.0, |exit| {
+        let speed = onwards.dot(exit.normal);
+        let from_mirror = origin + start * to_mirror;
+        if speed > 0.0 {
+            (exit.point - from_mirror).dot(exit.normal) / speed
+        } else {
+            exit.t
+        }
+    });
+    let preview = Preview {
+        inner_length: to_mirror.max(0.0) + to_exit.max(0.0),
+        reflectance: fresnel::dielectric(cos_mirror, 1.0 / ior),
+    };
+    Some((start, preview))
+}
+
 /// |d(target measure) / dω| at the solution: the area swept across the
 /// refracted ray at the target point per solid angle at the origin, or
 /// the solid angle swept by the refracted direction, by differences in a
@@ -318,8 +620,7 @@ fn backward_refraction(
 fn spread(
     boundary: &impl Boundary,
     ior: f64,
-    origin: DVec3,
-    direction: DVec3,
+    (origin, direction, reflections): (DVec3, DVec3, usize),
     target: Target,
     (exit, out): (&Exit, DVec3),
 ) -> Option<f64> {
@@ -335,8 +636,8 @@ fn spread(
     );
     let h = JACOBIAN_STEP;
     let at = |a: f64, b: f64| {
-        let (exit, out) = shoot(boundary, ior, origin, chart.direction(a, b))?;
-        residual.of(&exit, out)
+        let (inner, out) = shoot(boundary, ior, origin, chart.direction(a, b), reflections)?;
+        residual.of(&inner.exit, out)
     };
     // Forward differences from the solution, whose residual is 0 in this
     // measure up to the solve's tolerance: O(h) relative error, 10⁻⁶.
@@ -394,7 +695,7 @@ mod tests {
         let ior = 1.5;
         let origin = DVec3::new(0.0, 0.0, -2.0);
         let y = DVec3::new(7.0, 3.0, 10.0);
-        let c = connect(&Slab, ior, origin, Target::Point(y)).expect("a solution");
+        let c = connect(&Slab, ior, origin, Target::Point(y), 0).expect("a solution");
         // Snell: ior·sinθᵢ = sinθₜ, in the plane of incidence.
         let sin_i = c.inside_direction.cross(DVec3::Z).length();
         let sin_t = c.outside_direction.cross(DVec3::Z).length();
@@ -412,7 +713,14 @@ mod tests {
         let ior = 1.54;
         let (d, h) = (1.3, 20.0);
         let origin = DVec3::new(0.0, 0.0, -d);
-        let c = connect(&Slab, ior, origin, Target::Point(DVec3::new(0.0, 0.0, h))).unwrap();
+        let c = connect(
+            &Slab,
+            ior,
+            origin,
+            Target::Point(DVec3::new(0.0, 0.0, h)),
+            0,
+        )
+        .unwrap();
         let expected = 1.0 / ((ior * h + d) * (ior * h + d));
         let measured = c.inside_solid_angle_per_target_measure;
         assert!(
@@ -421,14 +729,14 @@ mod tests {
         );
         // Fresnel at normal incidence: 1 − ((n − 1)/(n + 1))².
         let f0 = ((ior - 1.0) / (ior + 1.0)).powi(2);
-        assert!((c.transmittance - (1.0 - f0)).abs() < 1e-12);
+        assert!((c.fresnel - (1.0 - f0)).abs() < 1e-12);
     }
 
     #[test]
     fn without_refraction_the_geometry_term_is_the_inverse_square() {
         let origin = DVec3::new(0.2, -0.1, -0.5);
         let y = DVec3::new(3.0, 4.0, 12.0);
-        let c = connect(&Ball(1.0), 1.0, origin, Target::Point(y)).unwrap();
+        let c = connect(&Ball(1.0), 1.0, origin, Target::Point(y), 0).unwrap();
         let d2 = (y - origin).length_squared();
         assert!((c.inside_solid_angle_per_target_measure * d2 - 1.0).abs() < 1e-6);
         assert!((c.inside_direction - (y - origin).normalize()).length() < 1e-9);
@@ -436,58 +744,214 @@ mod tests {
 
     #[test]
     fn the_geometry_term_integrates_to_the_light_seen_through_a_ball() {
-        // Shoot directions uniformly over the sphere from an inner point,
-        // count those whose refracted rays cross a small disc around a
-        // target point (a Monte Carlo estimate of ∫ dω over the disc's
-        // preimage), and compare with area·(dω/dA⊥): the Jacobian is the
-        // density of refracted rays at the target.
+        // Shoot directions around the solution from an inner point, count
+        // those whose chains (straight out, or mirrored once inside first)
+        // cross a small disc around a target point (a quadrature of ∫ dω
+        // over the disc's preimage), and compare with area·(dω/dA⊥): the
+        // Jacobian is the density of refracted rays at the target.
         let ior = 1.5;
         let ball = Ball(1.0);
         let origin = DVec3::new(0.3, 0.1, 0.2);
         let y = DVec3::new(1.0, 2.0, 5.0);
-        let c = connect(&ball, ior, origin, Target::Point(y)).unwrap();
-        let across = c.outside_direction;
-        let (u, v) = across.any_orthonormal_pair();
-        let radius = 0.05;
-        let n = 2000;
-        let mut solid_angle = 0.0;
-        let mut inside_edge = true;
-        // Directions stratified around the solution on a fine chart.
-        let chart = Chart::around(c.inside_direction);
-        let half = 0.05;
-        let cell = (2.0 * half / f64::from(n)).powi(2);
-        for i in 0..n {
-            for j in 0..n {
-                let a = -half + 2.0 * half * (f64::from(i) + 0.5) / f64::from(n);
-                let b = -half + 2.0 * half * (f64::from(j) + 0.5) / f64::from(n);
-                let Some((exit, out)) = shoot(&ball, ior, origin, chart.direction(a, b)) else {
-                    continue;
-                };
-                let speed = out.dot(across);
-                let q = exit.point + out * ((y - exit.point).dot(across) / speed) - y;
-                if q.dot(u).hypot(q.dot(v)) < radius {
-                    // dω per da·db in the chart.
-                    solid_angle += (1.0 + a * a + b * b).powf(-1.5) * cell;
-                    inside_edge &= a.abs().max(b.abs()) < 0.9 * half;
+        for reflections in 0..=MAX_REFLECTIONS {
+            let c = connect(&ball, ior, origin, Target::Point(y), reflections).unwrap();
+            assert_eq!(c.inner_segments().len(), reflections + 1);
+            let across = c.outside_direction;
+            let (u, v) = across.any_orthonormal_pair();
+            let radius = 0.05;
+            let n = 1000;
+            let mut solid_angle = 0.0;
+            let mut inside_edge = true;
+            // Directions stratified around the solution on a fine chart
+            // about twice the preimage's size.
+            let chart = Chart::around(c.inside_direction);
+            let half = 2.0 * radius * c.inside_solid_angle_per_target_measure.sqrt();
+            let cell = (2.0 * half / f64::from(n)).powi(2);
+            for i in 0..n {
+                for j in 0..n {
+                    let a = -half + 2.0 * half * (f64::from(i) + 0.5) / f64::from(n);
+                    let b = -half + 2.0 * half * (f64::from(j) + 0.5) / f64::from(n);
+                    let direction = chart.direction(a, b);
+                    let Some((inner, out)) = shoot(&ball, ior, origin, direction, reflections)
+                    else {
+                        continue;
+                    };
+                    let speed = out.dot(across);
+                    let exit = inner.exit.point;
+                    let q = exit + out * ((y - exit).dot(across) / speed) - y;
+                    if q.dot(u).hypot(q.dot(v)) < radius {
+                        // dω per da·db in the chart.
+                        solid_angle += (1.0 + a * a + b * b).powf(-1.5) * cell;
+                        inside_edge &= a.abs().max(b.abs()) < 0.9 * half;
+                    }
                 }
             }
+            assert!(
+                inside_edge,
+                "{reflections}: the disc's preimage fits in the chart"
+            );
+            let expected =
+                std::f64::consts::PI * radius * radius * c.inside_solid_angle_per_target_measure;
+            assert!(
+                (solid_angle / expected - 1.0).abs() < 0.01,
+                "{reflections}: {solid_angle} vs {expected}"
+            );
         }
-        assert!(inside_edge, "the disc's preimage fits in the chart");
-        let expected =
-            std::f64::consts::PI * radius * radius * c.inside_solid_angle_per_target_measure;
-        assert!(
-            (solid_angle / expected - 1.0).abs() < 0.01,
-            "{solid_angle} vs {expected}"
+    }
+
+    /// The plate −`.0` < z < 0 (top normal +z, bottom −z), as a body.
+    struct Plate(f64);
+
+    impl Boundary for Plate {
+        fn exit(&self, origin: DVec3, direction: DVec3) -> Option<Exit> {
+            let (t, normal) = if direction.z > 0.0 {
+                (-origin.z / direction.z, DVec3::Z)
+            } else if direction.z < 0.0 {
+                ((-self.0 - origin.z) / direction.z, -DVec3::Z)
+            } else {
+                return None;
+            };
+            Some(Exit {
+                t,
+                point: origin + direction * t,
+                normal,
+            })
+        }
+    }
+
+    #[test]
+    fn in_a_plate_the_preview_of_a_reflected_chain_is_its_solution_s() {
+        // For a plate and a direction target the mirror-plane start is the
+        // solution, so its preview's inner length and reflectance are the
+        // solved chain's (up to the reflection's offset off the surface,
+        // 10⁻⁵); for a point target they are close (the start is off by the
+        // target's parallax over the plate).
+        let (ior, h) = (1.54, 3.0);
+        let origin = DVec3::new(0.4, -0.2, -1.1);
+        for (target, tolerance) in [
+            (
+                Target::Direction(DVec3::new(0.5, -0.3, 0.8).normalize()),
+                1e-5,
+            ),
+            (Target::Point(DVec3::new(7.0, 3.0, 10.0)), 0.05),
+        ] {
+            let start = Start::new(&Plate(h), ior, origin, target, 1).unwrap();
+            let preview = start.preview();
+            let chain = start.solve(&Plate(h), ior).expect("a chain");
+            let segments = chain.inner_segments();
+            let length = segments[0].length + segments[1].length;
+            let reflectance = fresnel::dielectric(segments[0].direction.dot(-DVec3::Z), 1.0 / ior);
+            assert!(
+                (preview.inner_length / length - 1.0).abs() < tolerance,
+                "{target:?}: {} vs {length}",
+                preview.inner_length
+            );
+            assert!(
+                (preview.reflectance / reflectance - 1.0).abs() < tolerance,
+                "{target:?}: {} vs {reflectance}",
+                preview.reflectance
+            );
+        }
+        // Without reflection: the straight line's run to the surface.
+        let start = Start::new(
+            &Slab,
+            ior,
+            origin,
+            Target::Point(DVec3::new(0.4, -0.2, 9.0)),
+            0,
         );
+        let preview = start.unwrap().preview();
+        assert!((preview.inner_length - 1.1).abs() < 1e-12);
+        assert_eq!(preview.reflectance, 1.0);
+    }
+
+    #[test]
+    fn mirrored_in_a_plate_the_chain_is_the_image_s_refraction() {
+        // Down to the plate's bottom, mirrored, up through its top: the
+        // chain from depth d in a plate of thickness h is the straight
+        // refraction from the origin's mirror image at depth 2h − d, with
+        // the first segment mirrored (the method of images).
+        let (ior, h) = (1.54, 3.0);
+        let origin = DVec3::new(0.4, -0.2, -1.1);
+        let image = DVec3::new(origin.x, origin.y, -2.0 * h - origin.z);
+        for target in [
+            Target::Point(DVec3::new(7.0, 3.0, 10.0)),
+            Target::Point(DVec3::new(-2.0, 1.0, 0.5)),
+            Target::Direction(DVec3::new(0.5, -0.3, 0.8).normalize()),
+        ] {
+            let chain = connect(&Plate(h), ior, origin, target, 1).expect("a chain");
+            let straight = connect(&Slab, ior, image, target, 0).expect("the image's");
+            let unfolded = chain.inside_direction * DVec3::new(1.0, 1.0, -1.0);
+            assert!(
+                (unfolded - straight.inside_direction).length() < 1e-6,
+                "{target:?}: {unfolded} vs {}",
+                straight.inside_direction
+            );
+            // Up to the reflection's offset off the surface, 10⁻⁵.
+            assert!((chain.exit.point - straight.exit.point).length() < 1e-4);
+            let (j1, j0) = (
+                chain.inside_solid_angle_per_target_measure,
+                straight.inside_solid_angle_per_target_measure,
+            );
+            assert!((j1 / j0 - 1.0).abs() < 1e-4, "{target:?}: {j1} vs {j0}");
+            // F at the bottom (the same angle as at the top) times 1 − F.
+            let segments = chain.inner_segments();
+            assert_eq!(segments.len(), 2);
+            assert!(segments[0].direction.z < 0.0 && segments[1].direction.z > 0.0);
+            let cos = segments[1].direction.z;
+            let f = fresnel::dielectric(cos, 1.0 / ior);
+            assert!((chain.fresnel - f * (1.0 - f)).abs() < 1e-12);
+            let lengths = segments[0].length + segments[1].length;
+            let unfolded_length = straight.inner_segments()[0].length;
+            assert!(
+                (lengths - unfolded_length).abs() < 1e-4,
+                "{lengths} vs {unfolded_length}"
+            );
+        }
+        // Straight up from depth d: the closed form of the term through
+        // a plane, 1/(D + n·H)², at the unfolded depth D = 2h − d.
+        let height = 20.0;
+        let up = connect(
+            &Plate(h),
+            ior,
+            origin,
+            Target::Point(DVec3::new(0.4, -0.2, height)),
+            1,
+        )
+        .unwrap();
+        let depth = 2.0 * h + origin.z;
+        let expected = 1.0 / (depth + ior * height).powi(2);
+        let measured = up.inside_solid_angle_per_target_measure;
+        assert!(
+            (measured / expected - 1.0).abs() < 1e-6,
+            "{measured} vs {expected}"
+        );
+        let f0 = ((ior - 1.0) / (ior + 1.0)).powi(2);
+        assert!((up.fresnel - f0 * (1.0 - f0)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_chain_is_the_same_for_the_same_question() {
+        // A pure function of origin, target and chain: the integrator's
+        // weights ask the solver again for a path it sampled.
+        let ball = Ball(1.0);
+        let origin = DVec3::new(0.3, 0.1, 0.2);
+        let target = Target::Point(DVec3::new(1.0, 2.0, 5.0));
+        for reflections in 0..=MAX_REFLECTIONS {
+            let a = connect(&ball, 1.5, origin, target, reflections);
+            let b = connect(&ball, 1.5, origin, target, reflections);
+            assert!(a.is_some());
+            assert_eq!(a, b);
+        }
     }
 
     #[test]
     fn a_direction_target_is_met_and_straight_through_costs_nothing() {
         let origin = DVec3::new(0.1, 0.2, -0.3);
         let d = DVec3::new(0.3, -0.2, 0.9).normalize();
-        let c = connect(&Ball(1.0), 1.54, origin, Target::Direction(d)).unwrap();
+        let c = connect(&Ball(1.0), 1.54, origin, Target::Direction(d), 0).unwrap();
         assert!((c.outside_direction - d).length() < 1e-8);
-        let plain = connect(&Ball(1.0), 1.0, origin, Target::Direction(d)).unwrap();
+        let plain = connect(&Ball(1.0), 1.0, origin, Target::Direction(d), 0).unwrap();
         assert!((plain.inside_solid_angle_per_target_measure - 1.0).abs() < 1e-6);
     }
 
@@ -496,6 +960,6 @@ mod tests {
         // Every ray refracted up out of a slab leaves upwards.
         let origin = DVec3::new(0.0, 0.0, -0.5);
         let downwards = DVec3::new(1.0, 0.0, -0.1).normalize();
-        assert!(connect(&Slab, 1.54, origin, Target::Direction(downwards)).is_none());
+        assert!(connect(&Slab, 1.54, origin, Target::Direction(downwards), 0).is_none());
     }
 }
