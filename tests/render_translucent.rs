@@ -408,7 +408,7 @@ fn a_scattering_zoned_body_renders_the_same_bytes_on_any_thread_count() {
 /// Asserts that the stone of a white furnace `film` (24 px) vanishes: its
 /// pixels' mean is the sky's within 1 %, and none exceeds it.
 fn assert_the_stone_vanishes_in_the_white_sky(film: &Film) {
-    let stone = stone_pixels(&film);
+    let stone = stone_pixels(film);
     assert!(
         stone.len() > 150,
         "the stone fills the middle ({})",
