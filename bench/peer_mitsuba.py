@@ -12,6 +12,7 @@ Usage:
   peer_mitsuba.py render OUT.exr --size 512 --spp 64 --max-depth 6 --threads 2
   peer_mitsuba.py to-png IN.exr OUT.png --size 256
   peer_mitsuba.py patch-mean IN.exr X0 Y0 X1 Y1
+  peer_mitsuba.py side-by-side A.exr B.exr OUT.png --gain 4 --zoom 3
   peer_mitsuba.py render OUT.exr --suite-scene env-softbox --env MAP.exr …
   peer_mitsuba.py suite-maps bench/out/suite
   peer_mitsuba.py marker-position IN.exr
@@ -608,6 +609,22 @@ def to_png(args):
     mi.Bitmap(out, mi.Bitmap.PixelFormat.RGB).write(args.dst)
 
 
+def side_by_side(args):
+    """Write `a`, `b` and |a − b| × `--gain` side by side as one 8-bit
+    sRGB PNG, each enlarged `--zoom` times by repeating pixels (both
+    images the same size, linear)."""
+    import mitsuba as mi
+    import numpy as np
+
+    a, b = read_rgb(args.a), read_rgb(args.b)
+    if a.shape != b.shape:
+        raise SystemExit(f"side-by-side: {args.a} is {a.shape[:2]}, {args.b} is {b.shape[:2]}")
+    panels = np.concatenate([a, b, np.abs(a - b) * args.gain], axis=1)
+    panels = panels.repeat(args.zoom, axis=0).repeat(args.zoom, axis=1)
+    out = np.round(srgb_encode(panels) * 255.0).astype(np.uint8)
+    mi.Bitmap(out, mi.Bitmap.PixelFormat.RGB).write(args.dst)
+
+
 def patch_mean(args):
     """Print the mean linear R, G, B over pixels [x0, x1) × [y0, y1)."""
     rgb = read_rgb(args.src)
@@ -655,13 +672,19 @@ def main(argv):
     m.add_argument("src")
     for name in ("x0", "y0", "x1", "y1"):
         m.add_argument(name, type=int)
+    d = sub.add_parser("side-by-side", help="a, b and |a - b| x gain as one sRGB PNG")
+    for name in ("a", "b", "dst"):
+        d.add_argument(name)
+    d.add_argument("--gain", type=float, default=4.0)
+    d.add_argument("--zoom", type=int, default=1)
     g = sub.add_parser("suite-maps", help="write bench/suite's environment maps (EXR) into DIR")
     g.add_argument("dir")
     k = sub.add_parser("marker-position",
                        help="where the orientation check's markers landed in an image")
     k.add_argument("src")
     args = parser.parse_args(argv)
-    {"render": render, "to-png": to_png, "patch-mean": patch_mean, "suite-maps": suite_maps,
+    {"render": render, "to-png": to_png, "patch-mean": patch_mean,
+     "side-by-side": side_by_side, "suite-maps": suite_maps,
      "marker-position": marker_position}[args.command](args)
 
 
