@@ -187,12 +187,7 @@ pub(crate) fn draw(
     capacity: u64,
     entry: impl Fn(usize) -> (u64, usize),
 ) -> (usize, f64) {
-    let u = if u > 0.0 {
-        u.min(1.0_f64.next_down())
-    } else {
-        0.0
-    };
-    let scaled = u * n as f64;
+    let scaled = scaled_draw(u, n);
     let j = bin_of_scaled(scaled, n);
     let capacity = capacity as f64;
     // The fraction of the bucket, in units; exact up to the rounding of
@@ -206,6 +201,25 @@ pub(crate) fn draw(
         (alias, (rest - threshold) / (capacity - threshold))
     };
     (bin, within.min(1.0_f64.next_down()))
+}
+
+/// `u` clamped into `[0, 1)` (NaN counts as 0) and scaled to `n` buckets:
+/// [`draw`]'s bucket is [`bin_of_scaled`] of it.
+#[inline]
+fn scaled_draw(u: f64, n: usize) -> f64 {
+    let u = if u > 0.0 {
+        u.min(1.0_f64.next_down())
+    } else {
+        0.0
+    };
+    u * n as f64
+}
+
+/// The bucket [`draw`] reads for `u` among `n` (the bin it returns is this
+/// one or its alias).
+#[inline]
+pub(crate) fn bucket_of_draw(u: f64, n: usize) -> usize {
+    bin_of_scaled(scaled_draw(u, n), n)
 }
 
 /// Vose's construction over integer `weights` that sum to exactly
@@ -340,6 +354,31 @@ mod tests {
             let table = alias_table(&integer, capacity);
             assert!(table.iter().all(|&(t, a)| t <= capacity && (a as u64) < n));
             assert_eq!(probabilities_from_table(&table, capacity), integer);
+        }
+    }
+
+    #[test]
+    fn the_bucket_a_prefetch_names_is_the_one_the_draw_reads() {
+        use std::cell::Cell;
+        let n = 7;
+        let specials = [
+            0.0,
+            -0.0,
+            1.0,
+            1.0_f64.next_down(),
+            -3.0,
+            2.0,
+            f64::NAN,
+            0.5,
+        ];
+        let grid = (0..1000).map(|k| k as f64 / 999.0);
+        for u in specials.into_iter().chain(grid) {
+            let read = Cell::new(usize::MAX);
+            draw(u, n, 16, |j| {
+                read.set(j);
+                (8, (j + 1) % n)
+            });
+            assert_eq!(bucket_of_draw(u, n), read.get(), "u = {u}");
         }
     }
 

@@ -43,7 +43,8 @@ use std::path::{Path, PathBuf};
 use glam::DVec2;
 use glam::DVec3;
 
-use super::distribution::{alias_table, draw, AliasTable};
+use super::cpu::prefetch;
+use super::distribution::{alias_table, bucket_of_draw, draw, AliasTable};
 use super::shared_exponent::{decode, encode, exponent_scales, TEXEL_BITS, TEXEL_MASK};
 use crate::brdf::Rgb;
 use crate::sampling::sin_cos_turns;
@@ -347,6 +348,16 @@ impl Environment {
                 })
             }
             Environment::Map(map) => map.sample(u),
+        }
+    }
+
+    /// Starts loading the texel [`Environment::radiance_and_pdf`] reads
+    /// for `direction` (see [`EnvironmentMap::prefetch_direction`]);
+    /// nothing for a constant, at the cost of one test.
+    #[inline(always)]
+    pub(crate) fn prefetch_direction(&self, direction: DVec3) {
+        if let Environment::Map(map) = self {
+            map.prefetch_direction(direction);
         }
     }
 
@@ -729,6 +740,29 @@ impl EnvironmentMap {
                 (radiance, texel_pdf(bits, radiance, &self.rows[row]))
             }
             None => (Rgb::ZERO, 0.0),
+        }
+    }
+
+    /// Starts loading the texel [`Self::radiance_and_pdf`] reads for
+    /// `direction`, for a caller who will look it up after other work (a
+    /// ray that may escape, traced first). A hint, like
+    /// [`Self::prefetch_sample`].
+    #[inline(never)]
+    pub(crate) fn prefetch_direction(&self, direction: DVec3) {
+        if let Some((row, col)) = self.texel_index(direction) {
+            prefetch(&self.texels[row * self.width + col]);
+        }
+    }
+
+    /// Starts loading the texel that [`Self::sample`] reads first for `u`
+    /// (a map larger than the caches misses on it nearly every draw), so
+    /// that a caller who knows its numbers early overlaps the wait with
+    /// other work. A hint: nothing observable changes.
+    #[inline]
+    pub(crate) fn prefetch_sample(&self, u: [f64; 2]) {
+        if let Some(marginal) = self.marginal.as_ref() {
+            let (row, _) = marginal.sample_bin(u[1]);
+            prefetch(&self.texels[row * self.width + bucket_of_draw(u[0], self.width)]);
         }
     }
 
@@ -1616,6 +1650,40 @@ mod tests {
                 a.rem_euclid(TAU).to_bits(),
                 "angle {a}"
             );
+        }
+    }
+
+    #[test]
+    fn prefetching_any_numbers_or_direction_stays_inside_the_map() {
+        let black = EnvironmentMap::new(4, 2, vec![Rgb::ZERO; 8], 0.0).unwrap();
+        let lit = grey_map(5, 3, 33.0);
+        let numbers = [
+            0.0,
+            1.0,
+            1.0_f64.next_down(),
+            -1.0,
+            7.0,
+            f64::NAN,
+            f64::INFINITY,
+        ];
+        let directions = [
+            DVec3::Z,
+            -DVec3::Z,
+            DVec3::X,
+            DVec3::ZERO,
+            DVec3::splat(f64::NAN),
+            DVec3::new(1e-300, 0.0, -1.0),
+        ];
+        for map in [black, lit] {
+            for a in numbers {
+                for b in numbers {
+                    map.prefetch_sample([a, b]);
+                }
+            }
+            let environment = Environment::Map(map);
+            for d in directions {
+                environment.prefetch_direction(d);
+            }
         }
     }
 

@@ -12,7 +12,7 @@ use glam::DVec3;
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem, Medium};
 use crate::render::dielectric::{cross_smooth_interface, split_smooth_interface, RoughInterface};
-use crate::render::environment::Environment;
+use crate::render::environment::{Environment, EnvironmentMap};
 use crate::render::flake_lobe::{FlakeLobe, FlakeLobes};
 use crate::render::footprint::{aggregate_probability, RayCone};
 use crate::render::inclusions::{self, FlakeHit};
@@ -425,6 +425,11 @@ impl RenderScene {
         loop {
             counts.traced += 1;
             let arriving = connected.take();
+            if inside.is_some() {
+                // A vertex inside connects one emitter with the next pair;
+                // the walk to it runs while the environment's texel loads.
+                self.prefetch_environment_sample(stream, 0);
+            }
             let hit = self
                 .world
                 .intersect_leaving(origin, direction, 0.0, f64::INFINITY, leaving);
@@ -728,6 +733,7 @@ impl RenderScene {
                 continue;
             }
             let wo_world = -direction;
+            self.prefetch_environment_sample(stream, self.lights.len());
             let Some(shading) = self.shade(&hit, wo_world) else {
                 break;
             };
@@ -815,6 +821,8 @@ impl RenderScene {
             direction = wi_world;
             cone = RayCone::UNBOUNDED;
             bounce += 1;
+            // Should the ray escape, its texel loads while it is traced.
+            self.environment.prefetch_direction(direction);
         }
         if !BRANCH && !first_recorded {
             let nothing = FirstHit {
@@ -857,6 +865,29 @@ impl RenderScene {
                 ior, roughness_deg, ..
             } if !is_rough(*ior, *roughness_deg) => Some(*ior),
             _ => None,
+        }
+    }
+
+    /// Starts loading the environment texel that a light sample drawn
+    /// after `pairs_before` more pairs of `stream` will read, so that the
+    /// work before it (tracing, shading, the lights' samples) runs while
+    /// it loads. The single numbers drawn in between come from another
+    /// generator than the first [`SOBOL_PAIRS`] pairs, so the guess is
+    /// exact there; beyond, a wrong guess only loads a line for nothing.
+    /// Inlined down to the test for a map (a constant sky pays nothing
+    /// more); the look-ahead itself is out of line.
+    #[inline(always)]
+    fn prefetch_environment_sample(&self, stream: &SampleStream, pairs_before: usize) {
+        #[inline(never)]
+        fn look_ahead(map: &EnvironmentMap, stream: &SampleStream, pairs_before: usize) {
+            let mut ahead = stream.clone();
+            for _ in 0..pairs_before {
+                ahead.skip_2d();
+            }
+            map.prefetch_sample(ahead.next_2d());
+        }
+        if let Environment::Map(map) = &self.environment {
+            look_ahead(map, stream, pairs_before);
         }
     }
 
