@@ -467,6 +467,8 @@ impl RenderScene {
                         }
                         origin += direction * t;
                         let g = medium.anisotropy;
+                        // A scattering is no bounce: the continuation
+                        // crosses the surface at this bounce.
                         let chains = self.chains_from(stone, bounce);
                         let incoming = direction;
                         if let Some(chains_up_to) = chains {
@@ -514,7 +516,7 @@ impl RenderScene {
                     if bounce > self.max_bounces {
                         break;
                     }
-                    let chains = self.chains_from(stone, bounce);
+                    let chains = self.chains_from(stone, bounce + 1);
                     let lobe = self.flake_lobe(stone, population).filter(|lobe| {
                         let p =
                             aggregate_probability(cone.width_at(flake.t), lobe.projected_area_mm2);
@@ -891,16 +893,19 @@ impl RenderScene {
         }
     }
 
-    /// Whether a vertex inside stone `stone` at `bounce` connects lights
-    /// through the surface, and the most internal reflections of its
-    /// chains: its body is smooth, connections are on, and a sampled
-    /// continuation could still reflect that often and leave and meet a
-    /// light (each crossing of the surface is a bounce).
-    fn chains_from(&self, stone: usize, bounce: u32) -> Option<usize> {
+    /// Whether a vertex inside stone `stone` connects lights through the
+    /// surface, and the most internal reflections of its chains: its body
+    /// is smooth, connections are on, and a sampled continuation could
+    /// still reflect that often and leave and meet a light. Each crossing
+    /// of the surface is a bounce, and `crossing_bounce` is the bounce of
+    /// the continuation's first one: the vertex's own plus one after a
+    /// flake (a bounce), the vertex's own after a scattering (none); a
+    /// crossing at bounce b is taken while b ≤ `max_bounces`.
+    fn chains_from(&self, stone: usize, crossing_bounce: u32) -> Option<usize> {
         (self.connect_through_surfaces
-            && bounce < self.max_bounces
+            && crossing_bounce <= self.max_bounces
             && self.smooth_body_ior(stone).is_some())
-        .then(|| ((self.max_bounces - bounce - 1) as usize).min(MAX_REFLECTIONS))
+        .then(|| ((self.max_bounces - crossing_bounce) as usize).min(MAX_REFLECTIONS))
     }
 
     /// Next-event estimation at a rough interface vertex: one sample of
