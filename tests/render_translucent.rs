@@ -886,10 +886,11 @@ fn flakes_shaded_by_their_footprint_keep_the_mean_of_flakes_shaded_one_by_one() 
     // Small copper platelets, dozens to a pixel at 24 px: shaded by their
     // population's aggregate lobe (`FlakeLobes::of_gems`) or each by its
     // own normal (the default), the stone's mean colour agrees within 4 %
-    // (measured: −2.3 % red, −0.9 % green, +1.2 % blue over six seeds; the
-    // jittered grid's flakes fill most of their cells, a near-regular
-    // lattice whose hits see normals and escapes a few per cent off the
-    // independent flakes the lobe averages).
+    // (measured: −2.3 % red, −0.9 % green, +1.2 % blue over six seeds: the
+    // lobe gives the average over all arrangements of the population's
+    // flakes, the default this recipe's own flakes (population seed 4),
+    // whose arrangement moves the stone's mean by a few per cent;
+    // bench/results/2026-12-03-isotropic-flake-grid.md).
     let body = "Translucent(ior: 1.53, absorption: (0.05, 0.1, 0.2), inclusions: \
          [Inclusions(shape: Hexagon, size_mm: 0.15, size_spread: 0.3, density_per_mm3: 60.0, \
          orientation: Isotropic, material: \"copper\", seed: 4)])";
