@@ -12,10 +12,14 @@ Measures the three figures of issue 27 with the release build of lapidary
   turntable    the stone's mean luminance over the frames of a turntable,
                and the standard deviation of its frame-to-frame change
                (target: a third of today's)
+  lobe         the stone's mean with --flake-footprints over its mean with
+               every flake shaded by its own normal, over render seeds (a
+               recipe file per population seed gives the spread of stones)
 
     bench/.venv/bin/python bench/footprint.py scale goldstone green-aventurine
     bench/.venv/bin/python bench/footprint.py convergence goldstone --sizes 64 128
     bench/.venv/bin/python bench/footprint.py turntable goldstone --frames 36
+    bench/.venv/bin/python bench/footprint.py lobe pink-sunstone --size 16 --spp 1024
 
 Every render is a pure function of its settings, so a figure is the same on
 every run; only the times vary. Extra render flags go after `--`, e.g.
@@ -115,6 +119,29 @@ def turntable(args, folder):
               f"| {np.std(change):.5f} |")
 
 
+def lobe(args, folder):
+    print(f"| gem | size | spp | render seeds | footprints / flakes one by one (R, G, B) "
+          f"| standard error | one render's spread |")
+    print("|---|---:|---:|---:|---|---|---|")
+    for gem in args.gems:
+        means = {"exact": [], "footprints": []}
+        for seed in range(1, args.seeds + 1):
+            for mode, flags in (("exact", []), ("footprints", ["--flake-footprints"])):
+                path = os.path.join(folder, f"{mode}.exr")
+                render(gem, args.size, args.spp, seed, path,
+                       ["--threads", "1", *flags, *args.extra])
+                image, material = load(path)
+                means[mode].append(image[material >= 2].mean(axis=0))
+        exact, footprints = np.array(means["exact"]), np.array(means["footprints"])
+        ratio = footprints.mean(0) / exact.mean(0)
+        # The ratio of means' standard error, paired over render seeds (delta method).
+        paired = footprints / exact.mean(0) - exact * footprints.mean(0) / exact.mean(0) ** 2
+        error = paired.std(0, ddof=1) / np.sqrt(len(exact))
+        spread = exact.std(0, ddof=1) / exact.mean(0)
+        print(f"| {gem} | {args.size} | {args.spp} | {args.seeds} | {fmt(ratio)} | {fmt(error)} "
+              f"| {fmt(spread)} |")
+
+
 def fmt(rgb):
     return "(" + ", ".join(f"{c:.4f}" for c in rgb) + ")"
 
@@ -144,10 +171,16 @@ def main():
     t.add_argument("--frames", type=int, default=36)
     t.add_argument("--size", type=int, default=128)
     t.add_argument("--spp", type=int, default=16)
+    b = commands.add_parser("lobe", help="footprints' mean against flakes one by one")
+    b.add_argument("gems", nargs="+")
+    b.add_argument("--size", type=int, default=16)
+    b.add_argument("--spp", type=int, default=1024)
+    b.add_argument("--seeds", type=int, default=8)
     args = parser.parse_args(argv)
     args.extra = extra
     with tempfile.TemporaryDirectory() as folder:
-        {"scale": scale, "convergence": convergence, "turntable": turntable}[args.command](args, folder)
+        {"scale": scale, "convergence": convergence, "turntable": turntable,
+         "lobe": lobe}[args.command](args, folder)
 
 
 if __name__ == "__main__":
