@@ -104,19 +104,30 @@ def convergence(args, folder):
 
 
 def turntable(args, folder):
-    print(f"| gem | frames | size | spp | mean luminance | std of frame-to-frame change |")
-    print("|---|---:|---:|---:|---:|---:|")
+    print(f"| gem | frames | size | spp | render seed | mean luminance "
+          f"| std of frame-to-frame change |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
     for gem in args.gems:
-        means = []
-        for k in range(args.frames):
-            # `--frame K` writes OUT-000K.exr beside OUT.exr.
-            render(gem, args.size, args.spp, 1, os.path.join(folder, "frame.exr"), args.extra,
-                   frame=(k, args.frames))
-            image, material = load(os.path.join(folder, f"frame-{k:04d}.exr"))
-            means.append((image[material >= 2] @ LUMINANCE).mean())
-        change = np.diff(np.array(means))
-        print(f"| {gem} | {args.frames} | {args.size} | {args.spp} | {np.mean(means):.5f} "
-              f"| {np.std(change):.5f} |")
+        runs = []
+        for seed in range(1, args.seeds + 1):
+            means = []
+            for k in range(args.frames):
+                # `--frame K` writes OUT-000K.exr beside OUT.exr.
+                render(gem, args.size, args.spp, seed, os.path.join(folder, "frame.exr"),
+                       args.extra, frame=(k, args.frames))
+                image, material = load(os.path.join(folder, f"frame-{k:04d}.exr"))
+                means.append((image[material >= 2] @ LUMINANCE).mean())
+            runs.append(np.array(means))
+            print(f"| {gem} | {args.frames} | {args.size} | {args.spp} | {seed} "
+                  f"| {np.mean(means):.5f} | {np.std(np.diff(means)):.5f} |")
+        if len(runs) > 1:
+            # What the sampler adds: two seeds' frames differ by their noise
+            # alone, so the frame-to-frame change's share from noise is
+            # std(a − b) (a change holds two frames' noise, as a − b two
+            # seeds'); the rest is the stone itself changing as it turns.
+            noise = np.mean([np.std(a - b) for a, b in zip(runs, runs[1:])])
+            change = np.mean([np.std(np.diff(r)) for r in runs])
+            print(f"| {gem} | | | | noise part | | {noise:.5f} of {change:.5f} |")
 
 
 def lobe(args, folder):
@@ -171,6 +182,8 @@ def main():
     t.add_argument("--frames", type=int, default=36)
     t.add_argument("--size", type=int, default=128)
     t.add_argument("--spp", type=int, default=16)
+    t.add_argument("--seeds", type=int, default=1,
+                   help="render seeds; with 2 or more, the share of the change that is noise")
     b = commands.add_parser("lobe", help="footprints' mean against flakes one by one")
     b.add_argument("gems", nargs="+")
     b.add_argument("--size", type=int, default=16)
