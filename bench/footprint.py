@@ -12,6 +12,10 @@ Measures the three figures of issue 27 with the release build of lapidary
   turntable    the stone's mean luminance over the frames of a turntable,
                and the standard deviation of its frame-to-frame change
                (target: a third of today's)
+  look         converged renders of both modes against each other: the
+               RMSE of footprints against flakes one by one (what the lobe
+               changes in the picture, e.g. sparkle it smooths away) beside
+               each mode's own noise, and a side-by-side PNG (--picture)
   lobe         the stone's mean with --flake-footprints over its mean with
                every flake shaded by its own normal, over render seeds (a
                recipe file per population seed gives the spread of stones)
@@ -20,6 +24,7 @@ Measures the three figures of issue 27 with the release build of lapidary
     bench/.venv/bin/python bench/footprint.py convergence goldstone --sizes 64 128
     bench/.venv/bin/python bench/footprint.py turntable goldstone --frames 36
     bench/.venv/bin/python bench/footprint.py lobe pink-sunstone --size 16 --spp 1024
+    bench/.venv/bin/python bench/footprint.py look goldstone --sizes 64 128 --picture look.png
 
 Every render is a pure function of its settings, so a figure is the same on
 every run; only the times vary. Extra render flags go after `--`, e.g.
@@ -153,6 +158,50 @@ def lobe(args, folder):
               f"| {fmt(spread)} |")
 
 
+def look(args, folder):
+    print(f"| gem | size | spp | footprints vs flakes one by one (RMSE) | noise, flakes one by one "
+          f"| noise, footprints |")
+    print("|---|---:|---:|---:|---:|---:|")
+    rows = []
+    for gem in args.gems:
+        for size in args.sizes:
+            images = {}
+            for mode, flags in (("exact", []), ("footprints", ["--flake-footprints"])):
+                for seed in (1, 2):
+                    path = os.path.join(folder, f"{mode}-{seed}.exr")
+                    render(gem, size, args.spp, seed, path, [*flags, *args.extra])
+                    images[mode, seed] = load(path)
+            stone = images["exact", 1][1] >= 2
+            exact = (images["exact", 1][0] + images["exact", 2][0]) / 2
+            footprints = (images["footprints", 1][0] + images["footprints", 2][0]) / 2
+
+            def rmse(a, b):
+                return np.sqrt(((a[stone] - b[stone]) ** 2).mean())
+
+            # The noise of a two-seed mean: the RMS difference of the two
+            # seeds is √2 σ, and the mean's noise σ/√2, so half of it.
+            noise = {mode: rmse(images[mode, 1][0], images[mode, 2][0]) / 2
+                     for mode in ("exact", "footprints")}
+            print(f"| {gem} | {size} | {args.spp} | {rmse(footprints, exact):.4f} "
+                  f"| {noise['exact']:.4f} | {noise['footprints']:.4f} |")
+            scale = 256 // size
+            rows.append(np.concatenate([np.kron(srgb8(image), np.ones((scale, scale, 1), np.uint8))
+                                        for image in (images["exact", 1][0],
+                                                      images["footprints", 1][0])], axis=1))
+    if args.picture:
+        import mitsuba as mi  # the venv's; Bitmap writes the PNG
+        mi.set_variant("scalar_rgb")
+        mi.Bitmap(np.concatenate(rows, axis=0)).write(args.picture)
+        print(f"\nleft: flakes one by one, right: footprints; {args.picture}")
+
+
+def srgb8(linear):
+    """Linear RGB to 8-bit sRGB, clipped."""
+    linear = np.clip(linear, 0.0, None)
+    srgb = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * linear ** (1 / 2.4) - 0.055)
+    return np.clip(np.round(srgb * 255), 0, 255).astype(np.uint8)
+
+
 def fmt(rgb):
     return "(" + ", ".join(f"{c:.4f}" for c in rgb) + ")"
 
@@ -184,6 +233,11 @@ def main():
     t.add_argument("--spp", type=int, default=16)
     t.add_argument("--seeds", type=int, default=1,
                    help="render seeds; with 2 or more, the share of the change that is noise")
+    k = commands.add_parser("look", help="converged footprints against flakes one by one")
+    k.add_argument("gems", nargs="+")
+    k.add_argument("--sizes", type=int, nargs="+", default=[64, 128])
+    k.add_argument("--spp", type=int, default=1024)
+    k.add_argument("--picture", help="write the side-by-side PNG here")
     b = commands.add_parser("lobe", help="footprints' mean against flakes one by one")
     b.add_argument("gems", nargs="+")
     b.add_argument("--size", type=int, default=16)
@@ -193,7 +247,7 @@ def main():
     args.extra = extra
     with tempfile.TemporaryDirectory() as folder:
         {"scale": scale, "convergence": convergence, "turntable": turntable,
-         "lobe": lobe}[args.command](args, folder)
+         "lobe": lobe, "look": look}[args.command](args, folder)
 
 
 if __name__ == "__main__":

@@ -101,9 +101,10 @@ pub struct RenderArgs {
     pub(super) ao: Option<f64>,
     /// Shade the flakes inside a translucent stone by the pixel's
     /// footprint: where a pixel covers many, by their population's average
-    /// lobe (far less noise in thumbnails; the flakes then look like the
-    /// average stone of their recipe, whose mean lies a few per cent from
-    /// this stone's own flakes shaded one by one, the default).
+    /// lobe (far less noise at low spp, but the sparkle of those pixels is
+    /// smoothed away, and the flakes look like the average stone of their
+    /// recipe, a few per cent from this stone's own flakes shaded one by
+    /// one, the default).
     #[arg(long)]
     pub(super) flake_footprints: bool,
     /// Largest film memory to allow, in GiB (default 4); the render is
