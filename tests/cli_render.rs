@@ -78,9 +78,10 @@ fn thread_count_does_not_change_a_single_byte() {
 
 #[test]
 fn flake_footprints_change_the_image_and_not_with_the_thread_count() {
-    // Goldstone's copper at 32 px: dozens of flakes to a pixel, so
-    // `--flake-footprints` shades them by their lobe (other bytes than the
-    // default's), and its image too is a pure function of the settings.
+    // Goldstone's copper at 32 px: about a hundred flakes to a pixel, and
+    // any met after a flake's reflection, so `--flake-footprints` shades
+    // some by their lobe (other bytes than the default's), and its image
+    // too is a pure function of the settings.
     let dir = scratch("footprints");
     let render = |name: &str, extra: &[&str]| {
         let path = dir.join(name);

@@ -100,11 +100,11 @@ pub struct RenderArgs {
     #[arg(long, value_name = "DIST")]
     pub(super) ao: Option<f64>,
     /// Shade the flakes inside a translucent stone by the pixel's
-    /// footprint: where a pixel covers many, by their population's average
-    /// lobe (far less noise at low spp, but the sparkle of those pixels is
-    /// smoothed away, and the flakes look like the average stone of their
-    /// recipe, a few per cent from this stone's own flakes shaded one by
-    /// one, the default).
+    /// footprint: where a pixel covers hundreds, and after a glossy or
+    /// diffuse event, by their population's average lobe (less noise, the
+    /// same picture within noise; where a pixel covers over a thousand, the
+    /// average stone of the recipe, a few per cent from this stone's own
+    /// flakes shaded one by one, the default).
     #[arg(long)]
     pub(super) flake_footprints: bool,
     /// Largest film memory to allow, in GiB (default 4); the render is

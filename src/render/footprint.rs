@@ -10,14 +10,24 @@
 //! path over more than any flake, so its cone becomes unbounded.
 //!
 //! Where a path meets a flake, the footprint's area over the flake's mean
-//! projected area counts the flakes the footprint holds: well under one,
-//! the flake shows as itself; above [`FLAKES_FOR_AGGREGATE`], only their
-//! average does (the aggregate lobe of [`crate::render::flake_lobe`]); in
-//! between, a random choice with a probability that rises with the log of
-//! the count blends the two, which keeps the expected value either way.
+//! projected area counts the flakes the footprint holds. Up to
+//! [`FLAKES_BEFORE_BLEND`], the flake shows as itself: a pixel of tens of
+//! flakes still sparkles, as the few of them that face the light make it
+//! brighter than its neighbours, and the lobe's expected value would
+//! smooth that texture away (a 64-px goldstone, about 25 flakes a pixel,
+//! turns into an even glow). From [`FLAKES_FOR_AGGREGATE`], where a
+//! pixel's spread from the mean is a few per cent, only their average
+//! shows (the aggregate lobe of [`crate::render::flake_lobe`]); in between,
+//! a random choice with a probability that rises with the log of the count
+//! blends the two, which keeps the expected value either way. (MoonRay's
+//! glitter blends its smooth lobe in over 100 to 900 flakes.) A path whose
+//! cone is unbounded (after a glossy or diffuse event) meets flakes by the
+//! lobe alone.
 
+/// Flakes per footprint up to which each flake shows as itself.
+pub(crate) const FLAKES_BEFORE_BLEND: f64 = 100.0;
 /// Flakes per footprint from which the aggregate lobe alone shades them.
-pub(crate) const FLAKES_FOR_AGGREGATE: f64 = 16.0;
+pub(crate) const FLAKES_FOR_AGGREGATE: f64 = 1000.0;
 
 /// A ray cone: the footprint's width where the ray starts and its growth
 /// per unit length (mm, radians).
@@ -70,15 +80,16 @@ impl RayCone {
 
 /// The probability that a flake met by a footprint of width `width_mm` is
 /// shaded by its population's aggregate lobe rather than by its own normal,
-/// for flakes of mean projected area `flake_area_mm2`: 0 up to one flake
-/// per footprint, 1 from [`FLAKES_FOR_AGGREGATE`], linear in the count's
-/// logarithm between.
+/// for flakes of mean projected area `flake_area_mm2`: 0 up to
+/// [`FLAKES_BEFORE_BLEND`] flakes per footprint, 1 from
+/// [`FLAKES_FOR_AGGREGATE`], linear in the count's logarithm between.
 pub(crate) fn aggregate_probability(width_mm: f64, flake_area_mm2: f64) -> f64 {
     let flakes = width_mm * width_mm / flake_area_mm2;
-    if flakes.is_nan() || flakes <= 1.0 {
+    if flakes.is_nan() || flakes <= FLAKES_BEFORE_BLEND {
         return 0.0;
     }
-    (flakes.ln() / FLAKES_FOR_AGGREGATE.ln()).min(1.0)
+    ((flakes / FLAKES_BEFORE_BLEND).ln() / (FLAKES_FOR_AGGREGATE / FLAKES_BEFORE_BLEND).ln())
+        .min(1.0)
 }
 
 #[cfg(test)]
@@ -100,18 +111,18 @@ mod tests {
     #[test]
     fn the_blend_runs_from_the_flake_itself_to_the_aggregate() {
         let area = 0.01;
-        // Footprints of 0.5, 1, 4, 16 and 100 flakes.
+        // Footprints of 50, 100, 316, 1000 and 5000 flakes.
         let p = |flakes: f64| aggregate_probability((flakes * area).sqrt(), area);
-        assert_eq!(p(0.5), 0.0);
-        assert!(p(1.0) < 1e-12);
-        assert!((p(4.0) - 0.5).abs() < 1e-12);
-        assert!((p(16.0) - 1.0).abs() < 1e-12);
-        assert_eq!(p(100.0), 1.0);
+        assert_eq!(p(50.0), 0.0);
+        assert!(p(100.0) < 1e-12);
+        assert!((p(100.0 * 10f64.sqrt()) - 0.5).abs() < 1e-9);
+        assert!((p(1000.0) - 1.0).abs() < 1e-9);
+        assert_eq!(p(5000.0), 1.0);
         assert_eq!(aggregate_probability(f64::INFINITY, area), 1.0);
         // Monotone in between.
         let mut last = 0.0;
         for k in 1..100 {
-            let now = p(f64::from(k) * 0.2);
+            let now = p(f64::from(k) * 12.0);
             assert!(now >= last);
             last = now;
         }
