@@ -16,8 +16,8 @@ Measures the three figures of issue 27 with the release build of lapidary
                RMSE of footprints against flakes one by one (what the lobe
                changes in the picture, e.g. sparkle it smooths away) beside
                each mode's own noise, and a side-by-side PNG (--picture)
-  lobe         the stone's mean with --flake-footprints over its mean with
-               every flake shaded by its own normal, over render seeds (a
+  lobe         the stone's mean with footprints (the default) over its mean
+               with --exact-flakes (each flake by its own normal), over render seeds (a
                recipe file per population seed gives the spread of stones)
 
     bench/.venv/bin/python bench/footprint.py scale goldstone green-aventurine
@@ -28,8 +28,8 @@ Measures the three figures of issue 27 with the release build of lapidary
 
 Every render is a pure function of its settings, so a figure is the same on
 every run; only the times vary. Extra render flags go after `--`, e.g.
-`-- --bounces 2` (a flag that turns footprints off, when there is one, to
-compare).
+`-- --bounces 2`; `-- --exact-flakes` shades every flake by its own normal
+(footprints are the default), to compare.
 """
 import argparse
 import os
@@ -142,7 +142,7 @@ def lobe(args, folder):
     for gem in args.gems:
         means = {"exact": [], "footprints": []}
         for seed in range(1, args.seeds + 1):
-            for mode, flags in (("exact", []), ("footprints", ["--flake-footprints"])):
+            for mode, flags in (("exact", ["--exact-flakes"]), ("footprints", [])):
                 path = os.path.join(folder, f"{mode}.exr")
                 render(gem, args.size, args.spp, seed, path,
                        ["--threads", "1", *flags, *args.extra])
@@ -166,7 +166,7 @@ def look(args, folder):
     for gem in args.gems:
         for size in args.sizes:
             images = {}
-            for mode, flags in (("exact", []), ("footprints", ["--flake-footprints"])):
+            for mode, flags in (("exact", ["--exact-flakes"]), ("footprints", [])):
                 for seed in (1, 2):
                     path = os.path.join(folder, f"{mode}-{seed}.exr")
                     render(gem, size, args.spp, seed, path, [*flags, *args.extra])

@@ -77,11 +77,11 @@ fn thread_count_does_not_change_a_single_byte() {
 }
 
 #[test]
-fn flake_footprints_change_the_image_and_not_with_the_thread_count() {
+fn footprints_by_default_and_exact_flakes_on_request_and_neither_with_the_thread_count() {
     // Goldstone's copper at 32 px: about a hundred flakes to a pixel, and
-    // any met after a flake's reflection, so `--flake-footprints` shades
-    // some by their lobe (other bytes than the default's), and its image
-    // too is a pure function of the settings.
+    // any met after a flake's reflection, so by default some are shaded by
+    // their lobe and `--exact-flakes` shades each by its own normal (other
+    // bytes); each image is a pure function of the settings.
     let dir = scratch("footprints");
     let render = |name: &str, extra: &[&str]| {
         let path = dir.join(name);
@@ -101,11 +101,13 @@ fn flake_footprints_change_the_image_and_not_with_the_thread_count() {
         assert!(out.status.success(), "{}", stderr(&out));
         std::fs::read(&path).unwrap()
     };
-    let exact = render("exact.png", &[]);
-    let one = render("one.png", &["--flake-footprints", "--threads", "1"]);
-    let two = render("two.png", &["--flake-footprints", "--threads", "2"]);
+    let one = render("one.png", &["--threads", "1"]);
+    let two = render("two.png", &["--threads", "2"]);
+    let exact_one = render("exact-one.png", &["--exact-flakes", "--threads", "1"]);
+    let exact_two = render("exact-two.png", &["--exact-flakes", "--threads", "2"]);
     assert_eq!(one, two);
-    assert_ne!(one, exact);
+    assert_eq!(exact_one, exact_two);
+    assert_ne!(one, exact_one);
 }
 
 #[test]

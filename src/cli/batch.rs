@@ -121,7 +121,7 @@ fn render_args(job: &Job, image: usize, output: PathBuf, args: &BatchArgs) -> Re
         },
         bounces: settings.bounces,
         ao: settings.ao_mm,
-        flake_footprints: false,
+        exact_flakes: false,
         max_memory: super::render::DEFAULT_MAX_MEMORY_GIB,
         quiet: args.quiet,
         frames: None,

@@ -99,14 +99,14 @@ pub struct RenderArgs {
     /// occlusion itself (white: open, black: enclosed) instead of the beauty.
     #[arg(long, value_name = "DIST")]
     pub(super) ao: Option<f64>,
-    /// Shade the flakes inside a translucent stone by the pixel's
-    /// footprint: where a pixel covers hundreds, and after a glossy or
-    /// diffuse event, by their population's average lobe (less noise, the
-    /// same picture within noise; where a pixel covers over a thousand, the
-    /// average stone of the recipe, a few per cent from this stone's own
-    /// flakes shaded one by one, the default).
+    /// Shade every flake inside a translucent stone by its own normal, at
+    /// any scale. By default a flake met where the pixel's footprint holds
+    /// hundreds, or after a glossy or diffuse event, is shaded by its
+    /// population's average lobe: less noise, the same picture within
+    /// noise (where a pixel holds over a thousand, the recipe's average
+    /// stone, a few per cent from this stone's own flakes).
     #[arg(long)]
-    pub(super) flake_footprints: bool,
+    pub(super) exact_flakes: bool,
     /// Largest film memory to allow, in GiB (default 4); the render is
     /// refused up front above it, and always above the memory available.
     #[arg(long, value_name = "GIB", default_value_t = DEFAULT_MAX_MEMORY_GIB)]
@@ -513,7 +513,7 @@ impl Renderer {
                 TonemapArg::Linear => ToneCurve::Linear,
             },
             connections,
-            flake_footprints: args.flake_footprints,
+            flake_footprints: !args.exact_flakes,
             frame: None,
             inputs_sha256: inputs.sha256,
         };

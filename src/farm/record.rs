@@ -67,7 +67,8 @@ pub struct RenderRecord {
     /// Whether light is connected through translucent surfaces
     /// (`LAPIDARY_MNEE`).
     pub connections: bool,
-    /// Whether flakes are shaded by their footprint (`--flake-footprints`).
+    /// Whether flakes are shaded by their footprint (the default; off with
+    /// `--exact-flakes`).
     pub flake_footprints: bool,
     /// The turntable frame, for an animation.
     pub frame: Option<FrameOf>,

@@ -418,6 +418,8 @@ impl Studio {
         for stone in &mut stones {
             stone.rotation = turn * stone.rotation;
         }
+        // As `lapidary render` shades them: by footprint.
+        let flake_lobes = FlakeLobes::of_gems(std::slice::from_ref(&gem));
         let render_scene = RenderScene {
             world: World::new(stones, self.scene.ground.as_ref().map(|g| g.height)),
             material_id_bases: RenderScene::material_id_bases(std::slice::from_ref(&gem)),
@@ -428,7 +430,7 @@ impl Studio {
             max_bounces: self.max_bounces,
             ambient_occlusion: None,
             connect_through_surfaces: true,
-            flake_lobes: FlakeLobes::default(),
+            flake_lobes,
         };
         let camera = camera_for(&self.scene, side_px, side_px);
         Ok(develop(

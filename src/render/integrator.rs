@@ -994,8 +994,9 @@ impl RenderScene {
 
     /// Shades the flakes inside translucent bodies by their pixel's
     /// footprint: a flake met where the footprint holds many is shaded by
-    /// its population's aggregate lobe (`lapidary render
-    /// --flake-footprints`); by default every flake by its own normal.
+    /// its population's aggregate lobe (as `lapidary render` and `lapidary
+    /// gallery` do unless `--exact-flakes`); without it, every flake by its
+    /// own normal.
     pub fn shade_flakes_by_footprint(&mut self) {
         self.flake_lobes = FlakeLobes::of_gems(&self.gems);
     }
