@@ -886,10 +886,10 @@ fn flakes_shaded_by_their_footprint_keep_the_mean_of_flakes_shaded_one_by_one() 
     // Tiny copper platelets, over a thousand to a pixel at 24 px: shaded by
     // their population's aggregate lobe (`FlakeLobes::of_gems`) or each by
     // its own normal (the default), the stone's mean colour agrees within
-    // 2 % (measured: −0.2 % red, −0.6 % green, −1.0 % blue; the lobe gives the average over all arrangements of the
-    // population's flakes, the default this recipe's own flakes, whose
-    // arrangement moves the stone's mean a little;
-    // bench/results/2026-12-03-isotropic-flake-grid.md).
+    // 2 % (measured: −0.2 % red, −0.6 % green, −1.0 % blue; the lobe gives
+    // the average over all arrangements of the population's flakes, the
+    // default this recipe's own flakes, whose arrangement moves the
+    // stone's mean a little; bench/results/2026-12-03-isotropic-flake-grid.md).
     let body = "Translucent(ior: 1.53, absorption: (0.05, 0.1, 0.2), inclusions: \
          [Inclusions(shape: Hexagon, size_mm: 0.03, size_spread: 0.3, density_per_mm3: 750.0, \
          orientation: Isotropic, material: \"copper\", seed: 4)])";

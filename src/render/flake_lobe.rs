@@ -523,9 +523,9 @@ mod tests {
         // cone's cells cover the cap within 15° of its axis, and one more
         // cell the rest. Where the pdf jumps, sub-cells cannot integrate it
         // well: cells over which it varies more than fourfold are left out
-        // of χ² and only their total is compared (within 3 % and 4σ). At every
-        // sample, eval's pdf equals the sample's and its value over the pdf
-        // the sample's weight.
+        // of χ² and only their total is compared (within 3 % and 4σ). At
+        // every sample, eval's pdf equals the sample's and its value over
+        // the pdf the sample's weight.
         const N_COS: usize = 24;
         const N_PHI: usize = 48;
         const FINE: usize = 24;
