@@ -83,6 +83,9 @@ struct AxialNormals {
     cumulative: Vec<f64>,
     /// E at |axis·ωo| = k/(N − 1), k < [`MEAN_COS_NODES`].
     mean_abs_cos: Vec<f64>,
+    /// The same for the flakes' own normals (the cone, before their BRDF
+    /// spreads it): the share of a flake's area a ray along ωo meets.
+    flake_mean_abs_cos: Vec<f64>,
 }
 
 /// The aggregate lobe of one flake population, in the stone's object space.
@@ -103,9 +106,11 @@ impl FlakeLobe {
         let normals = match population.aligned {
             None => Normals::Isotropic,
             Some((_, cos_max)) if 1.0 - cos_max < NARROWEST_CONE => return None,
-            Some((axis, cos_max)) => {
-                Normals::Axial(AxialNormals::new(axis, &cone_spread_by(brdf, cos_max)))
-            }
+            Some((axis, cos_max)) => Normals::Axial(AxialNormals::new(
+                axis,
+                &cone_spread_by(brdf, cos_max),
+                &uniform_cone(cos_max),
+            )),
         };
         let nodes: Vec<Rgb> = (0..ALBEDO_NODES)
             .into_par_iter()
@@ -119,6 +124,19 @@ impl FlakeLobe {
             albedo,
             projected_area_mm2: 0.5 * unit_area(population.shape) * mean_radius_squared,
         })
+    }
+
+    /// The mean area one flake projects along the unit `direction` (object
+    /// space), mm²: a straight path crosses the population's density times
+    /// this many flakes per mm (their extinction as a medium).
+    pub(crate) fn projected_area_along_mm2(&self, direction: DVec3) -> f64 {
+        match &self.normals {
+            Normals::Isotropic => self.projected_area_mm2,
+            Normals::Axial(axial) => {
+                2.0 * self.projected_area_mm2
+                    * interpolate(&axial.flake_mean_abs_cos, direction.dot(axial.axis).abs())
+            }
+        }
     }
 
     /// ρ at `cos`, linear between the table's nodes.
@@ -312,8 +330,9 @@ fn unit_area(shape: FlakeShape) -> f64 {
 }
 
 impl AxialNormals {
-    /// The density whose bins hold `masses` (of any scale, not all 0).
-    fn new(axis: DVec3, masses: &[f64]) -> Self {
+    /// The density whose bins hold `masses` (of any scale, not all 0), for
+    /// flakes whose own normals' bins hold `flake_masses`.
+    fn new(axis: DVec3, masses: &[f64], flake_masses: &[f64]) -> Self {
         let total: f64 = masses.iter().sum();
         let mut cumulative: Vec<f64> = std::iter::once(0.0)
             .chain(masses.iter().scan(0.0, |sum, mass| {
@@ -327,32 +346,12 @@ impl AxialNormals {
             .enumerate()
             .map(|(k, mass)| mass / total / (TAU * bin_width(k)))
             .collect();
-        let mean_abs_cos = (0..MEAN_COS_NODES)
-            .map(|j| {
-                let cos_axis = j as f64 / (MEAN_COS_NODES - 1) as f64;
-                masses
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, mass)| **mass > 0.0)
-                    .map(|(k, mass)| {
-                        let (low, width) = (bin_low(k), bin_width(k));
-                        let nodes: f64 = (0..NODES_PER_BIN)
-                            .map(|i| {
-                                let cos_theta =
-                                    low + width * (i as f64 + 0.5) / NODES_PER_BIN as f64;
-                                azimuthal_mean_abs_cos(cos_theta, cos_axis)
-                            })
-                            .sum();
-                        mass / total * nodes / NODES_PER_BIN as f64
-                    })
-                    .sum()
-            })
-            .collect();
         Self {
             axis,
             density,
             cumulative,
-            mean_abs_cos,
+            mean_abs_cos: mean_abs_cos_table(masses),
+            flake_mean_abs_cos: mean_abs_cos_table(flake_masses),
         }
     }
 
@@ -363,10 +362,7 @@ impl AxialNormals {
 
     /// E at `wo`, linear between the table's nodes.
     fn mean_abs_cos_at(&self, wo: DVec3) -> f64 {
-        let x = wo.dot(self.axis).abs().min(1.0) * (MEAN_COS_NODES - 1) as f64;
-        let k = (x as usize).min(MEAN_COS_NODES - 2);
-        let s = x - k as f64;
-        self.mean_abs_cos[k] * (1.0 - s) + self.mean_abs_cos[k + 1] * s
+        interpolate(&self.mean_abs_cos, wo.dot(self.axis).abs())
     }
 
     /// |cos θ| about the axis drawn from the density by one uniform number:
@@ -377,6 +373,53 @@ impl AxialNormals {
         let s = ((u - below) / (above - below)).clamp(0.0, 1.0);
         bin_low(k) + bin_width(k) * (1.0 - s)
     }
+}
+
+/// E(c), the mean |cos| between ωo and normals whose axial bins hold
+/// `masses` (of any scale, not all 0), at c = |axis·ωo| = k/(N − 1), k <
+/// [`MEAN_COS_NODES`].
+fn mean_abs_cos_table(masses: &[f64]) -> Vec<f64> {
+    let total: f64 = masses.iter().sum();
+    (0..MEAN_COS_NODES)
+        .map(|j| {
+            let cos_axis = j as f64 / (MEAN_COS_NODES - 1) as f64;
+            masses
+                .iter()
+                .enumerate()
+                .filter(|(_, mass)| **mass > 0.0)
+                .map(|(k, mass)| {
+                    let (low, width) = (bin_low(k), bin_width(k));
+                    let nodes: f64 = (0..NODES_PER_BIN)
+                        .map(|i| {
+                            let cos_theta = low + width * (i as f64 + 0.5) / NODES_PER_BIN as f64;
+                            azimuthal_mean_abs_cos(cos_theta, cos_axis)
+                        })
+                        .sum();
+                    mass / total * nodes / NODES_PER_BIN as f64
+                })
+                .sum()
+        })
+        .collect()
+}
+
+/// A table of [`MEAN_COS_NODES`] nodes over c in [0, 1] read at `c`,
+/// linear between nodes.
+fn interpolate(table: &[f64], c: f64) -> f64 {
+    let x = c.clamp(0.0, 1.0) * (MEAN_COS_NODES - 1) as f64;
+    let k = (x as usize).min(MEAN_COS_NODES - 2);
+    let s = x - k as f64;
+    table[k] * (1.0 - s) + table[k + 1] * s
+}
+
+/// The masses over the axial bins of normals uniform in the cone cos θ ≥
+/// `cos_max` (each bin's share of the cone's solid angle, exactly).
+fn uniform_cone(cos_max: f64) -> Vec<f64> {
+    (0..AXIAL_BINS)
+        .map(|k| {
+            let (low, high) = (bin_low(k), bin_low(k) + bin_width(k));
+            (high.min(1.0) - low.max(cos_max)).max(0.0)
+        })
+        .collect()
 }
 
 /// The axial bin of |cos θ| = `cos_abs`.
@@ -720,16 +763,10 @@ mod tests {
         }
     }
 
-    /// Normals uniform in the cone cos θ ≥ `cos_max` about z, binned
-    /// exactly (each bin's share of the cone's solid angle).
-    fn uniform_cone(cos_max: f64) -> AxialNormals {
-        let masses: Vec<f64> = (0..AXIAL_BINS)
-            .map(|k| {
-                let (low, high) = (bin_low(k), bin_low(k) + bin_width(k));
-                (high.min(1.0) - low.max(cos_max)).max(0.0)
-            })
-            .collect();
-        AxialNormals::new(DVec3::Z, &masses)
+    /// Normals uniform in the cone cos θ ≥ `cos_max` about z.
+    fn uniform_cone_normals(cos_max: f64) -> AxialNormals {
+        let masses = uniform_cone(cos_max);
+        AxialNormals::new(DVec3::Z, &masses, &masses)
     }
 
     #[test]
@@ -744,11 +781,11 @@ mod tests {
         // Along the axis: the mean of cos θ over the cone, (1 + cos_max)/2
         // (the bin the cone's edge cuts is spread over the whole bin).
         for cos_max in [0.0, 0.5, 0.95] {
-            let e = at(&uniform_cone(cos_max), 1.0);
+            let e = at(&uniform_cone_normals(cos_max), 1.0);
             assert!((e - (1.0 + cos_max) / 2.0).abs() < 1e-5, "{e}");
         }
         // The whole hemisphere (cos_max 0) seen from anywhere: 1/2.
-        let hemisphere = uniform_cone(0.0);
+        let hemisphere = uniform_cone_normals(0.0);
         for cos_axis in [0.0, 0.3, 0.8] {
             let e = at(&hemisphere, cos_axis);
             assert!((e - 0.5).abs() < 1e-4, "{cos_axis}: {e}");
@@ -769,7 +806,7 @@ mod tests {
             })
             .sum::<f64>()
             / f64::from(n);
-        let e = at(&uniform_cone(cos_max), cos_axis);
+        let e = at(&uniform_cone_normals(cos_max), cos_axis);
         assert!((e - brute).abs() < 0.002, "{e} vs {brute}");
     }
 

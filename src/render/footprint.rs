@@ -55,6 +55,11 @@ impl RayCone {
         spread_rad: f64::INFINITY,
     };
 
+    /// Whether the cone is unbounded: the path met a non-specular event.
+    pub(crate) fn is_unbounded(self) -> bool {
+        self.spread_rad.is_infinite()
+    }
+
     /// The footprint's width at distance `t_mm` along the ray.
     pub(crate) fn width_at(self, t_mm: f64) -> f64 {
         if self.spread_rad.is_infinite() {

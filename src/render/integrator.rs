@@ -14,8 +14,8 @@ use crate::recipe::gem::{Body, Gem, Medium};
 use crate::render::dielectric::{cross_smooth_interface, split_smooth_interface, RoughInterface};
 use crate::render::environment::{Environment, EnvironmentMap};
 use crate::render::flake_lobe::{FlakeLobe, FlakeLobes};
+use crate::render::flake_medium::OwnCell;
 use crate::render::footprint::{aggregate_probability, RayCone};
-use crate::render::inclusions::{self, FlakeHit};
 use crate::render::lights::Light;
 use crate::render::manifold::MAX_REFLECTIONS;
 use crate::render::medium::{
@@ -422,9 +422,12 @@ impl RenderScene {
         let mut cone = start_cone;
         // Scattering events inside bodies so far (they are not bounces).
         let mut scatterings = 0;
+        // The cell of the flake the path leaves, when met as a medium.
+        let mut own_cell: Option<OwnCell> = None;
         loop {
             counts.traced += 1;
             let arriving = connected.take();
+            let own = own_cell.take();
             if inside.is_some() {
                 // A vertex inside connects one emitter with the next pair;
                 // the walk to it runs while the environment's texel loads.
@@ -435,9 +438,19 @@ impl RenderScene {
                 .intersect_leaving(origin, direction, 0.0, f64::INFINITY, leaving);
             let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
             if let (Some((medium, stone)), Some(hit)) = (inside, &hit) {
-                // The segment ends at the first flake or at the surface.
-                let flake = self.nearest_flake(stone, origin, direction, hit.t);
-                let t_end = flake.map_or(hit.t, |(f, _, _)| f.t);
+                // The segment ends at the first flake or at the surface;
+                // past a glossy or diffuse event, flakes by footprint are
+                // met as a medium (`render::flake_medium`).
+                let flake = self.meet_flake(
+                    stone,
+                    origin,
+                    direction,
+                    hit.t,
+                    cone.is_unbounded(),
+                    own,
+                    || stream.next_1d(),
+                );
+                let t_end = flake.map_or(hit.t, |f| f.t);
                 if medium.scattering_per_mm == Rgb::ZERO {
                     // Beer–Lambert along the segment inside the body (eq. 3.4),
                     // and ratio tracking for what zoning adds to it.
@@ -480,6 +493,7 @@ impl RenderScene {
                                         let phase = henyey_greenstein(wi.dot(incoming), g);
                                         (Rgb::splat(phase), phase)
                                     },
+                                    None,
                                     chains_up_to,
                                     stream,
                                     &mut counts.shadow,
@@ -509,7 +523,7 @@ impl RenderScene {
                         continue;
                     }
                 }
-                if let Some((flake, brdf, population)) = flake {
+                if let Some(flake) = flake {
                     // Only a camera ray refracted in runs inside at bounce
                     // 1, and it did not scatter: its first event inside.
                     first_hits.inclusions += u32::from(!BRANCH && bounce == 1 && scatterings == 0);
@@ -517,11 +531,18 @@ impl RenderScene {
                         break;
                     }
                     let chains = self.chains_from(stone, bounce + 1);
-                    let lobe = self.flake_lobe(stone, population).filter(|lobe| {
+                    // A flake of the medium is the lobe's; one met by the
+                    // walk, by the flakes its footprint holds.
+                    let lobe = self.flake_lobe(stone, flake.population).filter(|lobe| {
                         let p =
                             aggregate_probability(cone.width_at(flake.t), lobe.projected_area_mm2);
-                        p >= 1.0 || (p > 0.0 && stream.next_1d() < p)
+                        flake.normal.is_none() || p >= 1.0 || (p > 0.0 && stream.next_1d() < p)
                     });
+                    // Where its population is met as a medium from here on,
+                    // the flake's own cell holds no other of them.
+                    let own = self
+                        .flake_lobe(stone, flake.population)
+                        .map(|_| OwnCell::new(flake.population, stream.next_3d()));
                     cone = RayCone::UNBOUNDED;
                     let on_flake_plane = lobe.is_some();
                     let (sampled_direction, weight, pdf) = if let Some(lobe) = lobe {
@@ -538,6 +559,7 @@ impl RenderScene {
                                     stone,
                                     origin,
                                     |wi| lobe_at.eval(to_object * wi),
+                                    own,
                                     chains_up_to,
                                     stream,
                                     &mut counts.shadow,
@@ -551,14 +573,17 @@ impl RenderScene {
                         // A flake reflects by its material's BRDF, from either
                         // side; only its BRDF is sampled (no light reaches a
                         // shadow ray through the smooth boundary).
-                        let normal = if flake.normal.dot(direction) < 0.0 {
-                            flake.normal
+                        let Some(flake_normal) = flake.normal else {
+                            break;
+                        };
+                        let normal = if flake_normal.dot(direction) < 0.0 {
+                            flake_normal
                         } else {
-                            -flake.normal
+                            -flake_normal
                         };
                         let frame = Frame::new(normal);
                         let wo = frame.to_local(-direction);
-                        let brdf_at = brdf.at(wo);
+                        let brdf_at = flake.brdf.at(wo);
                         origin += direction * flake.t + normal * RAY_OFFSET;
                         if let Some(chains_up_to) = chains {
                             radiance += throughput
@@ -573,6 +598,7 @@ impl RenderScene {
                                         let (f, pdf) = brdf_at.eval_and_pdf(local);
                                         (f * local.z, pdf)
                                     },
+                                    own,
                                     chains_up_to,
                                     stream,
                                     &mut counts.shadow,
@@ -599,6 +625,7 @@ impl RenderScene {
                         // lobe's point on it must not meet it again.
                         origin += direction * RAY_OFFSET;
                     }
+                    own_cell = own;
                     leaving = None;
                     previous = None;
                     bounce += 1;
@@ -959,37 +986,6 @@ impl RenderScene {
             one(s.direction, f64::INFINITY, s.radiance, s.pdf, false);
         }
         sum
-    }
-
-    /// The nearest flake inside stone `stone` along the world ray for
-    /// 0 < t < `t_max`, with the normal in world space, its material and
-    /// the index of its population.
-    pub(crate) fn nearest_flake(
-        &self,
-        stone: usize,
-        origin: DVec3,
-        direction: DVec3,
-        t_max: f64,
-    ) -> Option<(FlakeHit, &LayeredBrdf, usize)> {
-        let instance = &self.world.stones()[stone];
-        let gem = &self.gems[instance.gem];
-        let Body::Translucent { inclusions, .. } = &gem.body else {
-            return None;
-        };
-        if inclusions.is_empty() {
-            return None;
-        }
-        let (o, d) = self.world.object_ray(stone, origin, direction);
-        inclusions::nearest_of(inclusions, o, d, t_max).map(|(hit, population)| {
-            (
-                FlakeHit {
-                    t: hit.t,
-                    normal: instance.rotation * hit.normal,
-                },
-                &gem.brdfs[inclusions[population].material as usize],
-                population,
-            )
-        })
     }
 
     /// Shades the flakes inside translucent bodies by their pixel's

@@ -12,6 +12,7 @@ pub mod distribution;
 pub mod environment;
 pub mod film;
 pub mod flake_lobe;
+pub(crate) mod flake_medium;
 pub(crate) mod footprint;
 pub(crate) mod inclusions;
 pub mod integrator;

@@ -23,6 +23,7 @@ use glam::DVec3;
 
 use crate::brdf::Rgb;
 use crate::recipe::gem::Body;
+use crate::render::flake_medium::OwnCell;
 use crate::render::integrator::{power_heuristic, shadow_reach, RenderScene};
 use crate::render::lights::Light;
 use crate::render::manifold::{self, Boundary, Connection, Exit, Start, Target};
@@ -125,15 +126,18 @@ impl RenderScene {
     /// and one refraction, times `vertex(direction)`'s value: the flake's
     /// f·cosθ or the phase function towards a unit direction in world
     /// space (zero where the vertex sends no light), weighted against
-    /// sampling that direction with `vertex`'s density. One emitter, chosen
+    /// sampling that direction with `vertex`'s density; a flake vertex's
+    /// `own` cell keeps the first segment clear of its population. One emitter, chosen
     /// uniformly, and one point on it from `stream`, shared by the chains;
     /// with zoning, each inner segment's transmittance is ratio tracking's
     /// estimate from its 1-D numbers.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn refracted_light(
         &self,
         stone: usize,
         point: DVec3,
         vertex: impl Fn(DVec3) -> (Rgb, f64),
+        own: Option<OwnCell>,
         chains_up_to: usize,
         stream: &mut SampleStream,
         shadow_rays: &mut u64,
@@ -189,26 +193,24 @@ impl RenderScene {
             if value.max_element() <= 0.0 {
                 return None;
             }
-            // Inside, the path must meet no flake and not scatter; the walk
-            // of the first segment starts a ray offset along it, so that a
-            // vertex on a flake's plane (an aggregate lobe's) does not meet
-            // that flake.
-            if path
-                .inner_segments()
-                .iter()
-                .enumerate()
-                .any(|(k, segment)| {
-                    let skip = if k == 0 { RAY_OFFSET } else { 0.0 };
-                    self.nearest_flake(
-                        stone,
-                        segment.start + segment.direction * skip,
-                        segment.direction,
-                        segment.length - skip,
-                    )
-                    .is_some()
-                })
-            {
-                return None;
+            // Inside, the path must cross no flake and not scatter; the
+            // walk of the first segment starts a ray offset along it, so
+            // that a vertex on a flake's plane (an aggregate lobe's) does
+            // not meet that flake.
+            let mut unblocked = 1.0;
+            for (k, segment) in path.inner_segments().iter().enumerate() {
+                let skip = if k == 0 { RAY_OFFSET } else { 0.0 };
+                unblocked *= self.flake_transmittance(
+                    stone,
+                    segment.start + segment.direction * skip,
+                    segment.direction,
+                    segment.length - skip,
+                    own.filter(|_| k == 0),
+                    || stream.next_1d(),
+                );
+                if unblocked <= 0.0 {
+                    return None;
+                }
             }
             *shadow_rays += 1;
             let start = path.exit.point + path.exit.normal * RAY_OFFSET;
@@ -249,7 +251,7 @@ impl RenderScene {
                 value
                     * transmittance
                     * sampled.emitted
-                    * (path.fresnel * cos_light * jacobian * scale * weight),
+                    * (unblocked * path.fresnel * cos_light * jacobian * scale * weight),
             )
         };
         let Some(sampled) = emitter else {
@@ -527,6 +529,7 @@ mod tests {
                     0,
                     point,
                     |_| (Rgb::splat(phase), phase),
+                    None,
                     chains_up_to,
                     &mut stream,
                     &mut shadow_rays,
