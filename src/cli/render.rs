@@ -101,10 +101,11 @@ pub struct RenderArgs {
     pub(super) ao: Option<f64>,
     /// Shade every flake inside a translucent stone by its own normal, at
     /// any scale. By default a flake met where the pixel's footprint holds
-    /// hundreds, or after a glossy or diffuse event, is shaded by its
-    /// population's average lobe: less noise, the same picture within
-    /// noise (where a pixel holds over a thousand, the recipe's average
-    /// stone, a few per cent from this stone's own flakes).
+    /// hundreds is shaded by its population's average lobe, and a path
+    /// past a glossy or diffuse event meets the flakes as a medium of the
+    /// same flakes: less noise and time, the same picture within noise
+    /// (where a pixel holds over a thousand, the recipe's average stone, a
+    /// few per cent from this stone's own flakes).
     #[arg(long)]
     pub(super) exact_flakes: bool,
     /// Largest film memory to allow, in GiB (default 4); the render is
