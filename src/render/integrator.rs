@@ -14,7 +14,7 @@ use crate::recipe::gem::{Body, Gem, Medium};
 use crate::render::dielectric::{cross_smooth_interface, split_smooth_interface, RoughInterface};
 use crate::render::environment::{Environment, EnvironmentMap};
 use crate::render::flake_lobe::{FlakeLobe, FlakeLobes};
-use crate::render::flake_medium::OwnCell;
+use crate::render::flake_medium::{FlakeView, OwnCell};
 use crate::render::footprint::{aggregate_probability, RayCone};
 use crate::render::lights::Light;
 use crate::render::manifold::MAX_REFLECTIONS;
@@ -422,7 +422,11 @@ impl RenderScene {
         let mut cone = start_cone;
         // Scattering events inside bodies so far (they are not bounces).
         let mut scatterings = 0;
-        // The cell of the flake the path leaves, when met as a medium.
+        // Whether the path meets flakes with lobes as a medium: from the
+        // vertex after the one where the pixel's footprint ended (what
+        // lights and shades the flake a pixel shows stays its own
+        // neighbours'), and the cell of the flake it leaves, if any.
+        let mut flakes_as_medium = false;
         let mut own_cell: Option<OwnCell> = None;
         loop {
             counts.traced += 1;
@@ -446,8 +450,11 @@ impl RenderScene {
                     origin,
                     direction,
                     hit.t,
-                    cone.is_unbounded(),
-                    own,
+                    if flakes_as_medium {
+                        FlakeView::Medium(own)
+                    } else {
+                        FlakeView::Walked
+                    },
                     || stream.next_1d(),
                 );
                 let t_end = flake.map_or(hit.t, |f| f.t);
@@ -483,6 +490,12 @@ impl RenderScene {
                         // A scattering is no bounce: the continuation
                         // crosses the surface at this bounce.
                         let chains = self.chains_from(stone, bounce);
+                        flakes_as_medium = cone.is_unbounded();
+                        let view = if flakes_as_medium {
+                            FlakeView::Medium(None)
+                        } else {
+                            FlakeView::Walked
+                        };
                         let incoming = direction;
                         if let Some(chains_up_to) = chains {
                             radiance += throughput
@@ -493,7 +506,7 @@ impl RenderScene {
                                         let phase = henyey_greenstein(wi.dot(incoming), g);
                                         (Rgb::splat(phase), phase)
                                     },
-                                    None,
+                                    view,
                                     chains_up_to,
                                     stream,
                                     &mut counts.shadow,
@@ -540,9 +553,16 @@ impl RenderScene {
                     });
                     // Where its population is met as a medium from here on,
                     // the flake's own cell holds no other of them.
+                    flakes_as_medium = cone.is_unbounded();
                     let own = self
                         .flake_lobe(stone, flake.population)
+                        .filter(|_| flakes_as_medium)
                         .map(|_| OwnCell::new(flake.population, stream.next_3d()));
+                    let view = if flakes_as_medium {
+                        FlakeView::Medium(own)
+                    } else {
+                        FlakeView::Walked
+                    };
                     cone = RayCone::UNBOUNDED;
                     let on_flake_plane = lobe.is_some();
                     let (sampled_direction, weight, pdf) = if let Some(lobe) = lobe {
@@ -559,7 +579,7 @@ impl RenderScene {
                                     stone,
                                     origin,
                                     |wi| lobe_at.eval(to_object * wi),
-                                    own,
+                                    view,
                                     chains_up_to,
                                     stream,
                                     &mut counts.shadow,
@@ -598,7 +618,7 @@ impl RenderScene {
                                         let (f, pdf) = brdf_at.eval_and_pdf(local);
                                         (f * local.z, pdf)
                                     },
-                                    own,
+                                    view,
                                     chains_up_to,
                                     stream,
                                     &mut counts.shadow,
@@ -707,6 +727,7 @@ impl RenderScene {
                     leaving = if now_inside { None } else { stone };
                     origin = hit.point + hit.normal * (side * RAY_OFFSET);
                     direction = frame.to_world(sample.wi);
+                    flakes_as_medium = cone.is_unbounded();
                     cone = RayCone::UNBOUNDED;
                     // Light was sampled only outwards: an emitter met
                     // there is weighed against it; none shines inside.
@@ -848,6 +869,7 @@ impl RenderScene {
             leaving = hit.stone_index();
             origin = point;
             direction = wi_world;
+            flakes_as_medium = cone.is_unbounded();
             cone = RayCone::UNBOUNDED;
             bounce += 1;
             // Should the ray escape, its texel loads while it is traced.

@@ -23,7 +23,7 @@ use glam::DVec3;
 
 use crate::brdf::Rgb;
 use crate::recipe::gem::Body;
-use crate::render::flake_medium::OwnCell;
+use crate::render::flake_medium::FlakeView;
 use crate::render::integrator::{power_heuristic, shadow_reach, RenderScene};
 use crate::render::lights::Light;
 use crate::render::manifold::{self, Boundary, Connection, Exit, Start, Target};
@@ -126,8 +126,9 @@ impl RenderScene {
     /// and one refraction, times `vertex(direction)`'s value: the flake's
     /// f·cosθ or the phase function towards a unit direction in world
     /// space (zero where the vertex sends no light), weighted against
-    /// sampling that direction with `vertex`'s density; a flake vertex's
-    /// `own` cell keeps the first segment clear of its population. One emitter, chosen
+    /// sampling that direction with `vertex`'s density; the chains meet the
+    /// body's flakes as `view` says (a flake vertex's own cell only on the
+    /// first segment). One emitter, chosen
     /// uniformly, and one point on it from `stream`, shared by the chains;
     /// with zoning, each inner segment's transmittance is ratio tracking's
     /// estimate from its 1-D numbers.
@@ -137,7 +138,7 @@ impl RenderScene {
         stone: usize,
         point: DVec3,
         vertex: impl Fn(DVec3) -> (Rgb, f64),
-        own: Option<OwnCell>,
+        view: FlakeView,
         chains_up_to: usize,
         stream: &mut SampleStream,
         shadow_rays: &mut u64,
@@ -205,7 +206,10 @@ impl RenderScene {
                     segment.start + segment.direction * skip,
                     segment.direction,
                     segment.length - skip,
-                    own.filter(|_| k == 0),
+                    match view {
+                        FlakeView::Medium(_) if k > 0 => FlakeView::Medium(None),
+                        view => view,
+                    },
                     || stream.next_1d(),
                 );
                 if unblocked <= 0.0 {
@@ -529,7 +533,7 @@ mod tests {
                     0,
                     point,
                     |_| (Rgb::splat(phase), phase),
-                    None,
+                    FlakeView::Walked,
                     chains_up_to,
                     &mut stream,
                     &mut shadow_rays,
