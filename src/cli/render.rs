@@ -102,8 +102,9 @@ pub struct RenderArgs {
     /// Shade every flake inside a translucent stone by its own normal, at
     /// any scale. By default a flake met where the pixel's footprint holds
     /// hundreds is shaded by its population's average lobe, and a path
-    /// past a glossy or diffuse event meets the flakes as a medium of the
-    /// same flakes: less noise and time, the same picture within noise
+    /// past the vertex where the pixel's footprint ends meets the flakes as
+    /// a medium of the same flakes: less noise and time, the same picture
+    /// within noise
     /// (where a pixel holds over a thousand, the recipe's average stone, a
     /// few per cent from this stone's own flakes).
     #[arg(long)]
