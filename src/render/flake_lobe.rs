@@ -28,14 +28,14 @@
 //! probability ωo·n (rejection), E then tabulated against the cosine of
 //! ωo and the axis.
 
-use std::f64::consts::{FRAC_1_PI, PI, TAU};
+use std::f64::consts::{FRAC_1_PI, TAU};
 use std::sync::Arc;
 
 use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::brdf::{LayeredBrdf, Rgb};
-use crate::recipe::gem::{Body, FlakeShape, Gem, Inclusions};
+use crate::recipe::gem::{Body, Gem, Inclusions};
 use crate::sampling::{cosine_hemisphere, sin_cos_turns, Rng};
 
 /// Nodes of the albedo table, at cos θ = (k + ½)/N.
@@ -117,12 +117,10 @@ impl FlakeLobe {
             .map(|k| directional_albedo(brdf, (k as f64 + 0.5) / ALBEDO_NODES as f64, k as u64))
             .collect();
         let albedo = std::array::from_fn(|k| nodes[k]);
-        let mean_radius_squared =
-            population.radius_mm.powi(2) * (1.0 + population.size_spread.powi(2) / 3.0);
         Some(Self {
             normals,
             albedo,
-            projected_area_mm2: 0.5 * unit_area(population.shape) * mean_radius_squared,
+            projected_area_mm2: 0.5 * population.mean_area_mm2(),
         })
     }
 
@@ -317,16 +315,6 @@ fn directional_albedo(brdf: &LayeredBrdf, cos: f64, seed: u64) -> Rgb {
         sum + at.sample(u).map_or(Rgb::ZERO, |s| s.weight())
     });
     sum / (strata * strata)
-}
-
-/// Area of the outline of circumscribed radius 1.
-fn unit_area(shape: FlakeShape) -> f64 {
-    match shape {
-        FlakeShape::Disc => PI,
-        FlakeShape::Hexagon => 1.5 * 3f64.sqrt(),
-        FlakeShape::Triangle => 0.75 * 3f64.sqrt(),
-        FlakeShape::Rectangle => 1.6,
-    }
 }
 
 impl AxialNormals {

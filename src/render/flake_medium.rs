@@ -98,6 +98,17 @@ pub(crate) enum FlakeView {
     Medium(Option<OwnCell>),
 }
 
+impl FlakeView {
+    /// As a medium (clear of `own` cell) where `as_medium`, else walked.
+    pub(crate) fn new(as_medium: bool, own: Option<OwnCell>) -> Self {
+        if as_medium {
+            Self::Medium(own)
+        } else {
+            Self::Walked
+        }
+    }
+}
+
 /// A flake a path meets inside a body.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct MetFlake<'a> {

@@ -21,8 +21,9 @@
 //! a random choice with a probability that rises with the log of the count
 //! blends the two, which keeps the expected value either way. (MoonRay's
 //! glitter blends its smooth lobe in over 100 to 900 flakes.) A path whose
-//! cone is unbounded (after a glossy or diffuse event) meets flakes by the
-//! lobe alone.
+//! cone is unbounded (after a glossy or diffuse event) shades flakes by the
+//! lobe alone, and from its next such event on meets them as a medium
+//! (`render::flake_medium`).
 
 /// Flakes per footprint up to which each flake shows as itself.
 pub(crate) const FLAKES_BEFORE_BLEND: f64 = 100.0;

@@ -162,21 +162,33 @@ impl Inclusions {
         }
     }
 
-    /// How many of these flakes a straight path crosses per mm on average,
-    /// for isotropic normals and every cell kept: density × the outline's
-    /// mean area × E|cos| = 1/2 (the mean of r² is r̄²(1 + s²/3) for a
-    /// radius uniform in r̄[1 − s, 1 + s]). An estimate for aligned or
-    /// thinned populations, whose paths cross more or fewer depending on
-    /// direction and place.
-    pub(crate) fn crossings_per_mm(&self) -> f64 {
-        let unit_area = match self.shape {
+    /// The mean area of one of these flakes, mm²: the outline's area at
+    /// radius 1 times the mean of r².
+    pub(crate) fn mean_area_mm2(&self) -> f64 {
+        self.unit_area() * self.mean_radius_squared()
+    }
+
+    /// The area of the outline at circumscribed radius 1.
+    fn unit_area(&self) -> f64 {
+        match self.shape {
             FlakeShape::Disc => std::f64::consts::PI,
             FlakeShape::Hexagon => 1.5 * 3f64.sqrt(),
             FlakeShape::Triangle => 0.75 * 3f64.sqrt(),
             FlakeShape::Rectangle => 1.6,
-        };
-        let mean_r2 = self.radius_mm.powi(2) * (1.0 + self.size_spread.powi(2) / 3.0);
-        self.cell_mm.powi(-3) * unit_area * mean_r2 / 2.0
+        }
+    }
+
+    /// The mean of r², r̄²(1 + s²/3) for a radius uniform in r̄[1 − s, 1 + s].
+    fn mean_radius_squared(&self) -> f64 {
+        self.radius_mm.powi(2) * (1.0 + self.size_spread.powi(2) / 3.0)
+    }
+
+    /// How many of these flakes a straight path crosses per mm on average,
+    /// for isotropic normals and every cell kept: density × the mean area ×
+    /// E|cos| = 1/2. An estimate for aligned or thinned populations, whose
+    /// paths cross more or fewer depending on direction and place.
+    pub(crate) fn crossings_per_mm(&self) -> f64 {
+        self.cell_mm.powi(-3) * self.unit_area() * self.mean_radius_squared() / 2.0
     }
 
     /// The nearest flake the ray `origin + t·direction` (unit direction,

@@ -443,18 +443,14 @@ impl RenderScene {
             let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
             if let (Some((medium, stone)), Some(hit)) = (inside, &hit) {
                 // The segment ends at the first flake or at the surface;
-                // past a glossy or diffuse event, flakes by footprint are
-                // met as a medium (`render::flake_medium`).
+                // past the vertex after the footprint's end, flakes with a
+                // lobe are met as a medium (`render::flake_medium`).
                 let flake = self.meet_flake(
                     stone,
                     origin,
                     direction,
                     hit.t,
-                    if flakes_as_medium {
-                        FlakeView::Medium(own)
-                    } else {
-                        FlakeView::Walked
-                    },
+                    FlakeView::new(flakes_as_medium, own),
                     || stream.next_1d(),
                 );
                 let t_end = flake.map_or(hit.t, |f| f.t);
@@ -491,11 +487,7 @@ impl RenderScene {
                         // crosses the surface at this bounce.
                         let chains = self.chains_from(stone, bounce);
                         flakes_as_medium = cone.is_unbounded();
-                        let view = if flakes_as_medium {
-                            FlakeView::Medium(None)
-                        } else {
-                            FlakeView::Walked
-                        };
+                        let view = FlakeView::new(flakes_as_medium, None);
                         let incoming = direction;
                         if let Some(chains_up_to) = chains {
                             radiance += throughput
@@ -546,7 +538,8 @@ impl RenderScene {
                     let chains = self.chains_from(stone, bounce + 1);
                     // A flake of the medium is the lobe's; one met by the
                     // walk, by the flakes its footprint holds.
-                    let lobe = self.flake_lobe(stone, flake.population).filter(|lobe| {
+                    let population_lobe = self.flake_lobe(stone, flake.population);
+                    let lobe = population_lobe.filter(|lobe| {
                         let p =
                             aggregate_probability(cone.width_at(flake.t), lobe.projected_area_mm2);
                         flake.normal.is_none() || p >= 1.0 || (p > 0.0 && stream.next_1d() < p)
@@ -554,15 +547,10 @@ impl RenderScene {
                     // Where its population is met as a medium from here on,
                     // the flake's own cell holds no other of them.
                     flakes_as_medium = cone.is_unbounded();
-                    let own = self
-                        .flake_lobe(stone, flake.population)
+                    let own = population_lobe
                         .filter(|_| flakes_as_medium)
                         .map(|_| OwnCell::new(flake.population, stream.next_3d()));
-                    let view = if flakes_as_medium {
-                        FlakeView::Medium(own)
-                    } else {
-                        FlakeView::Walked
-                    };
+                    let view = FlakeView::new(flakes_as_medium, own);
                     cone = RayCone::UNBOUNDED;
                     let on_flake_plane = lobe.is_some();
                     let (sampled_direction, weight, pdf) = if let Some(lobe) = lobe {
