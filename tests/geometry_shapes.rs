@@ -939,6 +939,62 @@ fn flat_oval_fast_path_agrees_with_the_general_path() {
 }
 
 #[test]
+fn exit_from_inside_agrees_with_intersect_on_every_stone() {
+    // `exit` (the manifold solver's surface, from inside) finds a flat
+    // oval's far end by one quadric instead of the whole chord: from
+    // points inside, it must give `intersect`'s exit — the same t and side,
+    // to rounding — including rays in the girdle plane, vertical ones and
+    // ones that cross from the band into the dome or back.
+    let mut rng = Rng(123);
+    let mut all: Vec<Cabochon> = stones().into_iter().map(|(_, s)| s).collect();
+    all.extend(flat_ovals());
+    for stone in all {
+        let size = stone.size();
+        let (lo, hi) = stone.bounds();
+        let (mut exits, mut band_to_dome) = (0, 0);
+        for i in 0..20_000 {
+            let origin = rng.in_box(lo, hi);
+            if !stone.contains(origin) {
+                continue;
+            }
+            let mut dir = rng.direction();
+            match i % 13 {
+                0 => dir.z = 0.0,
+                1 => dir = DVec3::new(0.0, 0.0, dir.z.signum()),
+                _ => {}
+            }
+            let expected = stone.intersect(origin, dir, 0.0, f64::INFINITY);
+            let exit = stone.exit(origin, dir);
+            let (Some(e), Some(x)) = (expected, exit) else {
+                panic!("{expected:?} vs {exit:?} from {origin} along {dir}");
+            };
+            assert!(!e.entering && !x.entering);
+            assert!(
+                (e.t - x.t).abs() <= 1e-12 * size,
+                "t {} vs {} from {origin} along {dir}",
+                e.t,
+                x.t
+            );
+            assert!(
+                (e.normal - x.normal).length() < 1e-9,
+                "normal {} vs {} at {}",
+                e.normal,
+                x.normal,
+                e.point
+            );
+            exits += 1;
+            if origin.z < 0.0 && e.point.z > 0.0 {
+                band_to_dome += 1;
+            }
+        }
+        assert!(exits > 2000, "{exits} exits");
+        if stone.is_flat_oval() && stone.params().girdle_height > 0.0 {
+            assert!(band_to_dome > 20, "{band_to_dome} rays from band to dome");
+        }
+    }
+}
+
+#[test]
 fn crosses_agrees_with_intersect_on_every_stone() {
     // `crosses` (shadow rays) must answer exactly whether `intersect` finds
     // a crossing in (t_min, t_max), for every shape, including short

@@ -397,6 +397,102 @@ impl Cabochon {
         }
     }
 
+    /// Where the ray `origin + t·dir` from a point inside the stone leaves
+    /// it (t > 0): [`Self::intersect`]`(origin, dir, 0, ∞)` when that is an
+    /// exit, `None` when the ray meets no surface ahead or its first
+    /// crossing enters (an origin outside).
+    ///
+    /// A flat-backed oval needs only the far end of its chord: the far
+    /// root of the one quadric the ray leaves through (the dome above
+    /// z = 0, the band's cylinder below), clipped by the plane it may cross
+    /// first, so one square root instead of the chord's two. Other stones
+    /// take [`Self::intersect`].
+    #[inline]
+    pub fn exit(&self, origin: DVec3, dir: DVec3) -> Option<Hit> {
+        if !self.flat_oval {
+            return self
+                .intersect_general(origin, dir, 0.0, f64::INFINITY)
+                .filter(|hit| !hit.entering);
+        }
+        let origin_scaled = origin * self.inv_axes;
+        let dir_scaled = dir * self.inv_axes;
+        // The far root of |o + t·d|² = 1 (over x, y only for the band's
+        // cylinder), by `Chord::between_unit_roots`' formula; None for a
+        // line that misses the quadric or a zero, infinite or NaN ray.
+        let far_root = |o: DVec3, d: DVec3| -> Option<f64> {
+            let (dd, od, c) = (d.dot(d), o.dot(d), o.dot(o) - 1.0);
+            let disc = od * od - dd * c;
+            if !(disc >= 0.0 && dd > 0.0 && dd < f64::INFINITY) {
+                return None;
+            }
+            let q = -(od + disc.sqrt().copysign(od));
+            (q != 0.0).then(|| (q / dd).max(c / q))
+        };
+        let plane = |z: f64| (z - origin.z) / dir.z;
+        // The dome part: its far root, cut by the buff top when rising.
+        let leave_dome = || -> Option<(f64, Side)> {
+            let t_dome = far_root(origin_scaled, dir_scaled)?;
+            if self.buffed && dir.z > 0.0 && plane(self.z_top) < t_dome {
+                Some((plane(self.z_top), Side::Top))
+            } else {
+                Some((t_dome, Side::Body))
+            }
+        };
+        // The band part: its cylinder's far root, cut by the base when
+        // falling; a half ellipsoid's band is the base plane z = 0 itself.
+        let leave_band = || -> Option<(f64, Side)> {
+            if self.girdle == 0.0 {
+                return (dir.z < 0.0).then(|| (plane(0.0), Side::Bottom));
+            }
+            let (o2, d2) = (origin_scaled.truncate(), dir_scaled.truncate());
+            let t_band = if d2 == DVec2::ZERO {
+                // Vertical: inside the cylinder for every t, or never.
+                (o2.length_squared() <= 1.0).then_some(f64::INFINITY)?
+            } else {
+                far_root(o2.extend(0.0), d2.extend(0.0))?
+            };
+            if dir.z < 0.0 && plane(-self.girdle) < t_band {
+                Some((plane(-self.girdle), Side::Bottom))
+            } else {
+                Some((t_band, Side::Body))
+            }
+        };
+        // Above z = 0 the stone is the dome below the buff top, below it
+        // the band down to the base: a ray leaves through the part it is
+        // in when that part's far end comes before the plane z = 0, else
+        // through the other part (which then holds the crossing of z = 0).
+        let in_dome = origin.z > 0.0 || (origin.z == 0.0 && dir.z >= 0.0);
+        let (t, side) = if in_dome {
+            let (t, side) = leave_dome()?;
+            if dir.z < 0.0 && t > plane(0.0) {
+                leave_band()?
+            } else {
+                (t, side)
+            }
+        } else {
+            let (t, side) = leave_band()?;
+            if dir.z > 0.0 && t > plane(0.0) {
+                leave_dome()?
+            } else {
+                (t, side)
+            }
+        };
+        if !(t > 0.0 && t < f64::INFINITY) {
+            return None;
+        }
+        let chord = Chord {
+            span: Span {
+                t_in: f64::NEG_INFINITY,
+                t_out: t,
+                side_in: side,
+                side_out: side,
+            },
+            origin_scaled,
+            dir_scaled,
+        };
+        self.flat_oval_hit(chord, origin, dir, 0.0, f64::INFINITY)
+    }
+
     /// [`Self::intersect`] by the general pipeline for every stone: the body
     /// chord (exact quadratics for round/oval p = 2 stones, else Newton),
     /// clipped by the buff-top and flat-base planes, the normal from the

@@ -49,8 +49,8 @@ struct StoneBoundary<'a>(&'a World, usize);
 
 impl Boundary for StoneBoundary<'_> {
     fn exit(&self, origin: DVec3, direction: DVec3) -> Option<Exit> {
-        let (hit, entering) = self.0.stone_crossing(self.1, origin, direction)?;
-        (!entering).then_some(Exit {
+        let hit = self.0.stone_exit(self.1, origin, direction)?;
+        Some(Exit {
             t: hit.t,
             point: hit.point,
             normal: hit.normal,

@@ -321,20 +321,19 @@ impl World {
         self.placements[index].object_ray(self.stones[index].position, origin, direction)
     }
 
-    /// Stone `index`'s first crossing of the world ray for t > 0, from
-    /// outside or inside, in world space, and whether the ray enters there.
-    pub(crate) fn stone_crossing(
+    /// Where the world ray from a point inside stone number `index` leaves
+    /// it ([`Cabochon::exit`]): the surface hit, `None` when the ray meets
+    /// no surface ahead or first enters.
+    pub(crate) fn stone_exit(
         &self,
         index: usize,
         origin: DVec3,
         direction: DVec3,
-    ) -> Option<(SurfaceHit, bool)> {
+    ) -> Option<SurfaceHit> {
         let placement = &self.placements[index];
-        let hit = self.stones[index].intersect(placement, origin, direction, 0.0, f64::INFINITY)?;
-        Some((
-            placement.surface_hit(index, origin, direction, hit),
-            hit.entering,
-        ))
+        let (o, d) = placement.object_ray(self.stones[index].position, origin, direction);
+        let hit = self.stones[index].cabochon.exit(o, d)?;
+        Some(placement.surface_hit(index, origin, direction, hit))
     }
 
     /// The nearest surface along a unit-direction ray in (`t_min`, `t_max`).
