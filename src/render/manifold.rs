@@ -182,6 +182,13 @@ fn shoot(
     reflections: usize,
 ) -> Option<(Inner, DVec3)> {
     let inner = trace_inner(boundary, origin, direction, reflections)?;
+    refract_out(inner, ior)
+}
+
+/// The chain `inner` refracted out where its last segment meets the
+/// surface: `inner` and the refracted direction in air, or None when it is
+/// totally reflected there.
+fn refract_out(inner: Inner, ior: f64) -> Option<(Inner, DVec3)> {
     let (exit, direction) = (inner.exit, inner.last_direction());
     let cos_i = direction.dot(exit.normal);
     if cos_i <= 0.0 {
@@ -414,7 +421,9 @@ fn solve(
     start: DVec3,
 ) -> Option<Connection> {
     let chart = Chart::around(start);
-    let evaluate = |a: f64, b: f64| -> Option<DVec3> {
+    // The residual at (a, b), and where the chain traced there leaves
+    // (kept for the solution's own refraction when it has no reflection).
+    let evaluate = |a: f64, b: f64| -> Option<(DVec3, Exit)> {
         let direction = chart.direction(a, b);
         // Straight out, the one exit is the whole chain: traced without
         // building its segments (the solve's inner loop).
@@ -425,7 +434,7 @@ fn solve(
             (inner.last_direction(), inner.exit)
         };
         let out = towards(exit.point, target);
-        Some((last * ior - out).cross(exit.normal))
+        Some(((last * ior - out).cross(exit.normal), exit))
     };
     // Gauss–Newton on the normal equations of the 3 × 2 system J·δ = −r,
     // J by finite differences at the start and then by Broyden's rank-one
@@ -433,10 +442,13 @@ fn solve(
     // where an updated one gives no step that lowers the residual.
     let h = JACOBIAN_STEP;
     let differences = |a: f64, b: f64, r: DVec3| -> Option<(DVec3, DVec3)> {
-        Some(((evaluate(a + h, b)? - r) / h, (evaluate(a, b + h)? - r) / h))
+        Some((
+            (evaluate(a + h, b)?.0 - r) / h,
+            (evaluate(a, b + h)?.0 - r) / h,
+        ))
     };
     let (mut a, mut b) = (0.0, 0.0);
-    let mut r = evaluate(a, b)?;
+    let (mut r, mut exit) = evaluate(a, b)?;
     let (mut ja, mut jb) = differences(a, b, r)?;
     let mut fresh = true;
     for _ in 0..MAX_STEPS {
@@ -454,9 +466,9 @@ fn solve(
                 let mut step = 1.0;
                 for _ in 0..MAX_HALVINGS {
                     let (sa, sb) = (step * da, step * db);
-                    if let Some(nr) = evaluate(a + sa, b + sb) {
+                    if let Some((nr, n_exit)) = evaluate(a + sa, b + sb) {
                         if nr.length() < r.length() {
-                            return Some((sa, sb, nr));
+                            return Some((sa, sb, nr, n_exit));
                         }
                     }
                     step *= 0.5;
@@ -464,7 +476,7 @@ fn solve(
                 None
             })
             .flatten();
-        let Some((sa, sb, nr)) = step else {
+        let Some((sa, sb, nr, n_exit)) = step else {
             if fresh {
                 return None;
             }
@@ -477,7 +489,7 @@ fn solve(
         ja += miss * sa;
         jb += miss * sb;
         fresh = false;
-        (a, b, r) = (a + sa, b + sb, nr);
+        (a, b, r, exit) = (a + sa, b + sb, nr, n_exit);
     }
     if r.length() > TOLERANCE {
         return None;
@@ -485,7 +497,22 @@ fn solve(
     // A physical refraction: leaving the body, on towards the target (the
     // cross product also vanishes for the half vector's other sign).
     let inside_direction = chart.direction(a, b);
-    let (inner, out) = shoot(boundary, ior, origin, inside_direction, reflections)?;
+    let inner = if reflections == 0 {
+        let mut segments = [Segment::default(); MAX_REFLECTIONS + 1];
+        segments[0] = Segment {
+            start: origin,
+            direction: inside_direction,
+            length: exit.t,
+        };
+        Inner {
+            segments,
+            reflections,
+            exit,
+        }
+    } else {
+        trace_inner(boundary, origin, inside_direction, reflections)?
+    };
+    let (inner, out) = refract_out(inner, ior)?;
     let exit = inner.exit;
     let outside_length = match target {
         Target::Point(y) => {
