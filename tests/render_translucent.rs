@@ -38,7 +38,7 @@ fn scene_of(
     lights: Vec<Light>,
 ) -> RenderScene {
     let text = format!(
-        r#"Gem(surface: "teflon", materials: {{"white": Material(layers: [], base: Diffuse(colour: (1, 1, 1))), "black-flake": Material(layers: [], base: Black)}}, body: {body})"#
+        r#"Gem(surface: "teflon", materials: {{"white": Material(layers: [], base: Diffuse(colour: (1, 1, 1))), "glossy-copper": Material(layers: [], base: Conductor(metal: "copper", roughness_deg: 8.0)), "black-flake": Material(layers: [], base: Black)}}, body: {body})"#
     );
     let gem = compile_gem(&GemSource::new("test", &text), None, Tables::Skipped).unwrap();
     let stone = StoneInstance {
@@ -716,10 +716,15 @@ fn glints_under_a_small_light(extra: &str) -> RenderScene {
 /// [`glints_under_a_small_light`] under a sphere of `radius` mm with the
 /// same power.
 fn glints_under_a_sphere(extra: &str, radius: f64) -> RenderScene {
+    flakes_of_under_a_sphere("white", extra, radius)
+}
+
+/// [`glints_under_a_sphere`] with flakes of material `material`.
+fn flakes_of_under_a_sphere(material: &str, extra: &str, radius: f64) -> RenderScene {
     let body = format!(
         "Translucent(ior: 1.5, absorption: (0.02, 0.04, 0.08), {extra} inclusions: \
          [Inclusions(shape: Hexagon, size_mm: 0.6, density_per_mm3: 1.0, \
-         orientation: Isotropic, material: \"white\", seed: 3)])"
+         orientation: Isotropic, material: \"{material}\", seed: 3)])"
     );
     let light = Light::Sphere {
         centre: DVec3::new(25.0, -30.0, 45.0),
@@ -789,15 +794,20 @@ fn light_connected_through_the_surface_adds_up_to_what_path_sampling_finds() {
     // same in a scattering body (connections from scattering vertices)
     // and in a zoned one (the connection's inner segment tracked as a
     // path's), under a sphere large enough (12° across) for sampling
-    // alone to converge.
+    // alone to converge; and glossy copper flakes, whose connections far
+    // from their lobe are solved by Russian roulette.
     let camera = three_quarter_camera(40);
-    for extra in [
-        "",
-        "scattering: (0.15, 0.15, 0.15), anisotropy: 0.4,",
-        "zoning: Some(Zoning(function: Perlin(frequency: 2.0), absorption: (0.4, 0.15, 0.02))),",
+    for (material, extra) in [
+        ("white", ""),
+        ("white", "scattering: (0.15, 0.15, 0.15), anisotropy: 0.4,"),
+        (
+            "white",
+            "zoning: Some(Zoning(function: Perlin(frequency: 2.0), absorption: (0.4, 0.15, 0.02))),",
+        ),
+        ("glossy-copper", ""),
     ] {
-        let mut scene = glints_under_a_sphere(extra, 6.0);
-        let mask = mirror_image(glints_under_a_sphere(extra, 6.0), &camera, 40);
+        let mut scene = flakes_of_under_a_sphere(material, extra, 6.0);
+        let mask = mirror_image(flakes_of_under_a_sphere(material, extra, 6.0), &camera, 40);
         // Sampling alone is still noisy here (about 1 % at 4096 spp).
         let connected = render_scene(&scene, &camera, 40, 4096, 3);
         scene.connect_through_surfaces = false;
@@ -805,10 +815,10 @@ fn light_connected_through_the_surface_adds_up_to_what_path_sampling_finds() {
         let pixels = glint_pixels(&mask, &[&connected, &sampled]);
         let mean = |v: &Vec<f64>| v.iter().sum::<f64>() / v.len() as f64;
         let (connected, sampled) = (mean(&pixels[0]), mean(&pixels[1]));
-        eprintln!("{extra}: connected {connected:.5}, sampled alone {sampled:.5}");
+        eprintln!("{material} {extra}: connected {connected:.5}, sampled alone {sampled:.5}");
         assert!(
             (connected / sampled - 1.0).abs() < 0.02,
-            "{extra}: connected {connected}, sampled alone {sampled}"
+            "{material} {extra}: connected {connected}, sampled alone {sampled}"
         );
     }
 }

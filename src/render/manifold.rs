@@ -370,6 +370,12 @@ impl Start {
         })
     }
 
+    /// The unit direction at the origin the solve starts from: near the
+    /// solution's where the surface is nearly plane between their exits.
+    pub(crate) fn direction(&self) -> DVec3 {
+        self.direction
+    }
+
     /// The chain as the start's construction sees it (its inner length
     /// and its reflections' Fresnel factors), for no further trace.
     pub(crate) fn preview(&self) -> Preview {

@@ -44,6 +44,22 @@ const SAME_SOLUTION: f64 = 1e-6;
 /// stretch of the body, or one partial Fresnel reflection, adds little.
 const ALWAYS_SOLVED_ABOVE: f64 = 1.0;
 
+/// The vertex's sampling density (per steradian) in a connection's start
+/// direction at and above which the connection is always solved: a tenth
+/// of the uniform sphere's 1/4π, so that a Lambertian vertex (cos θ/π) is
+/// solved unless the light lies within 1.5° of its horizon, and an
+/// isotropic phase function always. Below it, Russian roulette solves the connection
+/// with probability density / this (at least [`MIN_SOLVED_SHARE`]): a
+/// glossy flake's lobe far from the light's direction gives the solve's
+/// result a weight near 0, and most connections from a flake lie there.
+const ALWAYS_SOLVED_AT_DENSITY: f64 = 0.1 / (4.0 * std::f64::consts::PI);
+
+/// The least probability with which a connection below
+/// [`ALWAYS_SOLVED_AT_DENSITY`] is solved: the start direction only
+/// approximates the solution's, and a survivor counts at most this many
+/// times over.
+const MIN_SOLVED_SHARE: f64 = 1.0 / 8.0;
+
 /// Stone number `.1`'s surface, in world space, as [`manifold`] traces it.
 struct StoneBoundary<'a>(&'a World, usize);
 
@@ -182,6 +198,16 @@ impl RenderScene {
             if survival < 1.0 && stream.next_1d() >= survival {
                 return None;
             }
+            // Russian roulette on the vertex's density towards the start
+            // (the solution's direction, roughly), applied to the whole
+            // MIS-weighted estimate below: unbiased whatever the start's
+            // error, and the sampled paths' weights need not know it.
+            let (_, start_pdf) = vertex(start.direction());
+            let solved_share =
+                (start_pdf.max(0.0) / ALWAYS_SOLVED_AT_DENSITY).clamp(MIN_SOLVED_SHARE, 1.0);
+            if solved_share < 1.0 && stream.next_1d() >= solved_share {
+                return None;
+            }
             let path = start.solve(&boundary, ior)?;
             // An area light emits from the side the refracted ray arrives at.
             let cos_light = sampled
@@ -255,7 +281,8 @@ impl RenderScene {
                 value
                     * transmittance
                     * sampled.emitted
-                    * (unblocked * path.fresnel * cos_light * jacobian * scale * weight),
+                    * (unblocked * path.fresnel * cos_light * jacobian * scale * weight
+                        / solved_share),
             )
         };
         let Some(sampled) = emitter else {
