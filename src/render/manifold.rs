@@ -503,6 +503,7 @@ fn solve(
     // A physical refraction: leaving the body, on towards the target (the
     // cross product also vanishes for the half vector's other sign).
     let inside_direction = chart.direction(a, b);
+    // Without a reflection the last evaluation's exit is the whole chain.
     let inner = if reflections == 0 {
         let mut segments = [Segment::default(); MAX_REFLECTIONS + 1];
         segments[0] = Segment {

@@ -48,16 +48,17 @@ const ALWAYS_SOLVED_ABOVE: f64 = 1.0;
 /// direction at and above which the connection is always solved: a tenth
 /// of the uniform sphere's 1/4π, so that a Lambertian vertex (cos θ/π) is
 /// solved unless the light lies within 1.5° of its horizon, and an
-/// isotropic phase function always. Below it, Russian roulette solves the connection
-/// with probability density / this (at least [`MIN_SOLVED_SHARE`]): a
+/// isotropic phase function always. Below it, Russian roulette solves the
+/// connection with probability density / this (at least
+/// [`MIN_SOLVED_SHARE`]): a
 /// glossy flake's lobe far from the light's direction gives the solve's
 /// result a weight near 0, and most connections from a flake lie there.
 const ALWAYS_SOLVED_AT_DENSITY: f64 = 0.1 / (4.0 * std::f64::consts::PI);
 
 /// The least probability with which a connection below
 /// [`ALWAYS_SOLVED_AT_DENSITY`] is solved: the start direction only
-/// approximates the solution's, and a survivor counts at most this many
-/// times over.
+/// approximates the solution's, so a survivor counts at most 1 / this
+/// (8) times over.
 const MIN_SOLVED_SHARE: f64 = 1.0 / 8.0;
 
 /// Stone number `.1`'s surface, in world space, as [`manifold`] traces it.
