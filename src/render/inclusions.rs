@@ -188,7 +188,7 @@ impl Inclusions {
     /// E|cos| = 1/2. An estimate for aligned or thinned populations, whose
     /// paths cross more or fewer depending on direction and place.
     pub(crate) fn crossings_per_mm(&self) -> f64 {
-        self.cell_mm.powi(-3) * self.unit_area() * self.mean_radius_squared() / 2.0
+        self.mean_area_mm2() / 2.0 / self.cell_mm.powi(3)
     }
 
     /// The nearest flake the ray `origin + t·direction` (unit direction,

@@ -50,9 +50,9 @@ const ALWAYS_SOLVED_ABOVE: f64 = 1.0;
 /// solved unless the light lies within 1.5° of its horizon, and an
 /// isotropic phase function always. Below it, Russian roulette solves the
 /// connection with probability density / this (at least
-/// [`MIN_SOLVED_SHARE`]): a
-/// glossy flake's lobe far from the light's direction gives the solve's
-/// result a weight near 0, and most connections from a flake lie there.
+/// [`MIN_SOLVED_SHARE`]): a glossy flake's lobe far from the light's
+/// direction gives the solve's result a weight near 0, and most
+/// connections from a flake lie there.
 const ALWAYS_SOLVED_AT_DENSITY: f64 = 0.1 / (4.0 * std::f64::consts::PI);
 
 /// The least probability with which a connection below
