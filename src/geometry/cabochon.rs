@@ -346,6 +346,12 @@ impl Cabochon {
     /// surface the point is nearest).
     pub fn normal(&self, point: DVec3) -> DVec3 {
         let (n, grad) = self.body_and_gradient(point);
+        self.side_normal(self.nearest_side(point, n, grad), grad)
+    }
+
+    /// Which surface a point is nearest, the body's value `n` and gradient
+    /// `grad` there given: the one whose signed distance is largest.
+    fn nearest_side(&self, point: DVec3, n: f64, grad: DVec3) -> Side {
         let body = (n - 1.0) / grad.length().max(f64::MIN_POSITIVE);
         let mut side = Side::Body;
         let mut best = body;
@@ -356,7 +362,55 @@ impl Cabochon {
         if self.flat_base && -self.girdle - point.z > best {
             side = Side::Bottom;
         }
-        self.side_normal(side, grad)
+        side
+    }
+
+    /// How the unit outward normal at the surface point `point` turns
+    /// along each of two displacements `dp` in the tangent plane there
+    /// (the shape operator applied to them), for ray differentials and the
+    /// manifold solver's Jacobian. The buff-top and base planes do not
+    /// turn; a flat oval's dome and band are quadrics, answered in closed
+    /// form, N = Hp/|Hp| with dN = (I − NNᵀ)H·dp/|Hp|; every other body by
+    /// differences of its gradient's direction over a step of 10⁻⁶ of the
+    /// stone's size.
+    pub fn normal_change(&self, point: DVec3, dp: [DVec3; 2]) -> [DVec3; 2] {
+        if self.flat_oval {
+            // The planes, to a rounding of their z (a point on the crease
+            // between a plane and the body may take either).
+            let tolerance = 1e-9 * self.size;
+            if (self.buffed && point.z >= self.z_top - tolerance)
+                || point.z <= -self.girdle + tolerance
+            {
+                return [DVec3::ZERO; 2];
+            }
+            // H = diag(1/a², 1/b², 1/h²) on the dome; the band's cylinder
+            // (z ≤ 0) has no z term.
+            let mut hessian = self.inv_axes * self.inv_axes;
+            if point.z <= 0.0 {
+                hessian.z = 0.0;
+            }
+            let gradient = point * hessian;
+            let inv_length = 1.0 / gradient.length();
+            let normal = gradient * inv_length;
+            return dp.map(|d| {
+                let turn = d * hessian * inv_length;
+                turn - normal * normal.dot(turn)
+            });
+        }
+        let (n, grad) = self.body_and_gradient(point);
+        if self.nearest_side(point, n, grad) != Side::Body {
+            return [DVec3::ZERO; 2];
+        }
+        let normal = self.side_normal(Side::Body, grad);
+        let step = 1e-6 * self.size;
+        dp.map(|d| {
+            let length = d.length();
+            if !(length > 0.0 && length.is_finite()) {
+                return DVec3::ZERO;
+            }
+            let moved = self.body_and_gradient(point + d * (step / length)).1;
+            (moved.try_normalize().unwrap_or(normal) - normal) * (length / step)
+        })
     }
 
     fn side_normal(&self, side: Side, body_grad: DVec3) -> DVec3 {
