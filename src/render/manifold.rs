@@ -9,10 +9,12 @@
 //! The unknown is the direction at the inner point, two numbers in a plane
 //! tangent to the unit sphere. The forward map (intersect the body from
 //! inside, refract, carry on to the target) is traced exactly; Newton's
-//! method solves it with its Jacobian by finite differences, which also
-//! gives the generalised geometry term at the solution. The body's surface
-//! can be any closed surface that answers "where does this ray from inside
-//! leave, and what is the outward normal there" ([`Boundary`]).
+//! method solves it with its exact Jacobian, the ray's differentials
+//! carried across each surface crossing (Igehy 1999, "Tracing Ray
+//! Differentials"), which also gives the generalised geometry term at the
+//! solution. The body's surface can be any closed surface that answers
+//! "where does this ray from inside leave, what is the outward normal
+//! there, and how does it turn" ([`Boundary`]).
 
 use glam::DVec3;
 
@@ -33,6 +35,11 @@ pub(crate) struct Exit {
 pub(crate) trait Boundary {
     /// Where the ray from `origin` (inside) along unit `direction` leaves.
     fn exit(&self, origin: DVec3, direction: DVec3) -> Option<Exit>;
+
+    /// How the outward normal at `exit` turns along each of two
+    /// displacements `dp` of the point in the tangent plane there (the
+    /// surface's shape operator applied to them).
+    fn normal_change(&self, exit: &Exit, dp: [DVec3; 2]) -> [DVec3; 2];
 }
 
 /// What the refracted ray must reach.
@@ -101,9 +108,6 @@ impl Connection {
 const MAX_STEPS: usize = 12;
 /// Halvings of a Newton step that does not reduce the residual.
 const MAX_HALVINGS: usize = 4;
-/// Finite-difference step in the direction's tangent coordinates
-/// (radians).
-const JACOBIAN_STEP: f64 = 1e-6;
 /// Length of the Snell residual (n·ωᵢ − ωₒ) × N at which a solve has
 /// converged: about the angle, in radians, by which the refracted ray
 /// misses the target.
@@ -240,47 +244,101 @@ impl Chart {
     fn direction(&self, a: f64, b: f64) -> DVec3 {
         (self.centre + self.t * a + self.s * b).normalize()
     }
+
+    /// [`Self::direction`] at (a, b) and its derivatives along a and b.
+    fn direction_and_change(&self, a: f64, b: f64) -> (DVec3, [DVec3; 2]) {
+        let v = self.centre + self.t * a + self.s * b;
+        let inv_length = v.length_recip();
+        let direction = v * inv_length;
+        let along = |axis: DVec3| (axis - direction * direction.dot(axis)) * inv_length;
+        (direction, [along(self.t), along(self.s)])
+    }
 }
 
-/// The 2-D residual of a traced ray against the target, measured in a
-/// plane across the target (point) or across the target direction.
+/// How a traced chain's end moves with its start direction: for each of
+/// two changes of the unit start direction, the change of the exit point,
+/// of the outward normal there and of the last segment's direction.
 #[derive(Clone, Copy)]
-struct Residual {
-    target: Target,
-    /// Normal of the measuring plane (unit).
-    across: DVec3,
-    /// An orthonormal basis of the measuring plane.
-    axes: (DVec3, DVec3),
+struct ChainChange {
+    point: [DVec3; 2],
+    normal: [DVec3; 2],
+    last_direction: [DVec3; 2],
 }
 
-impl Residual {
-    fn new(target: Target, across: DVec3) -> Self {
-        Self {
-            target,
-            across,
-            axes: across.any_orthonormal_pair(),
+/// The change of where a segment along unit `direction` meets the surface
+/// at `exit` (at distance `exit.t`), for a start moved by `d_origin` and
+/// a direction turned by `d_direction`: the point slides in the tangent
+/// plane, dp = m − ω (N·m)/(N·ω) with m = d_origin + t·d_direction, and
+/// the normal turns with it. The point's changes, then the normal's.
+fn transfer(
+    boundary: &impl Boundary,
+    exit: &Exit,
+    direction: DVec3,
+    d_origin: [DVec3; 2],
+    d_direction: [DVec3; 2],
+) -> ([DVec3; 2], [DVec3; 2]) {
+    let cos = exit.normal.dot(direction);
+    let dp = std::array::from_fn(|i| {
+        let moved = d_origin[i] + d_direction[i] * exit.t;
+        moved - direction * (exit.normal.dot(moved) / cos)
+    });
+    (dp, boundary.normal_change(exit, dp))
+}
+
+/// [`ChainChange`] of the chain `inner` for the start direction's changes
+/// `d_direction`: carried across each reflection, where the mirrored
+/// direction ω − 2(ω·N)N turns with both ω and N.
+fn chain_change(boundary: &impl Boundary, inner: &Inner, d_direction: [DVec3; 2]) -> ChainChange {
+    let (mut d_origin, mut d_direction) = ([DVec3::ZERO; 2], d_direction);
+    for k in 0..inner.reflections {
+        let (segment, next) = (inner.segments[k], inner.segments[k + 1]);
+        // The reflection's point and normal, as `trace_inner` found them
+        // (to rounding): the normal lies along the mirror pair's difference.
+        let mirror = Exit {
+            t: segment.length,
+            point: segment.start + segment.direction * segment.length,
+            normal: (segment.direction - next.direction).normalize(),
+        };
+        let (dp, dn) = transfer(boundary, &mirror, segment.direction, d_origin, d_direction);
+        let cos = segment.direction.dot(mirror.normal);
+        for i in 0..2 {
+            let d_cos = d_direction[i].dot(mirror.normal) + segment.direction.dot(dn[i]);
+            d_direction[i] -= (mirror.normal * d_cos + dn[i] * cos) * 2.0;
+            d_origin[i] = dp[i] - dn[i] * REFLECTION_OFFSET;
         }
     }
-
-    fn of(&self, exit: &Exit, out: DVec3) -> Option<[f64; 2]> {
-        let offset = match self.target {
-            Target::Point(y) => {
-                // Where the refracted ray crosses the plane through y.
-                let speed = out.dot(self.across);
-                if speed <= 1e-9 {
-                    return None;
-                }
-                exit.point + out * ((y - exit.point).dot(self.across) / speed) - y
-            }
-            Target::Direction(d) => {
-                if out.dot(d) <= 0.0 {
-                    return None;
-                }
-                out - d
-            }
-        };
-        Some([offset.dot(self.axes.0), offset.dot(self.axes.1)])
+    let last = inner.segments[inner.reflections].direction;
+    let (point, normal) = transfer(boundary, &inner.exit, last, d_origin, d_direction);
+    ChainChange {
+        point,
+        normal,
+        last_direction: d_direction,
     }
+}
+
+/// Snell's residual (n·ωᵢ − ωₒ) × N of a chain whose last segment runs
+/// along `last` to `exit` (see [`Start::solve`]), and its changes for the
+/// chain's `change`.
+fn residual_and_change(
+    ior: f64,
+    last: DVec3,
+    exit: &Exit,
+    target: Target,
+    change: &ChainChange,
+) -> (DVec3, [DVec3; 2]) {
+    let out = towards(exit.point, target);
+    let half = last * ior - out;
+    let inv_distance = match target {
+        Target::Point(y) => (y - exit.point).length_recip(),
+        Target::Direction(_) => 0.0,
+    };
+    let d_residual = std::array::from_fn(|i| {
+        // ωₒ = (y − p)/|y − p| turns by −(I − ωₒωₒᵀ)dp/|y − p|.
+        let dp = change.point[i];
+        let d_out = (out * out.dot(dp) - dp) * inv_distance;
+        (change.last_direction[i] * ior - d_out).cross(exit.normal) + half.cross(change.normal[i])
+    });
+    (half.cross(exit.normal), d_residual)
 }
 
 /// The unit direction from `from` towards `target`.
@@ -389,10 +447,11 @@ impl Start {
 
     /// Finds the chain from the origin (inside a body of index `ior`)
     /// through the start's reflections (0 ..= [`MAX_REFLECTIONS`]) at the
-    /// surface and one refraction out to its target, by Gauss–Newton from
-    /// the start, which treats the surface as planes; None when it does not
-    /// converge to a physical chain (no solution near the start, a grazing
-    /// exit, or a stencil across a crease of the surface). The solution is a function of
+    /// surface and one refraction out to its target, by Newton from the
+    /// start (whose construction treats the surface as planes); None when
+    /// it does not converge to a physical chain (no solution near the
+    /// start, a grazing exit, or a step across a crease of the surface).
+    /// The solution is a function of
     /// the origin, the target and the chain alone (one per call, when the
     /// chain has several).
     ///
@@ -416,6 +475,39 @@ impl Start {
     }
 }
 
+/// The residual of the chain from `origin` through `reflections` to
+/// `target` whose start direction is `chart`'s at (a, b), its Jacobian
+/// in (a, b), and where the chain leaves (kept for the solution's own
+/// refraction when it has no reflection).
+fn evaluate(
+    boundary: &impl Boundary,
+    ior: f64,
+    (origin, target, reflections): (DVec3, Target, usize),
+    chart: &Chart,
+    a: f64,
+    b: f64,
+) -> Option<(DVec3, [DVec3; 2], Exit)> {
+    let (direction, d_direction) = chart.direction_and_change(a, b);
+    // Straight out, the one exit is the whole chain: traced without
+    // building its segments (the solve's inner loop).
+    let (last, exit, change) = if reflections == 0 {
+        let exit = boundary.exit(origin, direction)?;
+        let (point, normal) = transfer(boundary, &exit, direction, [DVec3::ZERO; 2], d_direction);
+        let change = ChainChange {
+            point,
+            normal,
+            last_direction: d_direction,
+        };
+        (direction, exit, change)
+    } else {
+        let inner = trace_inner(boundary, origin, direction, reflections)?;
+        let change = chain_change(boundary, &inner, d_direction);
+        (inner.last_direction(), inner.exit, change)
+    };
+    let (r, j) = residual_and_change(ior, last, &exit, target, &change);
+    Some((r, j, exit))
+}
+
 /// Gauss–Newton for the chain of [`Start::solve`] from the direction
 /// `start`.
 fn solve(
@@ -427,36 +519,12 @@ fn solve(
     start: DVec3,
 ) -> Option<Connection> {
     let chart = Chart::around(start);
-    // The residual at (a, b), and where the chain traced there leaves
-    // (kept for the solution's own refraction when it has no reflection).
-    let evaluate = |a: f64, b: f64| -> Option<(DVec3, Exit)> {
-        let direction = chart.direction(a, b);
-        // Straight out, the one exit is the whole chain: traced without
-        // building its segments (the solve's inner loop).
-        let (last, exit) = if reflections == 0 {
-            (direction, boundary.exit(origin, direction)?)
-        } else {
-            let inner = trace_inner(boundary, origin, direction, reflections)?;
-            (inner.last_direction(), inner.exit)
-        };
-        let out = towards(exit.point, target);
-        Some(((last * ior - out).cross(exit.normal), exit))
-    };
-    // Gauss–Newton on the normal equations of the 3 × 2 system J·δ = −r,
-    // J by finite differences at the start and then by Broyden's rank-one
-    // updates (one trace per step instead of three), by differences again
-    // where an updated one gives no step that lowers the residual.
-    let h = JACOBIAN_STEP;
-    let differences = |a: f64, b: f64, r: DVec3| -> Option<(DVec3, DVec3)> {
-        Some((
-            (evaluate(a + h, b)?.0 - r) / h,
-            (evaluate(a, b + h)?.0 - r) / h,
-        ))
-    };
+    let evaluate =
+        |a: f64, b: f64| evaluate(boundary, ior, (origin, target, reflections), &chart, a, b);
+    // Newton (Gauss–Newton on the normal equations of the 3 × 2 system
+    // J·δ = −r, whose residual has rank 2) with the exact Jacobian.
     let (mut a, mut b) = (0.0, 0.0);
-    let (mut r, mut exit) = evaluate(a, b)?;
-    let (mut ja, mut jb) = differences(a, b, r)?;
-    let mut fresh = true;
+    let (mut r, [mut ja, mut jb], mut exit) = evaluate(a, b)?;
     for _ in 0..MAX_STEPS {
         if r.length() <= TOLERANCE {
             break;
@@ -472,9 +540,9 @@ fn solve(
                 let mut step = 1.0;
                 for _ in 0..MAX_HALVINGS {
                     let (sa, sb) = (step * da, step * db);
-                    if let Some((nr, n_exit)) = evaluate(a + sa, b + sb) {
-                        if nr.length() < r.length() {
-                            return Some((sa, sb, nr, n_exit));
+                    if let Some(next) = evaluate(a + sa, b + sb) {
+                        if next.0.length() < r.length() {
+                            return Some((sa, sb, next));
                         }
                     }
                     step *= 0.5;
@@ -482,20 +550,8 @@ fn solve(
                 None
             })
             .flatten();
-        let Some((sa, sb, nr, n_exit)) = step else {
-            if fresh {
-                return None;
-            }
-            (ja, jb) = differences(a, b, r)?;
-            fresh = true;
-            continue;
-        };
-        // Broyden: J += (Δr − J·Δp)·Δpᵀ / |Δp|².
-        let miss = (nr - r - ja * sa - jb * sb) / (sa * sa + sb * sb);
-        ja += miss * sa;
-        jb += miss * sb;
-        fresh = false;
-        (a, b, r, exit) = (a + sa, b + sb, nr, n_exit);
+        let (sa, sb, (nr, [na, nb], n_exit)) = step?;
+        (a, b, r, ja, jb, exit) = (a + sa, b + sb, nr, na, nb, n_exit);
     }
     if r.length() > TOLERANCE {
         return None;
@@ -537,14 +593,8 @@ fn solve(
             f64::INFINITY
         }
     };
-    let inside_solid_angle_per_target_measure = 1.0
-        / spread(
-            boundary,
-            ior,
-            (origin, inside_direction, reflections),
-            target,
-            (&exit, out),
-        )?;
+    let inside_solid_angle_per_target_measure =
+        1.0 / spread(boundary, ior, &inner, out, outside_length)?;
     // Fresnel (eq. 3.1) from inside, η = 1/ior: F at each reflection, 1 − F
     // at the exit.
     let cos_at = |segment: &Segment, normal: DVec3| segment.direction.dot(normal);
@@ -647,37 +697,42 @@ fn mirrored_start(
     Some((start, preview))
 }
 
-/// |d(target measure) / dω| at the solution: the area swept across the
-/// refracted ray at the target point per solid angle at the origin, or
-/// the solid angle swept by the refracted direction, by differences in a
-/// chart centred on the solution, measured across the refracted ray.
+/// |d(target measure) / dω| at the solution `inner` (refracted out along
+/// `out`, reaching a target point `outside_length` away, or a direction
+/// target when that is infinite): the area swept across the refracted ray
+/// at the target point per solid angle at the origin, or the solid angle
+/// swept by the refracted direction; from the chain's change along an
+/// orthonormal pair across its start direction, and Snell's refraction
+/// ωₒ = n·ω − N(n·cosθᵢ − cosθₜ) (eq. 3.2) differentiated.
 fn spread(
     boundary: &impl Boundary,
     ior: f64,
-    (origin, direction, reflections): (DVec3, DVec3, usize),
-    target: Target,
-    (exit, out): (&Exit, DVec3),
+    inner: &Inner,
+    out: DVec3,
+    outside_length: f64,
 ) -> Option<f64> {
-    let chart = Chart::around(direction);
-    // Measured against the solution's own ray, so the residual is exactly
-    // the position (or direction) across it.
-    let residual = Residual::new(
-        match target {
-            Target::Point(_) => target,
-            Target::Direction(_) => Target::Direction(out),
-        },
-        out,
-    );
-    let h = JACOBIAN_STEP;
-    let at = |a: f64, b: f64| {
-        let (inner, out) = shoot(boundary, ior, origin, chart.direction(a, b), reflections)?;
-        residual.of(&inner.exit, out)
+    let (t, s) = inner.segments[0].direction.any_orthonormal_pair();
+    let change = chain_change(boundary, inner, [t, s]);
+    let (exit, last) = (inner.exit, inner.last_direction());
+    let cos_i = last.dot(exit.normal);
+    let cos_t = (1.0 - (1.0 - cos_i * cos_i) * ior * ior).sqrt();
+    let axes = out.any_orthonormal_pair();
+    let across = |i: usize| -> [f64; 2] {
+        let d_cos_i = change.last_direction[i].dot(exit.normal) + last.dot(change.normal[i]);
+        let d_cos_t = ior * ior * cos_i * d_cos_i / cos_t;
+        let d_out = change.last_direction[i] * ior
+            - change.normal[i] * (ior * cos_i - cos_t)
+            - exit.normal * (ior * d_cos_i - d_cos_t);
+        // Across the ray (the part along ωₒ drops out): the direction's
+        // turn, or the point's slide plus the turn over the distance.
+        let moved = if outside_length.is_finite() {
+            change.point[i] + d_out * outside_length
+        } else {
+            d_out
+        };
+        [axes.0.dot(moved), axes.1.dot(moved)]
     };
-    // Forward differences from the solution, whose residual is 0 in this
-    // measure up to the solve's tolerance: O(h) relative error, 10⁻⁶.
-    let (centre, pa, pb) = (residual.of(exit, out)?, at(h, 0.0)?, at(0.0, h)?);
-    let ja = [(pa[0] - centre[0]) / h, (pa[1] - centre[1]) / h];
-    let jb = [(pb[0] - centre[0]) / h, (pb[1] - centre[1]) / h];
+    let (ja, jb) = (across(0), across(1));
     let det = (ja[0] * jb[1] - ja[1] * jb[0]).abs();
     (det > 0.0 && det.is_finite()).then_some(det)
 }
@@ -685,6 +740,7 @@ fn spread(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::DVec2;
 
     /// The half-space z < 0, as a body.
     struct Slab;
@@ -700,6 +756,10 @@ mod tests {
                 point: origin + direction * t,
                 normal: DVec3::Z,
             })
+        }
+
+        fn normal_change(&self, _: &Exit, _: [DVec3; 2]) -> [DVec3; 2] {
+            [DVec3::ZERO; 2]
         }
     }
 
@@ -721,6 +781,10 @@ mod tests {
                 point,
                 normal: point / self.0,
             })
+        }
+
+        fn normal_change(&self, exit: &Exit, dp: [DVec3; 2]) -> [DVec3; 2] {
+            dp.map(|d| (d - exit.normal * exit.normal.dot(d)) / self.0)
         }
     }
 
@@ -833,6 +897,113 @@ mod tests {
         }
     }
 
+    #[test]
+    fn the_newton_jacobian_is_the_residual_s_derivative() {
+        // The Jacobian from ray differentials (through the surface's
+        // curvature and the mirror reflection) against central differences
+        // of the residual, from points in a ball, straight out and mirrored
+        // once, to a point and to a direction, off the chart's centre.
+        let (ior, ball, h) = (1.5, Ball(1.0), 1e-6);
+        let origins = [
+            DVec3::new(0.3, 0.1, 0.2),
+            DVec3::new(-0.5, 0.2, -0.1),
+            DVec3::new(0.0, -0.6, 0.4),
+        ];
+        let targets = [
+            Target::Point(DVec3::new(1.0, 2.0, 5.0)),
+            Target::Direction(DVec3::new(0.2, -0.3, 1.0).normalize()),
+        ];
+        let mut checked = 0;
+        for (k, origin) in origins.into_iter().enumerate() {
+            for target in targets {
+                for reflections in 0..=MAX_REFLECTIONS {
+                    let towards_target = towards(origin, target);
+                    let centre = if reflections == 0 {
+                        towards_target
+                    } else {
+                        -towards_target
+                    };
+                    let chart = Chart::around(centre);
+                    let at = |a: f64, b: f64| {
+                        evaluate(&ball, ior, (origin, target, reflections), &chart, a, b).unwrap()
+                    };
+                    let (a, b) = (0.05 * k as f64, -0.03);
+                    let (_, [ja, jb], _) = at(a, b);
+                    let da = (at(a + h, b).0 - at(a - h, b).0) / (2.0 * h);
+                    let db = (at(a, b + h).0 - at(a, b - h).0) / (2.0 * h);
+                    for (exact, differences) in [(ja, da), (jb, db)] {
+                        assert!(
+                            (exact - differences).length() <= 1e-6 * (1.0 + differences.length()),
+                            "{reflections} reflections, {target:?}: {exact} vs {differences}"
+                        );
+                    }
+                    checked += 1;
+                }
+            }
+        }
+        assert_eq!(checked, 12);
+    }
+
+    #[test]
+    fn the_geometry_term_is_the_determinant_of_the_traced_chain_s_differences() {
+        // |dω_inside / d(target measure)| from ray differentials against
+        // central differences of traced chains around the solution: the
+        // refracted direction's turn (direction target) or the refracted
+        // ray's slide across the target point.
+        let (ior, ball, h) = (1.5, Ball(1.0), 1e-6);
+        let origin = DVec3::new(0.3, 0.1, 0.2);
+        let targets = [
+            Target::Point(DVec3::new(1.0, 2.0, 5.0)),
+            Target::Direction(DVec3::new(0.2, -0.3, 1.0).normalize()),
+        ];
+        for target in targets {
+            for reflections in 0..=MAX_REFLECTIONS {
+                // Solved from the best of a scan of directions (the mirror
+                // plane's start is far off in a ball).
+                let miss = |direction: DVec3| {
+                    shoot(&ball, ior, origin, direction, reflections)
+                        .map_or(f64::INFINITY, |(inner, out)| {
+                            (out - towards(inner.exit.point, target)).length()
+                        })
+                };
+                let start = (0..200 * 200)
+                    .map(|k| {
+                        let z = 1.0 - (f64::from(k / 200) + 0.5) / 100.0;
+                        let phi = std::f64::consts::TAU * (f64::from(k % 200) + 0.5) / 200.0;
+                        let r = (1.0 - z * z).sqrt();
+                        DVec3::new(r * phi.cos(), r * phi.sin(), z)
+                    })
+                    .min_by(|p, q| miss(*p).total_cmp(&miss(*q)))
+                    .unwrap();
+                let c = solve(&ball, ior, origin, target, reflections, start)
+                    .unwrap_or_else(|| panic!("{reflections} reflections, {target:?}: no chain"));
+                let chart = Chart::around(c.inside_direction);
+                let (u, v) = c.outside_direction.any_orthonormal_pair();
+                let across = |a: f64, b: f64| {
+                    let (inner, out) =
+                        shoot(&ball, ior, origin, chart.direction(a, b), reflections).unwrap();
+                    let q = match target {
+                        Target::Point(y) => {
+                            let exit = inner.exit.point;
+                            let speed = out.dot(c.outside_direction);
+                            exit + out * ((y - exit).dot(c.outside_direction) / speed) - y
+                        }
+                        Target::Direction(_) => out,
+                    };
+                    DVec2::new(q.dot(u), q.dot(v))
+                };
+                let da = (across(h, 0.0) - across(-h, 0.0)) / (2.0 * h);
+                let db = (across(0.0, h) - across(0.0, -h)) / (2.0 * h);
+                let differences = da.perp_dot(db).abs();
+                let exact = 1.0 / c.inside_solid_angle_per_target_measure;
+                assert!(
+                    (exact / differences - 1.0).abs() < 1e-6,
+                    "{reflections} reflections, {target:?}: {exact} vs {differences}"
+                );
+            }
+        }
+    }
+
     /// The plate −`.0` < z < 0 (top normal +z, bottom −z), as a body.
     struct Plate(f64);
 
@@ -850,6 +1021,10 @@ mod tests {
                 point: origin + direction * t,
                 normal,
             })
+        }
+
+        fn normal_change(&self, _: &Exit, _: [DVec3; 2]) -> [DVec3; 2] {
+            [DVec3::ZERO; 2]
         }
     }
 

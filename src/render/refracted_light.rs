@@ -73,6 +73,10 @@ impl Boundary for StoneBoundary<'_> {
             normal: hit.normal,
         })
     }
+
+    fn normal_change(&self, exit: &Exit, dp: [DVec3; 2]) -> [DVec3; 2] {
+        self.0.stone_normal_change(self.1, exit.point, dp)
+    }
 }
 
 /// A vertex inside a smooth translucent body from which lights were

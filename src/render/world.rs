@@ -321,6 +321,27 @@ impl World {
         self.placements[index].object_ray(self.stones[index].position, origin, direction)
     }
 
+    /// How the unit outward normal of stone number `index` at the world
+    /// surface point `point` turns along each of two world displacements
+    /// `dp` in its tangent plane ([`Cabochon::normal_change`]).
+    pub(crate) fn stone_normal_change(
+        &self,
+        index: usize,
+        point: DVec3,
+        dp: [DVec3; 2],
+    ) -> [DVec3; 2] {
+        let placement = &self.placements[index];
+        let cabochon = &self.stones[index].cabochon;
+        let position = self.stones[index].position;
+        if placement.unrotated {
+            return cabochon.normal_change(point - position, dp);
+        }
+        let to_object = placement.world_to_object;
+        let turns =
+            cabochon.normal_change(to_object * (point - position), dp.map(|d| to_object * d));
+        turns.map(|t| placement.object_to_world * t)
+    }
+
     /// Where the world ray from a point inside stone number `index` leaves
     /// it ([`Cabochon::exit`]): the surface hit, `None` when the ray meets
     /// no surface ahead or first enters.
