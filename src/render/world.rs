@@ -956,4 +956,53 @@ mod tests {
             );
         }
     }
+
+    #[test]
+    fn a_turned_stone_s_normal_changes_are_its_exit_normals_turning() {
+        // `stone_normal_change` (the manifold solver's curvature) in world
+        // space for a turned stone: against the normals of two exits from
+        // one inner point aimed 10⁻⁵ apart along each tangent (a turned
+        // stone whose world normals did not turn by its rotation would
+        // fail), for a half ellipsoid and one with a girdle band.
+        let rotation = DQuat::from_rotation_z(0.7) * DQuat::from_rotation_x(0.3);
+        let position = DVec3::new(0.3, -0.2, 0.5);
+        for girdle_height in [0.0, 0.3] {
+            let params = CabochonParams {
+                girdle_height,
+                ..peer_params()
+            };
+            let world = World::new(vec![stone_of(params, rotation, position)], None);
+            let mut rng = Rng::new(4, 2);
+            let (mut checked, mut disagree) = (0, 0);
+            for _ in 0..2000 {
+                let [a, b, c] = rng.next_3();
+                let inner = DVec3::new(1.6 * a - 0.8, 1.1 * b - 0.55, 0.3 * c);
+                let origin = position + rotation * inner;
+                let [u, v, w] = rng.next_3();
+                let direction = (DVec3::new(u, v, w) - 0.5).normalize();
+                let Some(hit) = world.stone_exit(0, origin, direction) else {
+                    continue;
+                };
+                let (e1, e2) = hit.normal.any_orthonormal_pair();
+                for tangent in [e1, e2] {
+                    let aim = (hit.point + tangent * 1e-5 - origin).normalize();
+                    let Some(next) = world.stone_exit(0, origin, aim) else {
+                        continue;
+                    };
+                    let dp = next.point - hit.point;
+                    let [predicted, _] = world.stone_normal_change(0, hit.point, [dp, DVec3::ZERO]);
+                    let turned = next.normal - hit.normal;
+                    checked += 1;
+                    if (predicted - turned).length() > 1e-3 * (turned.length() + dp.length()) {
+                        disagree += 1;
+                    }
+                }
+            }
+            assert!(checked > 1000, "{checked} pairs");
+            assert!(
+                disagree * 100 <= checked,
+                "{disagree} of {checked} disagree"
+            );
+        }
+    }
 }
