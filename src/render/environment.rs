@@ -196,6 +196,15 @@ pub enum EnvironmentError {
     },
 }
 
+/// The texel of a map that a direction falls in, found by
+/// [`Environment::prefetch_direction`] so that the lookup after the ray's
+/// trace need not find it again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Texel {
+    row: usize,
+    col: usize,
+}
+
 /// One direction drawn from an [`Environment`], for next-event estimation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EnvironmentSample {
@@ -352,12 +361,33 @@ impl Environment {
     }
 
     /// Starts loading the texel [`Environment::radiance_and_pdf`] reads
-    /// for `direction` (see [`EnvironmentMap::prefetch_direction`]);
-    /// nothing for a constant, at the cost of one test.
+    /// for `direction` (see [`EnvironmentMap::prefetch_direction`]) and
+    /// returns it, for [`Environment::radiance_and_pdf_in`]; nothing for a
+    /// constant, at the cost of one test.
     #[inline(always)]
-    pub(crate) fn prefetch_direction(&self, direction: DVec3) {
-        if let Environment::Map(map) = self {
-            map.prefetch_direction(direction);
+    pub(crate) fn prefetch_direction(&self, direction: DVec3) -> Option<Texel> {
+        match self {
+            Environment::Map(map) => map.prefetch_direction(direction),
+            Environment::Constant(_) => None,
+        }
+    }
+
+    /// [`Environment::radiance_and_pdf`] of `direction`, read from
+    /// `texel` when [`Environment::prefetch_direction`] found it for that
+    /// direction (the same answer, without finding the texel again).
+    pub(crate) fn radiance_and_pdf_in(&self, direction: DVec3, texel: Option<Texel>) -> (Rgb, f64) {
+        match (self, texel) {
+            (Environment::Map(map), Some(texel)) => map.texel_radiance_and_pdf(texel),
+            _ => self.radiance_and_pdf(direction),
+        }
+    }
+
+    /// [`Environment::radiance`] of `direction`, read from `texel` as
+    /// [`Environment::radiance_and_pdf_in`] does.
+    pub(crate) fn radiance_in(&self, direction: DVec3, texel: Option<Texel>) -> Rgb {
+        match (self, texel) {
+            (Environment::Map(map), Some(texel)) => map.texel_radiance(texel),
+            _ => self.radiance(direction),
         }
     }
 
@@ -719,9 +749,14 @@ impl EnvironmentMap {
     /// Radiance from the unit world `direction`: the texel it falls in.
     pub fn radiance(&self, direction: DVec3) -> Rgb {
         match self.texel_index(direction) {
-            Some((row, col)) => decode(self.texels[row * self.width + col], &self.scales),
+            Some((row, col)) => self.texel_radiance(Texel { row, col }),
             None => Rgb::ZERO,
         }
+    }
+
+    /// The radiance of a texel found by [`Self::prefetch_direction`].
+    fn texel_radiance(&self, Texel { row, col }: Texel) -> Rgb {
+        decode(self.texels[row * self.width + col], &self.scales)
     }
 
     /// Solid-angle density of [`Self::sample`] at `direction`: constant on
@@ -734,24 +769,29 @@ impl EnvironmentMap {
     /// texel read; equal to the separate calls.
     pub fn radiance_and_pdf(&self, direction: DVec3) -> (Rgb, f64) {
         match self.texel_index(direction) {
-            Some((row, col)) => {
-                let bits = self.texels[row * self.width + col];
-                let radiance = decode(bits, &self.scales);
-                (radiance, texel_pdf(bits, radiance, &self.rows[row]))
-            }
+            Some((row, col)) => self.texel_radiance_and_pdf(Texel { row, col }),
             None => (Rgb::ZERO, 0.0),
         }
     }
 
+    /// [`Self::radiance_and_pdf`] of a texel found by
+    /// [`Self::prefetch_direction`].
+    fn texel_radiance_and_pdf(&self, Texel { row, col }: Texel) -> (Rgb, f64) {
+        let bits = self.texels[row * self.width + col];
+        let radiance = decode(bits, &self.scales);
+        (radiance, texel_pdf(bits, radiance, &self.rows[row]))
+    }
+
     /// Starts loading the texel [`Self::radiance_and_pdf`] reads for
     /// `direction`, for a caller who will look it up after other work (a
-    /// ray that may escape, traced first). A hint, like
-    /// [`Self::prefetch_sample`].
+    /// ray that may escape, traced first), and returns it (None for a zero
+    /// or non-finite direction). A hint, like [`Self::prefetch_sample`],
+    /// and the texel, for the lookup.
     #[inline(never)]
-    pub(crate) fn prefetch_direction(&self, direction: DVec3) {
-        if let Some((row, col)) = self.texel_index(direction) {
-            prefetch(&self.texels[row * self.width + col]);
-        }
+    pub(crate) fn prefetch_direction(&self, direction: DVec3) -> Option<Texel> {
+        let (row, col) = self.texel_index(direction)?;
+        prefetch(&self.texels[row * self.width + col]);
+        Some(Texel { row, col })
     }
 
     /// Starts loading the texel that [`Self::sample`] reads first for `u`
@@ -1654,7 +1694,7 @@ mod tests {
     }
 
     #[test]
-    fn prefetching_any_numbers_or_direction_stays_inside_the_map() {
+    fn prefetching_any_numbers_or_direction_stays_inside_the_map_and_finds_the_lookup_s_texel() {
         let black = EnvironmentMap::new(4, 2, vec![Rgb::ZERO; 8], 0.0).unwrap();
         let lit = grey_map(5, 3, 33.0);
         let numbers = [
@@ -1674,15 +1714,29 @@ mod tests {
             DVec3::splat(f64::NAN),
             DVec3::new(1e-300, 0.0, -1.0),
         ];
-        for map in [black, lit] {
+        // Every texel its own radiance, so that a wrong texel shows.
+        let varied = (0..35)
+            .map(|i| Rgb::new(0.1 + 0.05 * f64::from(i), 0.2, 0.3))
+            .collect();
+        let varied = EnvironmentMap::new(7, 5, varied, 20.0).unwrap();
+        for map in [black, lit, varied] {
             for a in numbers {
                 for b in numbers {
                     map.prefetch_sample([a, b]);
                 }
             }
             let environment = Environment::Map(map);
-            for d in directions {
-                environment.prefetch_direction(d);
+            let mut rng = crate::sampling::Rng::new(6, 1);
+            let random = (0..2000).map(|_| {
+                let [u, v, w] = rng.next_3();
+                DVec3::new(u - 0.5, v - 0.5, w - 0.5).normalize()
+            });
+            for d in directions.into_iter().chain(random) {
+                // The texel the prefetch found reads what a lookup reads.
+                let texel = environment.prefetch_direction(d);
+                let expected = environment.radiance_and_pdf(d);
+                assert_eq!(environment.radiance_and_pdf_in(d, texel), expected);
+                assert_eq!(environment.radiance_in(d, texel), expected.0);
             }
         }
     }

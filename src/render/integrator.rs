@@ -12,7 +12,7 @@ use glam::DVec3;
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem, Medium};
 use crate::render::dielectric::{cross_smooth_interface, split_smooth_interface, RoughInterface};
-use crate::render::environment::{Environment, EnvironmentMap};
+use crate::render::environment::{Environment, EnvironmentMap, Texel};
 use crate::render::flake_lobe::{FlakeLobe, FlakeLobes};
 use crate::render::flake_medium::{FlakeView, OwnCell};
 use crate::render::footprint::{aggregate_probability, RayCone};
@@ -428,10 +428,16 @@ impl RenderScene {
         // neighbours'), and the cell of the flake it leaves, if any.
         let mut flakes_as_medium = false;
         let mut own_cell: Option<OwnCell> = None;
+        // The environment texel the last bounce's continuation would
+        // escape to, found when it was prefetched, with its direction.
+        let mut escape: Option<(DVec3, Texel)> = None;
         loop {
             counts.traced += 1;
             let arriving = connected.take();
             let own = own_cell.take();
+            let escape_texel = escape
+                .take()
+                .and_then(|(d, texel)| (d == direction).then_some(texel));
             if inside.is_some() {
                 // A vertex inside connects one emitter with the next pair;
                 // the walk to it runs while the environment's texel loads.
@@ -660,14 +666,16 @@ impl RenderScene {
                 let exited_from = arriving.filter(|vertex| vertex.exited);
                 let (sky, weight) = match (previous, exited_from) {
                     (_, Some(vertex)) if self.samples_environment() => (
-                        self.environment.radiance(direction),
+                        self.environment.radiance_in(direction, escape_texel),
                         self.environment_sampled_chain_weight(&vertex, direction),
                     ),
                     (Some((_, brdf_pdf)), _) if self.samples_environment() => {
-                        let (sky, light_pdf) = self.environment.radiance_and_pdf(direction);
+                        let (sky, light_pdf) = self
+                            .environment
+                            .radiance_and_pdf_in(direction, escape_texel);
                         (sky, power_heuristic(brdf_pdf, light_pdf))
                     }
-                    _ => (self.environment.radiance(direction), 1.0),
+                    _ => (self.environment.radiance_in(direction, escape_texel), 1.0),
                 };
                 radiance += throughput * sky * weight;
                 break;
@@ -861,7 +869,10 @@ impl RenderScene {
             cone = RayCone::UNBOUNDED;
             bounce += 1;
             // Should the ray escape, its texel loads while it is traced.
-            self.environment.prefetch_direction(direction);
+            escape = self
+                .environment
+                .prefetch_direction(direction)
+                .map(|texel| (direction, texel));
         }
         if !BRANCH && !first_recorded {
             let nothing = FirstHit {
