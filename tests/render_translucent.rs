@@ -966,3 +966,36 @@ fn lossless_flakes_shaded_by_their_lobe_vanish_in_a_white_furnace() {
     let film = render_scene(&scene, &three_quarter_camera(24), 24, 32, 5);
     assert_the_stone_vanishes_in_the_white_sky(&film);
 }
+
+#[test]
+fn a_stone_resting_on_the_ground_reflects_light_off_its_base_from_inside() {
+    // A lossless flat window resting on a black ground (its flat base in
+    // the ground's plane: a stone lying on a table, air between), seen
+    // straight down in a white sky: the top reflects F, and light refracted
+    // in reflects off the base and leaves again, F(1 − F)² / (1 − F²) more:
+    // the slab's 2F/(1 + F), F at normal incidence. A path inside that met
+    // the ground, at the base's own t, instead of the base would see F
+    // alone (half as much).
+    let (shape, _) = flat_window();
+    let ior: f64 = 1.54;
+    let scene = scene_of(
+        &format!("Translucent(ior: {ior})"),
+        shape,
+        Environment::Constant(Rgb::ONE),
+        vec![],
+    );
+    let base_height = Cabochon::new(shape).unwrap().bounds().0.z;
+    let resting = RenderScene {
+        world: World::new(vec![scene.world.stones()[0].clone()], Some(base_height)),
+        ..scene
+    };
+    let camera = PinholeCamera::new(DVec3::new(0.0, 0.0, 60.0), DVec3::ZERO, DVec3::Y, 0.5, 9, 9);
+    let film = render_scene(&resting, &camera, 9, 1024, 3);
+    let mean = film.rgb.iter().map(|rgb| f64::from(rgb[1])).sum::<f64>() / film.rgb.len() as f64;
+    let f = ((ior - 1.0) / (ior + 1.0)).powi(2);
+    let expected = 2.0 * f / (1.0 + f);
+    assert!(
+        (mean - expected).abs() < 0.03 * expected,
+        "{mean} against the slab's 2F/(1 + F) = {expected} (F alone: {f})"
+    );
+}

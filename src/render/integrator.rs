@@ -443,9 +443,19 @@ impl RenderScene {
                 // the walk to it runs while the environment's texel loads.
                 self.prefetch_environment_sample(stream, 0);
             }
-            let hit = self
-                .world
-                .intersect_leaving(origin, direction, 0.0, f64::INFINITY, leaving);
+            // Inside a stone the next surface is its own (stones are convex
+            // and hold nothing): where the ray leaves it, as the manifold
+            // solver's chains leave it. The world's search would also meet
+            // the ground where a flat base rests on it, at the same t,
+            // and take the ground.
+            let hit = match inside {
+                Some((_, stone)) => self.world.stone_exit(stone, origin, direction),
+                None => None,
+            }
+            .or_else(|| {
+                self.world
+                    .intersect_leaving(origin, direction, 0.0, f64::INFINITY, leaving)
+            });
             let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
             if let (Some((medium, stone)), Some(hit)) = (inside, &hit) {
                 // The segment ends at the first flake or at the surface;

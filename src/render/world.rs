@@ -234,6 +234,12 @@ impl Boundable for StoneBox {
 /// visible detail.
 pub(crate) const RAY_OFFSET: f64 = 1e-5;
 
+/// How far below the ground a ray may start and still meet it: a ray
+/// leaving a stone's flat base that rests on the ground starts
+/// [`RAY_OFFSET`] below the base, so below the ground, and meets the
+/// ground at once (there is no gap between them to pass through).
+const GROUND_CONTACT: f64 = 2.0 * RAY_OFFSET;
+
 impl World {
     /// Indexes the stones (one box each): a grid over a tray of stones,
     /// else a BVH, or nothing for a handful of stones.
@@ -394,14 +400,15 @@ impl World {
         let mut limit = t_max;
         let mut ground = None;
         if let Some(h) = self.ground_height {
-            if direction.z < 0.0 && origin.z > h {
+            if direction.z < 0.0 && origin.z > h - GROUND_CONTACT {
                 // h − origin.z < 0 (exactly, for distinct numbers) over
                 // direction.z < 0: t > 0, so `t > t_min` holds for every
-                // t_min ≤ 0 and is tested only above 0. Written as
+                // t_min ≤ 0 and is tested only above 0 (a ray from just
+                // below the ground meets it at t = 0). Written as
                 // `t > t_min && t < limit`, with the camera ray's (0, ∞)
                 // LLVM fused the two into a 13-instruction test of t's
                 // bits.
-                let t = (h - origin.z) / direction.z;
+                let t = ((h - origin.z) / direction.z).max(0.0);
                 if t < limit && (t_min <= 0.0 || t > t_min) {
                     limit = t;
                     ground = Some(h);
@@ -461,7 +468,11 @@ impl World {
     #[inline(always)]
     fn ground_blocks(&self, origin: DVec3, direction: DVec3, distance: f64) -> bool {
         match self.ground_height {
-            Some(h) => direction.z < 0.0 && origin.z > h && (h - origin.z) / direction.z < distance,
+            Some(h) => {
+                direction.z < 0.0
+                    && origin.z > h - GROUND_CONTACT
+                    && (h - origin.z) / direction.z < distance
+            }
             None => false,
         }
     }
