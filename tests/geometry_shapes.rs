@@ -837,6 +837,13 @@ fn extreme_stones_and_axis_aligned_rays_stay_watertight() {
 /// Flat-backed ovals (round/oval, p = 2, flat base) of several proportions:
 /// half ellipsoids (no girdle band) and banded ones, with and without a
 /// buff top.
+/// [`stones`] and [`flat_ovals`] together.
+fn every_stone() -> Vec<Cabochon> {
+    let mut all: Vec<Cabochon> = stones().into_iter().map(|(_, s)| s).collect();
+    all.extend(flat_ovals());
+    all
+}
+
 fn flat_ovals() -> Vec<Cabochon> {
     let oval = |outline, l, w, h, girdle_height, buff_top| {
         Cabochon::new(CabochonParams {
@@ -946,9 +953,7 @@ fn exit_from_inside_agrees_with_intersect_on_every_stone() {
     // to rounding — including rays in the girdle plane, vertical ones and
     // ones that cross from the band into the dome or back.
     let mut rng = Rng(123);
-    let mut all: Vec<Cabochon> = stones().into_iter().map(|(_, s)| s).collect();
-    all.extend(flat_ovals());
-    for stone in all {
+    for stone in every_stone() {
         let size = stone.size();
         let (lo, hi) = stone.bounds();
         let (mut exits, mut band_to_dome) = (0, 0);
@@ -1000,9 +1005,7 @@ fn crosses_agrees_with_intersect_on_every_stone() {
     // a crossing in (t_min, t_max), for every shape, including short
     // segments that end inside the stone.
     let mut rng = Rng(91);
-    let mut all: Vec<Cabochon> = stones().into_iter().map(|(_, s)| s).collect();
-    all.extend(flat_ovals());
-    for stone in all {
+    for stone in every_stone() {
         let size = stone.size();
         let (lo, hi) = stone.bounds();
         let centre = 0.5 * (lo + hi);
@@ -1130,9 +1133,7 @@ fn normal_change_is_how_exit_normals_turn_on_every_stone() {
     // curvature change fast near the girdle (0.6 % of one stone's pairs,
     // off by 0.1–1 %), may disagree, so 1 % are allowed.
     let mut rng = Rng(321);
-    let mut all: Vec<Cabochon> = stones().into_iter().map(|(_, s)| s).collect();
-    all.extend(flat_ovals());
-    for stone in all {
+    for stone in every_stone() {
         let size = stone.size();
         let (lo, hi) = stone.bounds();
         let (mut checked, mut disagree, mut turning) = (0, 0, 0);

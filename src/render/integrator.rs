@@ -428,16 +428,14 @@ impl RenderScene {
         // neighbours'), and the cell of the flake it leaves, if any.
         let mut flakes_as_medium = false;
         let mut own_cell: Option<OwnCell> = None;
-        // The environment texel the last bounce's continuation would
-        // escape to, found when it was prefetched, with its direction.
-        let mut escape: Option<(DVec3, Texel)> = None;
+        // The environment texel the last bounce's continuation (this
+        // iteration's ray) would escape to, found when it was prefetched.
+        let mut escape: Option<Texel> = None;
         loop {
             counts.traced += 1;
             let arriving = connected.take();
             let own = own_cell.take();
-            let escape_texel = escape
-                .take()
-                .and_then(|(d, texel)| (d == direction).then_some(texel));
+            let escape_texel = escape.take();
             if inside.is_some() {
                 // A vertex inside connects one emitter with the next pair;
                 // the walk to it runs while the environment's texel loads.
@@ -448,14 +446,12 @@ impl RenderScene {
             // solver's chains leave it. The world's search would also meet
             // the ground where a flat base rests on it, at the same t,
             // and take the ground.
-            let hit = match inside {
-                Some((_, stone)) => self.world.stone_exit(stone, origin, direction),
-                None => None,
-            }
-            .or_else(|| {
-                self.world
-                    .intersect_leaving(origin, direction, 0.0, f64::INFINITY, leaving)
-            });
+            let hit = inside
+                .and_then(|(_, stone)| self.world.stone_exit(stone, origin, direction))
+                .or_else(|| {
+                    self.world
+                        .intersect_leaving(origin, direction, 0.0, f64::INFINITY, leaving)
+                });
             let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
             if let (Some((medium, stone)), Some(hit)) = (inside, &hit) {
                 // The segment ends at the first flake or at the surface;
@@ -879,10 +875,7 @@ impl RenderScene {
             cone = RayCone::UNBOUNDED;
             bounce += 1;
             // Should the ray escape, its texel loads while it is traced.
-            escape = self
-                .environment
-                .prefetch_direction(direction)
-                .map(|texel| (direction, texel));
+            escape = self.environment.prefetch_direction(direction);
         }
         if !BRANCH && !first_recorded {
             let nothing = FirstHit {
