@@ -999,3 +999,60 @@ fn a_stone_resting_on_the_ground_reflects_light_off_its_base_from_inside() {
         "{mean} against the slab's 2F/(1 + F) = {expected} (F alone: {f})"
     );
 }
+
+#[test]
+fn light_off_the_ground_under_a_resting_stone_enters_its_base() {
+    // A lossless flat window on a grey Lambertian ground under a sphere
+    // light off to one side, seen straight down: the ground under the
+    // stone sees the light only through the stone, so what it sends up
+    // must enter the base (its Fresnel, its refraction) to leave the top
+    // towards the light. Resting on the ground, a path from the ground
+    // starts inside the stone; lifted by 1 µm, the same light crosses a
+    // real gap. The two must agree. A path from the ground that ignored the
+    // base until the top (refracting out there at the unbent angle) missed
+    // the light: 0.17 against 0.40.
+    let (shape, _) = flat_window();
+    let base_height = Cabochon::new(shape).unwrap().bounds().0.z;
+    let grey_ground = {
+        let text = "Material(layers: [], base: Diffuse(colour: (0.8, 0.8, 0.8)))";
+        let material = lapidary::recipe::parse_material("test", text).unwrap();
+        let source = lapidary::recipe::compile::MaterialSource {
+            path: "test".into(),
+            name: "grey".into(),
+            text: text.into(),
+        };
+        lapidary::recipe::compile::compile_material(&source, &material).unwrap()
+    };
+    let on_ground_at = |body: &str, height: f64| {
+        let scene = scene_of(
+            body,
+            shape,
+            Environment::Constant(Rgb::ZERO),
+            vec![Light::Sphere {
+                centre: DVec3::new(0.0, 15.0, 30.0),
+                radius: 8.0,
+                radiance: Rgb::splat(10.0),
+            }],
+        );
+        RenderScene {
+            world: World::new(vec![scene.world.stones()[0].clone()], Some(height)),
+            ground_brdf: Some(grey_ground.clone()),
+            ..scene
+        }
+    };
+    let camera = PinholeCamera::new(DVec3::new(0.0, 0.0, 60.0), DVec3::ZERO, DVec3::Y, 0.5, 9, 9);
+    let mean = |scene: &RenderScene| {
+        let film = render_scene(scene, &camera, 9, 1024, 3);
+        film.rgb.iter().map(|rgb| f64::from(rgb[1])).sum::<f64>() / film.rgb.len() as f64
+    };
+    // A smooth surface, and a rough one (sampled, not connected through).
+    for roughness_deg in [0.0, 6.0] {
+        let body = format!("Translucent(ior: 1.54, roughness_deg: {roughness_deg})");
+        let resting = mean(&on_ground_at(&body, base_height));
+        let lifted = mean(&on_ground_at(&body, base_height - 1e-3));
+        assert!(
+            (resting - lifted).abs() < 0.01 * lifted,
+            "{roughness_deg}°: resting {resting} against lifted by 1 µm {lifted}"
+        );
+    }
+}

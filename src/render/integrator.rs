@@ -452,6 +452,17 @@ impl RenderScene {
                     self.world
                         .intersect_leaving(origin, direction, 0.0, f64::INFINITY, leaving)
                 });
+            // A ray from the ground that meets a stone from inside started
+            // under a stone resting there: it enters through the base.
+            let contact = hit.filter(|h| {
+                inside.is_none()
+                    && leaving.is_none()
+                    && bounce > 0
+                    && h.stone_index().is_some()
+                    && direction.dot(h.normal) > 0.0
+            });
+            let contact = contact.and_then(|h| self.world.contact_with_base(&h, origin));
+            let hit = contact.or(hit);
             let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
             if let (Some((medium, stone)), Some(hit)) = (inside, &hit) {
                 // The segment ends at the first flake or at the surface;
@@ -713,10 +724,14 @@ impl RenderScene {
                     let frame = Frame::new(hit.normal);
                     let wo = frame.to_local(-direction);
                     let outwards = hit.point + hit.normal * RAY_OFFSET;
-                    radiance += throughput
-                        * self.direct_at_interface(
-                            &interface, frame, wo, outwards, stone, stream, counts,
-                        );
+                    // Under a base on the ground no light arrives from
+                    // outside (its outside is the ground).
+                    if contact.is_none() {
+                        radiance += throughput
+                            * self.direct_at_interface(
+                                &interface, frame, wo, outwards, stone, stream, counts,
+                            );
+                    }
                     let Some(sample) = interface.sample(wo, stream.next_3d()) else {
                         break;
                     };

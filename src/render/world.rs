@@ -363,6 +363,18 @@ impl World {
         Some(placement.surface_hit(index, origin, direction, hit))
     }
 
+    /// For a ray outside every stone that met stone `hit` from inside
+    /// (`hit.normal · direction > 0`): its origin is inside that stone,
+    /// which happens where a path leaves the ground under a stone whose
+    /// base rests on it. The ray meets the base at once, from outside
+    /// (the two touch: there is no gap to pass through first), so this is
+    /// the base where the origin stands on it, straight down within
+    /// [`GROUND_CONTACT`], at t = 0; `None` elsewhere (the hit stands).
+    pub(crate) fn contact_with_base(&self, hit: &SurfaceHit, origin: DVec3) -> Option<SurfaceHit> {
+        let base = self.stone_exit(hit.stone_index()?, origin, DVec3::NEG_Z)?;
+        (base.t <= GROUND_CONTACT).then_some(SurfaceHit { t: 0.0, ..base })
+    }
+
     /// The nearest surface along a unit-direction ray in (`t_min`, `t_max`).
     pub fn intersect(
         &self,
