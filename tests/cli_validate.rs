@@ -361,18 +361,66 @@ fn broken_files_name_the_file_and_what_was_expected() {
     );
 }
 
-/// A valid scene naming the built-in gem and ground material.
+/// A valid scene naming the built-in gem and ground material; its stone's
+/// girdle (0.5 mm below the dome) rests on the ground.
 const GOOD_SCENE: &str = r#"Scene(
     camera: Orbit(target: (0.0, 0.0, 1.0), distance: 40.0, elevation_deg: 30.0, azimuth_deg: 0.0, vertical_fov_deg: 25.0),
     stones: [
         Stone(
             recipe: Some("green-aventurine"),
-            shape: Cabochon(outline: Oval, length: 10.0, width: 8.0),
+            shape: Cabochon(outline: Oval, length: 10.0, width: 8.0), position: (0.0, 0.0, 0.5),
         ),
     ],
     ground: Some(Ground(height: 0.0, material: "teflon")),
 )
 "#;
+
+#[test]
+fn stones_sunk_into_the_ground_or_crossing_each_other_are_warned_of() {
+    let dir = scratch("placement");
+    let (code, out, err) = validate_file(&dir, "resting.ron", GOOD_SCENE.as_bytes());
+    assert_eq!(code, 0, "{err}");
+    assert!(!out.contains("warning"), "{out}");
+    // At the default position the girdle sinks 0.5 mm; a second stone 6 mm
+    // along x crosses the first (both are 10 mm long along x).
+    let scene = GOOD_SCENE.replace("position: (0.0, 0.0, 0.5)", "position: (0.0, 0.0, 0.0)");
+    let scene = scene.replace(
+        "    ],\n    ground",
+        "        Stone(shape: Cabochon(outline: Oval, length: 10.0, width: 8.0), position: (6.0, 0.0, 0.5)),\n    ],\n    ground",
+    );
+    let (code, out, err) = validate_file(&dir, "placed.ron", scene.as_bytes());
+    assert_eq!(code, 0, "a warning is not an error: {err}");
+    let warnings: Vec<&str> = out.lines().filter(|l| l.contains("warning")).collect();
+    assert_eq!(warnings.len(), 2, "{out}");
+    assert!(
+        warnings[0].contains("placed.ron: warning: stone 1 sinks 0.500 mm into the ground"),
+        "{out}"
+    );
+    assert!(
+        warnings[1].contains("placed.ron: warning: stones 1 and 2 overlap"),
+        "{out}"
+    );
+    // `render` says the same, even when quiet, and still renders.
+    let path = dir.join("placed.ron");
+    let image = dir.join("placed.png");
+    let out = lapidary(&[
+        "render",
+        "--scene",
+        path.to_str().unwrap(),
+        "--size",
+        "8",
+        "--spp",
+        "1",
+        "-q",
+        "-o",
+        image.to_str().unwrap(),
+    ]);
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert_eq!(err.matches("warning:").count(), 2, "{err}");
+    assert!(err.contains("stones 1 and 2 overlap"), "{err}");
+    assert!(image.exists());
+}
 
 #[test]
 fn scenes_are_checked_with_the_gems_and_materials_they_name() {

@@ -19,6 +19,7 @@ use lapidary::recipe::gem::{GemSource, Tables};
 use lapidary::recipe::library::DEFAULT_GEM;
 use lapidary::render::film::{render_rows_cancellable, FilmSettings, FILM_BYTES_PER_PIXEL};
 use lapidary::render::integrator::RenderScene;
+use lapidary::render::overlaps::placement_problems;
 use lapidary::render::prepare::{camera_for, prepare_scene};
 use lapidary::render::tiles::TileSplit;
 use lapidary::render::turntable::{orbited_camera, turned_stones};
@@ -561,6 +562,15 @@ impl Renderer {
             Tables::Computed(&cache),
             &report,
         )?;
+        // A stone sunk into the ground or crossing another renders, but
+        // not as the physics assumes: said even when quiet.
+        let scene_name = args.scene.as_ref().map_or_else(
+            || "the studio scene".to_string(),
+            |p| p.display().to_string(),
+        );
+        for problem in placement_problems(&traced.world) {
+            eprintln!("warning: {scene_name}: {problem}");
+        }
         traced.ambient_occlusion = args.ao;
         traced.connect_through_surfaces = self.record.connections;
         if self.record.flake_footprints {

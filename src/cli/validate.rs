@@ -20,6 +20,9 @@ use lapidary::recipe::library::{
     builtin_gem_names, builtin_gem_source, builtin_material_names, builtin_material_source,
 };
 use lapidary::recipe::material::BaseSpec;
+use lapidary::render::overlaps::placement_problems;
+use lapidary::render::prepare::stone_instances;
+use lapidary::render::world::World;
 use lapidary::scene::spec::SceneSpec;
 use lapidary::scene::{parse_scene, DEFAULT_SCENE_SOURCE};
 use std::path::Path;
@@ -215,8 +218,15 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<String,
     }
     let n = scene.stones.len();
     let l = scene.lights.len();
+    // Placement: valid, but a sunk or crossing stone is worth a warning.
+    let stones = stone_instances(&scene).map_err(|e| RecipeError::whole_file(path, e))?;
+    let world = World::new(stones, scene.ground.as_ref().map(|g| g.height));
+    let warnings: String = placement_problems(&world)
+        .iter()
+        .map(|problem| format!("\n{path}: warning: {problem}"))
+        .collect();
     Ok(format!(
-        "ok (scene, {n} stone{}, {l} light{}{})",
+        "ok (scene, {n} stone{}, {l} light{}{}){warnings}",
         if n == 1 { "" } else { "s" },
         if l == 1 { "" } else { "s" },
         if scene.ground.is_some() {

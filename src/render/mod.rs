@@ -19,6 +19,7 @@ pub mod integrator;
 pub mod lights;
 pub(crate) mod manifold;
 pub(crate) mod medium;
+pub mod overlaps;
 pub mod prepare;
 pub(crate) mod refracted_light;
 pub(crate) mod sampler;

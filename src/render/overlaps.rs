@@ -1,0 +1,245 @@
+//! Where a scene's stones break what the integrator assumes of them:
+//! every stone convex and closed, holding nothing but its own body, and at
+//! most resting on the ground. A stone sunk into the ground, or two stones
+//! that cross, still render, but a path inside a translucent body then
+//! meets surfaces it does not expect (another stone, or the ground, inside
+//! it). `lapidary render` and `validate` warn of both.
+
+use std::fmt;
+
+use glam::DVec3;
+
+use crate::render::world::World;
+
+/// Directions from a stone's axis to its surface at which it is probed
+/// (a Fibonacci sphere): each crossing deeper than [`DEPTH_TOLERANCE_MM`]
+/// shows on a few of them at least.
+const PROBES: usize = 512;
+
+/// Crossings shallower than this (mm) are touching stones (a tray packed
+/// edge to edge) or rounding, and are not reported.
+const DEPTH_TOLERANCE_MM: f64 = 1e-3;
+
+/// A placement that the renderer does not model exactly.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PlacementProblem {
+    /// Stone number `stone` (from 0, in scene order) reaches `depth_mm`
+    /// below the ground's plane.
+    Sinks {
+        /// The stone, from 0.
+        stone: usize,
+        /// How far below the ground its lowest probed point lies, mm.
+        depth_mm: f64,
+    },
+    /// Stones `first` < `second` (from 0) cross: `point` (world, mm) on
+    /// one's surface lies inside the other.
+    Overlap {
+        /// The first stone, from 0.
+        first: usize,
+        /// The second stone, from 0.
+        second: usize,
+        /// A point of the one inside the other, mm.
+        point: DVec3,
+    },
+}
+
+impl fmt::Display for PlacementProblem {
+    /// Stones are numbered from 1, as a user counts them in the scene file.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Self::Sinks { stone, depth_mm } => write!(
+                f,
+                "stone {} sinks {depth_mm:.3} mm into the ground (raise it by that much to \
+                 rest it there); a translucent stone renders as if the ground were not inside it",
+                stone + 1
+            ),
+            Self::Overlap {
+                first,
+                second,
+                point,
+            } => write!(
+                f,
+                "stones {} and {} overlap (near ({:.3}, {:.3}, {:.3}) mm); translucent bodies \
+                 render wrongly where they cross (move them apart)",
+                first + 1,
+                second + 1,
+                point.x,
+                point.y,
+                point.z
+            ),
+        }
+    }
+}
+
+/// Every stone of `world` that sinks into its ground, then every pair of
+/// stones that overlap, each pair once.
+pub fn placement_problems(world: &World) -> Vec<PlacementProblem> {
+    let surfaces: Vec<Vec<DVec3>> = (0..world.stones().len())
+        .map(|stone| surface_points(world, stone))
+        .collect();
+    let mut problems = Vec::new();
+    if let Some(ground) = world.ground_height() {
+        for (stone, points) in surfaces.iter().enumerate() {
+            let lowest = points.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+            if lowest < ground - DEPTH_TOLERANCE_MM {
+                problems.push(PlacementProblem::Sinks {
+                    stone,
+                    depth_mm: ground - lowest,
+                });
+            }
+        }
+    }
+    let boxes: Vec<(DVec3, DVec3)> = world.stones().iter().map(|s| s.world_bounds()).collect();
+    for first in 0..boxes.len() {
+        for second in first + 1..boxes.len() {
+            let (a, b) = (boxes[first], boxes[second]);
+            if a.0.cmpgt(b.1).any() || b.0.cmpgt(a.1).any() {
+                continue;
+            }
+            let inside = |points: &[DVec3], other: usize| {
+                points
+                    .iter()
+                    .copied()
+                    .find(|&p| depth_inside(world, other, p) > DEPTH_TOLERANCE_MM)
+            };
+            if let Some(point) =
+                inside(&surfaces[first], second).or_else(|| inside(&surfaces[second], first))
+            {
+                problems.push(PlacementProblem::Overlap {
+                    first,
+                    second,
+                    point,
+                });
+            }
+        }
+    }
+    problems
+}
+
+/// Points of stone `stone`'s surface, world space: where rays from the
+/// middle of its axis (inside every cabochon: base to top) leave it.
+fn surface_points(world: &World, stone: usize) -> Vec<DVec3> {
+    let instance = &world.stones()[stone];
+    let (lo, hi) = instance.cabochon.bounds();
+    let middle = DVec3::new(0.0, 0.0, 0.5 * (lo.z + hi.z));
+    let middle = instance.position + instance.rotation * middle;
+    (0..PROBES)
+        .filter_map(|k| {
+            let direction = fibonacci_direction(k, PROBES);
+            world
+                .stone_exit(stone, middle, direction)
+                .map(|hit| hit.point)
+        })
+        .collect()
+}
+
+/// How deep `point` lies inside stone `stone`: the least distance to its
+/// surface along the six axis directions (0 outside).
+fn depth_inside(world: &World, stone: usize, point: DVec3) -> f64 {
+    let axes = [
+        DVec3::X,
+        DVec3::NEG_X,
+        DVec3::Y,
+        DVec3::NEG_Y,
+        DVec3::Z,
+        DVec3::NEG_Z,
+    ];
+    axes.iter()
+        .map(|&axis| {
+            world
+                .stone_exit(stone, point, axis)
+                .map_or(0.0, |hit| hit.t)
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Direction `k` of `n` spread evenly over the sphere (a Fibonacci lattice).
+fn fibonacci_direction(k: usize, n: usize) -> DVec3 {
+    let golden_turn = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let z = 1.0 - (2.0 * k as f64 + 1.0) / n as f64;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = golden_turn * k as f64;
+    DVec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{Cabochon, CabochonParams};
+    use crate::render::world::StoneInstance;
+    use glam::DQuat;
+
+    fn stone_at(position: DVec3) -> StoneInstance {
+        StoneInstance {
+            cabochon: Cabochon::new(CabochonParams::default()).unwrap(),
+            rotation: DQuat::IDENTITY,
+            position,
+            gem: 0,
+        }
+    }
+
+    #[test]
+    fn stones_resting_apart_or_touching_are_fine_and_sunk_or_crossing_ones_are_named() {
+        let stone = stone_at(DVec3::ZERO);
+        let (lo, hi) = stone.cabochon.bounds();
+        let width = hi.x - lo.x;
+        // Resting on the ground, and a second one just touching it.
+        let resting = World::new(
+            vec![stone.clone(), stone_at(DVec3::new(width, 0.0, 0.0))],
+            Some(lo.z),
+        );
+        assert_eq!(placement_problems(&resting), vec![]);
+        // Sunk by 0.5 mm, and a third stone crossing the first by a
+        // quarter of its width.
+        let placed = World::new(
+            vec![
+                stone.clone(),
+                stone_at(DVec3::new(width, 0.0, 0.0)),
+                stone_at(DVec3::new(-0.75 * width, 0.0, 0.0)),
+            ],
+            Some(lo.z + 0.5),
+        );
+        let problems = placement_problems(&placed);
+        assert_eq!(problems.len(), 4, "{problems:?}");
+        for (k, problem) in problems[..3].iter().enumerate() {
+            match *problem {
+                PlacementProblem::Sinks { stone, depth_mm } => {
+                    assert_eq!(stone, k);
+                    assert!((depth_mm - 0.5).abs() < 1e-6, "{depth_mm}");
+                }
+                other => panic!("{other:?}"),
+            }
+        }
+        match problems[3] {
+            PlacementProblem::Overlap {
+                first: 0,
+                second: 2,
+                point,
+            } => assert!(
+                point.x < -0.25 * width && point.x > -0.5 * width - 1e-9,
+                "{point}"
+            ),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(
+            problems[3]
+                .to_string()
+                .split(';')
+                .next()
+                .unwrap()
+                .split(" (")
+                .next(),
+            Some("stones 1 and 3 overlap")
+        );
+        // A turned stone whose lowest corner dips below the ground.
+        let turned = StoneInstance {
+            rotation: DQuat::from_rotation_x(0.3),
+            ..stone
+        };
+        let tilted = World::new(vec![turned], Some(lo.z));
+        assert!(matches!(
+            placement_problems(&tilted)[..],
+            [PlacementProblem::Sinks { stone: 0, depth_mm }] if depth_mm > 0.1
+        ));
+    }
+}
