@@ -546,7 +546,7 @@ def render(args):
     if args.suite_scene:
         scene = mi.load_dict(suite_scene_dict(mi, dr, args.suite_scene, args.size, args.spp,
                                               args.max_depth, args.env))
-        mi.util.write_bitmap(args.out, mi.render(scene, spp=args.spp, seed=0))
+        mi.util.write_bitmap(args.out, mi.render(scene, spp=args.spp, seed=args.seed))
         return
     scene = mi.load_dict(
         scene_dict(
@@ -561,7 +561,7 @@ def render(args):
                 args.scattering, args.light_radius, not args.no_environment,
             ).items() if k != "ground"}
         )
-    image = mi.render(scene, spp=args.spp, seed=0)
+    image = mi.render(scene, spp=args.spp, seed=args.seed)
     mi.util.write_bitmap(args.out, image)
 
 
@@ -642,6 +642,7 @@ def main(argv):
     r.add_argument("--spp", type=int, default=64)
     r.add_argument("--max-depth", type=int, default=6)
     r.add_argument("--threads", type=int, default=2)
+    r.add_argument("--seed", type=int, default=0, help="the sampler's seed (mi.render's)")
     r.add_argument(
         "--linear", action="store_true", help="plastic nonlinear=false (check only)"
     )
