@@ -454,14 +454,14 @@ impl RenderScene {
                 });
             // A ray from the ground that meets a stone from inside started
             // under a stone resting there: it enters through the base.
-            let contact = hit.filter(|h| {
-                inside.is_none()
-                    && leaving.is_none()
-                    && bounce > 0
-                    && h.stone_index().is_some()
-                    && direction.dot(h.normal) > 0.0
-            });
-            let contact = contact.and_then(|h| self.world.contact_with_base(&h, origin));
+            let contact = hit
+                .filter(|h| {
+                    inside.is_none()
+                        && leaving.is_none()
+                        && bounce > 0
+                        && direction.dot(h.normal) > 0.0
+                })
+                .and_then(|h| self.world.contact_with_base(&h, origin));
             let hit = contact.or(hit);
             let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
             if let (Some((medium, stone)), Some(hit)) = (inside, &hit) {

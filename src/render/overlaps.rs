@@ -133,24 +133,13 @@ fn surface_points(world: &World, stone: usize) -> Vec<DVec3> {
         .collect()
 }
 
-/// How deep `point` lies inside stone `stone`: the least distance to its
-/// surface along the six axis directions (0 outside).
+/// How deep `point` (world) lies inside stone `stone`: minus the stone's
+/// signed distance estimate ([`crate::geometry::Cabochon::implicit`]),
+/// negative outside.
 fn depth_inside(world: &World, stone: usize, point: DVec3) -> f64 {
-    let axes = [
-        DVec3::X,
-        DVec3::NEG_X,
-        DVec3::Y,
-        DVec3::NEG_Y,
-        DVec3::Z,
-        DVec3::NEG_Z,
-    ];
-    axes.iter()
-        .map(|&axis| {
-            world
-                .stone_exit(stone, point, axis)
-                .map_or(0.0, |hit| hit.t)
-        })
-        .fold(f64::INFINITY, f64::min)
+    let instance = &world.stones()[stone];
+    let object_point = instance.rotation.inverse() * (point - instance.position);
+    -instance.cabochon.implicit(object_point)
 }
 
 /// Direction `k` of `n` spread evenly over the sphere (a Fibonacci lattice).
