@@ -152,14 +152,24 @@ pub fn single_crossing_albedo_sampled(brdf: &LayeredBrdf, mu: f64, seed: u64, si
     sum / (n * n) as f64
 }
 
-/// The uniforms E_single at cosine `mu` draws from, in order: u₀ free and
-/// (u₁, u₂) one point in each cell of an `n` × `n` grid.
+/// The uniforms E_single at cosine `mu` draws from, in order: (u₁, u₂) one
+/// point in each cell of an `n` × `n` grid, and u₀ (the sampler's lobe
+/// choice) one point in each of n² strata of [0, 1), the strata dealt to
+/// the cells in random order (a Latin hypercube over u₀): the choice
+/// between lobes whose weights differ several-fold is then as stratified
+/// as the direction.
 fn for_each_jittered_uniform(seed: u64, mu: f64, n: usize, mut draw: impl FnMut([f64; 3])) {
     let mut rng = crate::sampling::Rng::new(seed, mu.to_bits());
+    let count = n * n;
+    let mut strata: Vec<usize> = (0..count).collect();
+    for i in (1..count).rev() {
+        let j = ((rng.next_f64() * (i + 1) as f64) as usize).min(i);
+        strata.swap(i, j);
+    }
     for a in 0..n {
         for b in 0..n {
             draw([
-                rng.next_f64(),
+                (strata[a * n + b] as f64 + rng.next_f64()) / count as f64,
                 (a as f64 + rng.next_f64()) / n as f64,
                 (b as f64 + rng.next_f64()) / n as f64,
             ]);
@@ -785,6 +795,19 @@ fn safe_div(a: f64, b: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn e_single_draws_every_number_stratified() {
+        // One u₀ in each of the n² strata, one (u₁, u₂) in each grid cell.
+        let n = 16;
+        let (mut lobe, mut cells) = (vec![0; n * n], vec![0; n * n]);
+        for_each_jittered_uniform(5, 0.3, n, |[u0, u1, u2]| {
+            lobe[(u0 * (n * n) as f64) as usize] += 1;
+            cells[(u1 * n as f64) as usize * n + (u2 * n as f64) as usize] += 1;
+        });
+        assert!(lobe.iter().all(|&k| k == 1), "{lobe:?}");
+        assert!(cells.iter().all(|&k| k == 1), "{cells:?}");
+    }
 
     #[test]
     fn the_single_crossing_albedo_averages_the_general_samplers_weights() {
