@@ -27,8 +27,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BINARY = os.environ.get("LAPIDARY_BINARY", os.path.join(ROOT, "target", "release", "lapidary"))
 
 
-def render(args, spp, seed, connections, out):
-    command = [BINARY, "render", "-q", "--size", str(args.size), "--spp", str(spp),
+def render(args, spp, seed, connections, out, binary=BINARY):
+    command = [binary, "render", "-q", "--size", str(args.size), "--spp", str(spp),
                "--seed", str(seed), "--bounces", str(args.bounces), "-o", out]
     if args.scene:
         command += ["--scene", args.scene]
