@@ -220,7 +220,7 @@ impl<'a> CoatAt<'a> {
                 self.interface.lobe.sample_reflection(self.wo, u[1], u[2])?
             } else if self.layer_density_per_cosine > 0.0 {
                 // (p_below > 0 and ωₒ leaves the layer, see the field.)
-                diffuse_base_sample(u[1], u[2], self.interface.eta)?
+                diffuse_base_sample(u[1], u[2], &[], self.interface.eta)?
             } else {
                 return None;
             }

@@ -162,10 +162,7 @@ fn for_each_jittered_uniform(seed: u64, mu: f64, n: usize, mut draw: impl FnMut(
     let mut rng = crate::sampling::Rng::new(seed, mu.to_bits());
     let count = n * n;
     let mut strata: Vec<usize> = (0..count).collect();
-    for i in (1..count).rev() {
-        let j = ((rng.next_f64() * (i + 1) as f64) as usize).min(i);
-        strata.swap(i, j);
-    }
+    shuffle(&mut strata, &mut rng);
     for a in 0..n {
         for b in 0..n {
             draw([
@@ -174,6 +171,14 @@ fn for_each_jittered_uniform(seed: u64, mu: f64, n: usize, mut draw: impl FnMut(
                 (b as f64 + rng.next_f64()) / n as f64,
             ]);
         }
+    }
+}
+
+/// Shuffles `items` in place (Fisher–Yates) with numbers from `rng`.
+fn shuffle(items: &mut [usize], rng: &mut crate::sampling::Rng) {
+    for i in (1..items.len()).rev() {
+        let j = ((rng.next_f64() * (i + 1) as f64) as usize).min(i);
+        items.swap(i, j);
     }
 }
 
@@ -201,11 +206,8 @@ pub fn adaptive_walk_albedo(brdf: &LayeredBrdf, tables: &WalkTables, mu: f64, se
     let mut paths = 0usize;
     let mut order: Vec<usize> = (0..batch).collect();
     while paths < MAX_WALKS_PER_NODE {
-        // Fisher-Yates shuffle pairing the cells of the two grids.
-        for i in (1..batch).rev() {
-            let j = ((rng.next_f64() * (i + 1) as f64) as usize).min(i);
-            order.swap(i, j);
-        }
+        // A random pairing of the cells of the two grids.
+        shuffle(&mut order, &mut rng);
         for (cell, other) in order.iter().enumerate() {
             let jitter = |c: usize, rng: &mut crate::sampling::Rng| {
                 [

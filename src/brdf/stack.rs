@@ -248,11 +248,7 @@ impl LayeredBrdf {
             // carried down to this interface (the levels above carry it
             // back out).
             wo_refracted()?;
-            let mut wi = cosine_hemisphere(u[1], u[2]);
-            for upper in &self.interfaces[..level] {
-                wi = -refract(wi, DVec3::Z, upper.eta)?;
-            }
-            enters(wi, itf.eta).then_some(wi)
+            diffuse_base_sample(u[1], u[2], &self.interfaces[..level], itf.eta)
         } else if p_below > 0.0 {
             // Refract wo through the macro normal, sample below, refract out.
             let u0 = ((u[0] - p_top) / p_below).min(1.0 - f64::EPSILON);
@@ -723,7 +719,7 @@ impl BrdfAt<'_> {
                     // No light leaves along wo from below under total
                     // internal reflection (None).
                     top.wo_refracted?;
-                    diffuse_base_sample(u[1], u[2], itf.eta)
+                    diffuse_base_sample(u[1], u[2], &[], itf.eta)
                 } else {
                     None
                 }
@@ -734,18 +730,29 @@ impl BrdfAt<'_> {
     }
 }
 
-/// The layer branch's sample for a diffuse base under an interface of
-/// relative index `eta`: a cosine-distributed direction above the
-/// interface (density cosθᵢ/π), None where it would not enter (η < 1
-/// beyond the critical angle). The layer's term f·cosθᵢ = T₁₂·a·t·ρ/(πη²)
+/// The layer branch's sample for a diffuse base under the last interface,
+/// of relative index `eta`, below the interfaces `above` it: a
+/// cosine-distributed direction above the whole stack (density cosθᵢ/π
+/// there), refracted down through `above` to just over the last
+/// interface; None where it would not get there or not enter (η < 1
+/// beyond the critical angle). Under a single interface (`above` empty)
+/// it is the cosine itself. The layer's term f·cosθᵢ = T₁₂·a·t·ρ/(πη²)
 /// ·cosθᵢ follows this cosine up to the Fresnel and absorption factors.
 /// (A cosine drawn inside and refracted out has the same shape above,
 /// cosθᵢ/(πη²) by Snell's Jacobian, but only the part inside the critical
 /// cone, sinθ′ < 1/η, gets out: 1 − 1/η² of its samples, 56 % at
 /// η = 1.5, would be lost to total internal reflection.)
 #[inline(always)]
-pub(crate) fn diffuse_base_sample(u1: f64, u2: f64, eta: f64) -> Option<DVec3> {
-    let wi = cosine_hemisphere(u1, u2);
+pub(crate) fn diffuse_base_sample(
+    u1: f64,
+    u2: f64,
+    above: &[Interface],
+    eta: f64,
+) -> Option<DVec3> {
+    let mut wi = cosine_hemisphere(u1, u2);
+    for upper in above {
+        wi = -refract(wi, DVec3::Z, upper.eta)?;
+    }
     enters(wi, eta).then_some(wi)
 }
 
@@ -957,8 +964,9 @@ mod tests {
     #[test]
     fn snell_shortcuts_through_the_normal_equal_refract_bit_for_bit() {
         // `refract_through_normal` against the general `refract(w, z, η)`
-        // (whose dot product with z and Snell's law it replaces), for denser and rarer media (η < 1: total
-        // internal reflection), at random and at exactly normal incidence.
+        // (whose dot product with z and Snell's law it replaces), for
+        // denser and rarer media (η < 1: total internal reflection), at
+        // random and at exactly normal incidence.
         use super::{fresnel, refract, refract_through_normal};
         let mut rng = Rng::new(11, 12);
         let mut tir = 0;
