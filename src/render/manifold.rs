@@ -404,7 +404,7 @@ impl Start {
     /// of index `ior`) through `reflections` (0 ..= [`MAX_REFLECTIONS`])
     /// internal reflections and one refraction to `target`: the straight
     /// line refined by [`refraction_towards`] without reflection,
-    /// [`mirrored_start`] with one. None when there is none.
+    /// [`Mirror::start`] with one. None when there is none.
     pub(crate) fn new(
         boundary: &impl Boundary,
         ior: f64,
@@ -428,7 +428,7 @@ impl Start {
             };
             (direction, preview)
         } else {
-            mirrored_start(boundary, ior, origin, target)?
+            return Some(Mirror::find(boundary, origin, target)?.start(boundary, ior));
         };
         Some(Self {
             origin,
@@ -654,63 +654,119 @@ fn refraction_towards(exit: &Exit, ior: f64, target: Target) -> Option<DVec3> {
     inside.is_finite().then_some(inside)
 }
 
-/// The start of a chain with one reflection: the surface behind the
-/// origin (seen away from the target) taken as a mirror plane, the
-/// origin's image in it joined to the target by a line, and that line's
-/// direction after the plane refined by [`refraction_towards`] where it
-/// leaves, then mirrored back. Exact for a slab and a direction target.
-///
-/// Also the chain's preview read off the same traces, the surface taken as
-/// the mirror plane and the tangent plane where the line leaves: the
-/// start's run to the mirror plane plus its mirrored run on to the exit's
-/// plane, and the Fresnel reflectance at the mirror.
-fn mirrored_start(
-    boundary: &impl Boundary,
-    ior: f64,
+/// The first trace of the start of a chain with one reflection (see
+/// [`Mirror::start`]): the surface behind the origin, seen away from the
+/// target, taken as a mirror plane, and the line from the origin's image
+/// in it towards the target. Known before the rest of the start is paid
+/// for, so that a caller can end the chain early ([`Mirror::depth`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Mirror {
     origin: DVec3,
     target: Target,
-) -> Option<(DVec3, Preview)> {
-    let away = -towards(origin, target);
-    if !away.is_finite() {
-        return None;
-    }
-    let mirror = boundary.exit(origin, away)?;
-    let (plane, normal) = (mirror.point, mirror.normal);
-    let reflect = |v: DVec3| v - normal * (2.0 * v.dot(normal));
-    let image = origin - normal * (2.0 * (origin - plane).dot(normal));
-    // The image's line towards the target crosses the plane inwards at
-    // the mirror point; past it the reflected ray runs along the line.
-    let line = towards(image, target);
-    let speed = line.dot(normal);
-    if speed.is_nan() || speed >= 0.0 {
-        return None;
-    }
-    let crossing = image + line * ((plane - image).dot(normal) / speed);
-    let exit = boundary.exit(crossing - normal * REFLECTION_OFFSET, line);
-    let refined = exit
-        .and_then(|exit| refraction_towards(&exit, ior, target))
-        .filter(|inside| inside.dot(normal) < 0.0)
-        .map(reflect);
-    let start = refined.unwrap_or_else(|| reflect(line));
-    // The preview's chain: the start to the mirror plane, mirrored, on to
-    // the tangent plane where the line left.
-    let cos_mirror = start.dot(normal);
-    let to_mirror = (plane - origin).dot(normal) / cos_mirror;
-    let onwards = reflect(start);
-    let to_exit = exit.map_or(0.0, |exit| {
-        let speed = onwards.dot(exit.normal);
-        let from_mirror = origin + start * to_mirror;
-        if speed > 0.0 {
-            (exit.point - from_mirror).dot(exit.normal) / speed
-        } else {
-            exit.t
+    /// Where the ray away from the target leaves the body.
+    plane: DVec3,
+    /// The outward normal there.
+    normal: DVec3,
+    /// The origin mirrored in the plane.
+    image: DVec3,
+    /// The unit direction from the image towards the target.
+    line: DVec3,
+    /// `line · normal` (< 0: the line crosses the plane inwards).
+    speed: f64,
+}
+
+impl Mirror {
+    /// The mirror plane of the chain from `origin` (inside the body) to
+    /// `target`; None when the ray away from the target leaves no surface
+    /// or the image's line towards the target does not cross the plane
+    /// inwards.
+    pub(crate) fn find(boundary: &impl Boundary, origin: DVec3, target: Target) -> Option<Self> {
+        let away = -towards(origin, target);
+        if !away.is_finite() {
+            return None;
         }
-    });
-    let preview = Preview {
-        inner_length: to_mirror.max(0.0) + to_exit.max(0.0),
-        reflectance: fresnel::dielectric(cos_mirror, 1.0 / ior),
-    };
-    Some((start, preview))
+        let mirror = boundary.exit(origin, away)?;
+        let (plane, normal) = (mirror.point, mirror.normal);
+        let image = origin - normal * (2.0 * (origin - plane).dot(normal));
+        let line = towards(image, target);
+        let speed = line.dot(normal);
+        if speed.is_nan() || speed >= 0.0 {
+            return None;
+        }
+        Some(Self {
+            origin,
+            target,
+            plane,
+            normal,
+            image,
+            line,
+            speed,
+        })
+    }
+
+    /// The origin's depth under the mirror plane: at most the inner
+    /// length of the start's [`Preview`] (its run to the plane is at
+    /// least this deep), so that a chain's expected throughput through
+    /// the body is at most what this depth alone lets through.
+    pub(crate) fn depth(&self) -> f64 {
+        (self.plane - self.origin).dot(self.normal).max(0.0)
+    }
+
+    /// The start of the chain: where the image's line crosses the plane
+    /// the reflected ray runs along it; that line's direction after the
+    /// plane, refined by [`refraction_towards`] where it leaves, mirrored
+    /// back. Exact for a slab and a direction target.
+    ///
+    /// Also the chain's preview read off the same traces, the surface taken
+    /// as the mirror plane and the tangent plane where the line leaves: the
+    /// start's run to the mirror plane plus its mirrored run on to the
+    /// exit's plane, and the Fresnel reflectance at the mirror.
+    pub(crate) fn start(&self, boundary: &impl Boundary, ior: f64) -> Start {
+        let Self {
+            origin,
+            target,
+            plane,
+            normal,
+            image,
+            line,
+            speed,
+        } = *self;
+        let reflect = |v: DVec3| v - normal * (2.0 * v.dot(normal));
+        let crossing = image + line * ((plane - image).dot(normal) / speed);
+        let exit = boundary.exit(crossing - normal * REFLECTION_OFFSET, line);
+        let refined = exit
+            .and_then(|exit| refraction_towards(&exit, ior, target))
+            .filter(|inside| inside.dot(normal) < 0.0)
+            .map(reflect);
+        let start = refined.unwrap_or_else(|| reflect(line));
+        // The preview's chain: the start to the mirror plane, mirrored, on to
+        // the tangent plane where the line left.
+        let cos_mirror = start.dot(normal);
+        let to_mirror = (plane - origin).dot(normal) / cos_mirror;
+        let onwards = reflect(start);
+        let to_exit = exit.map_or(0.0, |exit| {
+            let speed = onwards.dot(exit.normal);
+            let from_mirror = origin + start * to_mirror;
+            if speed > 0.0 {
+                (exit.point - from_mirror).dot(exit.normal) / speed
+            } else {
+                exit.t
+            }
+        });
+        let preview = Preview {
+            // Never below the depth (a start that turns away from the
+            // plane would have a negative run to it).
+            inner_length: (to_mirror.max(0.0) + to_exit.max(0.0)).max(self.depth()),
+            reflectance: fresnel::dielectric(cos_mirror, 1.0 / ior),
+        };
+        Start {
+            origin,
+            target,
+            reflections: 1,
+            direction: start,
+            preview,
+        }
+    }
 }
 
 /// |d(target measure) / dω| at the solution `inner` (refracted out along

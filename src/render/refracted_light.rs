@@ -26,7 +26,7 @@ use crate::recipe::gem::Body;
 use crate::render::flake_medium::FlakeView;
 use crate::render::integrator::{power_heuristic, shadow_reach, RenderScene};
 use crate::render::lights::Light;
-use crate::render::manifold::{self, Boundary, Connection, Exit, Start, Target};
+use crate::render::manifold::{self, Boundary, Connection, Exit, Mirror, Start, Target};
 use crate::render::medium::beer_lambert;
 use crate::render::sampler::SampleStream;
 use crate::render::world::{World, RAY_OFFSET};
@@ -195,12 +195,28 @@ impl RenderScene {
                        stream: &mut SampleStream,
                        shadow_rays: &mut u64|
          -> Option<Rgb> {
-            let start = Start::new(&boundary, ior, point, sampled.target, reflections)?;
             // Russian roulette on the chain's expected throughput, before
             // its solve; survivors count 1/survival times, and the MIS
             // densities below are the connection's times its survival.
+            // A mirrored chain draws its number as soon as its mirror plane
+            // is known when its survival is sure to be below 1 (what the
+            // origin's depth under the plane lets through bounds it), and
+            // ends there when the number lies above that bound: the same
+            // numbers, the same decisions, without the start's second trace
+            // for most chains that end.
+            let (start, drawn) = if reflections == 0 {
+                (Start::new(&boundary, ior, point, sampled.target, 0)?, None)
+            } else {
+                let mirror = Mirror::find(&boundary, point, sampled.target)?;
+                let bound = self.survival_through(stone, mirror.depth());
+                let drawn = (bound < 1.0).then(|| stream.next_1d());
+                if drawn.is_some_and(|u| u >= bound) {
+                    return None;
+                }
+                (mirror.start(&boundary, ior), drawn)
+            };
             let survival = self.chain_survival(stone, &start);
-            if survival < 1.0 && stream.next_1d() >= survival {
+            if survival < 1.0 && drawn.unwrap_or_else(|| stream.next_1d()) >= survival {
                 return None;
             }
             // Russian roulette on the vertex's density towards the start
@@ -398,6 +414,21 @@ impl RenderScene {
         if start.reflections() == 0 {
             return 1.0;
         }
+        let preview = start.preview();
+        self.survival_of(stone, preview.reflectance, preview.inner_length)
+    }
+
+    /// An upper bound of [`RenderScene::chain_survival`] for every chain
+    /// whose inner length is at least `length_mm`: what that length lets
+    /// through with a reflectance of 1.
+    fn survival_through(&self, stone: usize, length_mm: f64) -> f64 {
+        self.survival_of(stone, 1.0, length_mm)
+    }
+
+    /// The roulette's probability for a chain of `reflectance` and inner
+    /// length `length_mm` in stone `stone` (see
+    /// [`RenderScene::chain_survival`]): non-increasing in the length.
+    fn survival_of(&self, stone: usize, reflectance: f64, length_mm: f64) -> f64 {
         let instance = &self.world.stones()[stone];
         let Body::Translucent {
             medium, inclusions, ..
@@ -405,12 +436,10 @@ impl RenderScene {
         else {
             return 1.0;
         };
-        let preview = start.preview();
         // The most transparent channel's extinction, and the flakes'.
         let extinction = (medium.absorption_per_mm + medium.scattering_per_mm).min_element();
         let crossings: f64 = inclusions.iter().map(|i| i.crossings_per_mm()).sum();
-        let throughput =
-            preview.reflectance * (-(extinction + crossings) * preview.inner_length).exp();
+        let throughput = reflectance * (-(extinction + crossings) * length_mm).exp();
         (throughput / ALWAYS_SOLVED_ABOVE).min(1.0)
     }
 
