@@ -607,6 +607,11 @@ impl BrdfAt<'_> {
             Rgb::splat(lobe_value * fresnel::dielectric(wi.dot(h), eta))
         };
         let single = 'single: {
+            // Nothing comes back from a black base right below (a bare
+            // varnish, a stone's polished surface): no refraction to do.
+            if single_interface && matches!(brdf.base, Base::Black) {
+                break 'single f_top;
+            }
             // The pair refracted through h, pointing up inside the layer.
             let (Some(ti), Some(to)) = (refract(wi, h, eta), refract(wo, h, eta)) else {
                 break 'single f_top;
