@@ -722,17 +722,10 @@ impl Mirror {
     /// start's run to the mirror plane plus its mirrored run on to the
     /// exit's plane, and the Fresnel reflectance at the mirror.
     pub(crate) fn start(&self, boundary: &impl Boundary, ior: f64) -> Start {
-        let Self {
-            origin,
-            target,
-            plane,
-            normal,
-            image,
-            line,
-            speed,
-        } = *self;
+        let (origin, target, plane, normal) = (self.origin, self.target, self.plane, self.normal);
+        let (image, line) = (self.image, self.line);
         let reflect = |v: DVec3| v - normal * (2.0 * v.dot(normal));
-        let crossing = image + line * ((plane - image).dot(normal) / speed);
+        let crossing = image + line * ((plane - image).dot(normal) / self.speed);
         let exit = boundary.exit(crossing - normal * REFLECTION_OFFSET, line);
         let refined = exit
             .and_then(|exit| refraction_towards(&exit, ior, target))
