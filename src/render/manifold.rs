@@ -988,11 +988,11 @@ mod tests {
                 Target::Direction(DVec3::new((k * 0.3).sin(), 0.4, 1.0).normalize()),
             ];
             for target in targets {
-                for reflections in 0..=MAX_REFLECTIONS {
+                for (reflections, count) in solved.iter_mut().enumerate() {
                     let Some(c) = connect(&ball, ior, origin, target, reflections) else {
                         continue;
                     };
-                    solved[reflections] += 1;
+                    *count += 1;
                     let chart = Chart::around(c.inside_direction);
                     let (r, _, _) =
                         evaluate(&ball, ior, (origin, target, reflections), &chart, 0.0, 0.0)
