@@ -539,7 +539,11 @@ fn solve(
     // Where the chain at (a, b) leaves, while (a, b) is a point evaluated.
     let mut evaluated_exit = Some(exit);
     let mut steps = 0;
-    while r.length() > TOLERANCE {
+    loop {
+        let residual = r.length();
+        if residual <= TOLERANCE {
+            break;
+        }
         let (aa, ab, bb) = (ja.dot(ja), ja.dot(jb), jb.dot(jb));
         let (ra, rb) = (ja.dot(r), jb.dot(r));
         let det = aa * bb - ab * ab;
@@ -548,7 +552,7 @@ fn solve(
         }
         let da = -(bb * ra - ab * rb) / det;
         let db = -(aa * rb - ab * ra) / det;
-        if r.length() <= LAST_STEP_BELOW {
+        if residual <= LAST_STEP_BELOW {
             (a, b, evaluated_exit) = (a + da, b + db, None);
             break;
         }
@@ -562,7 +566,7 @@ fn solve(
         for _ in 0..MAX_HALVINGS {
             let (sa, sb) = (step * da, step * db);
             if let Some(found) = evaluate(a + sa, b + sb) {
-                if found.0.length() < r.length() {
+                if found.0.length() < residual {
                     next = Some((sa, sb, found));
                     break;
                 }

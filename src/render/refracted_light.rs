@@ -171,6 +171,8 @@ impl RenderScene {
             return Rgb::ZERO;
         };
         let extinction_per_mm = medium.absorption_per_mm + medium.scattering_per_mm;
+        // The reflected chains' roulette's loss per mm, once for all of them.
+        let chain_extinction = self.chain_extinction_per_mm(stone);
         let boundary = StoneBoundary(&self.world, stone);
         // One emitter per vertex, chosen uniformly among the lights and a
         // light-sampled environment: a connection costs a Newton solve, and
@@ -208,14 +210,14 @@ impl RenderScene {
                 (Start::new(&boundary, ior, point, sampled.target, 0)?, None)
             } else {
                 let mirror = Mirror::find(&boundary, point, sampled.target)?;
-                let bound = self.survival_through(stone, mirror.depth());
+                let bound = survival_of(chain_extinction, 1.0, mirror.depth());
                 let drawn = (bound < 1.0).then(|| stream.next_1d());
                 if drawn.is_some_and(|u| u >= bound) {
                     return None;
                 }
                 (mirror.start(&boundary, ior), drawn)
             };
-            let survival = self.chain_survival(stone, &start);
+            let survival = survival_of_start(chain_extinction, &start);
             if survival < 1.0 && drawn.unwrap_or_else(|| stream.next_1d()) >= survival {
                 return None;
             }
@@ -411,36 +413,24 @@ impl RenderScene {
     /// target and the chain alone, so the sampled path that a connection
     /// could have made finds the same probability.
     fn chain_survival(&self, stone: usize, start: &Start) -> f64 {
-        if start.reflections() == 0 {
-            return 1.0;
-        }
-        let preview = start.preview();
-        self.survival_of(stone, preview.reflectance, preview.inner_length)
+        survival_of_start(self.chain_extinction_per_mm(stone), start)
     }
 
-    /// An upper bound of [`RenderScene::chain_survival`] for every chain
-    /// whose inner length is at least `length_mm`: what that length lets
-    /// through with a reflectance of 1.
-    fn survival_through(&self, stone: usize, length_mm: f64) -> f64 {
-        self.survival_of(stone, 1.0, length_mm)
-    }
-
-    /// The roulette's probability for a chain of `reflectance` and inner
-    /// length `length_mm` in stone `stone` (see
-    /// [`RenderScene::chain_survival`]): non-increasing in the length.
-    fn survival_of(&self, stone: usize, reflectance: f64, length_mm: f64) -> f64 {
+    /// What a chain's roulette counts as lost per mm inside stone `stone`:
+    /// the body's most transparent channel's extinction plus its flakes'
+    /// mean crossings per mm; None for a body that is not translucent
+    /// (every chain is then solved).
+    fn chain_extinction_per_mm(&self, stone: usize) -> Option<f64> {
         let instance = &self.world.stones()[stone];
         let Body::Translucent {
             medium, inclusions, ..
         } = &self.gems[instance.gem].body
         else {
-            return 1.0;
+            return None;
         };
-        // The most transparent channel's extinction, and the flakes'.
         let extinction = (medium.absorption_per_mm + medium.scattering_per_mm).min_element();
         let crossings: f64 = inclusions.iter().map(|i| i.crossings_per_mm()).sum();
-        let throughput = reflectance * (-(extinction + crossings) * length_mm).exp();
-        (throughput / ALWAYS_SOLVED_ABOVE).min(1.0)
+        Some(extinction + crossings)
     }
 
     /// How many emitters a connection chooses its one from: every light,
@@ -524,6 +514,28 @@ fn light_point_pdf(light: &Light, point: DVec3, y: DVec3, direction: DVec3) -> O
     let cos = -light.surface_normal(y)?.dot(towards);
     let pdf = light.pdf(point, towards, distance);
     (cos > 0.0 && pdf > 0.0).then(|| pdf * cos / (distance * distance))
+}
+
+/// [`RenderScene::chain_survival`] of `start` in a body that loses
+/// `extinction_per_mm` ([`RenderScene::chain_extinction_per_mm`]).
+fn survival_of_start(extinction_per_mm: Option<f64>, start: &Start) -> f64 {
+    if start.reflections() == 0 {
+        return 1.0;
+    }
+    let preview = start.preview();
+    survival_of(extinction_per_mm, preview.reflectance, preview.inner_length)
+}
+
+/// The roulette's probability for a chain of `reflectance` and inner
+/// length `length_mm` in a body that loses `extinction_per_mm` (see
+/// [`RenderScene::chain_survival`]): non-increasing in the length, so that
+/// with a reflectance of 1 it bounds every chain at least that long.
+fn survival_of(extinction_per_mm: Option<f64>, reflectance: f64, length_mm: f64) -> f64 {
+    let Some(extinction) = extinction_per_mm else {
+        return 1.0;
+    };
+    let throughput = reflectance * (-extinction * length_mm).exp();
+    (throughput / ALWAYS_SOLVED_ABOVE).min(1.0)
 }
 
 #[cfg(test)]
