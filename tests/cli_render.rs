@@ -266,7 +266,14 @@ fn bad_settings_are_refused_before_any_work_and_leave_no_file() {
         ron.to_str().unwrap(),
     );
     let cases: Vec<(Vec<&str>, &str)> = vec![
-        (vec!["render", "-o", p, "--size", "0"], "allowed 1 to"),
+        (
+            vec!["render", "-o", p, "--size", "0"],
+            "--size 0: allowed 1 to",
+        ),
+        (
+            vec!["render", "-o", p, "--height", "0"],
+            "--height 0: allowed 1 to",
+        ),
         (vec!["render", "-o", p, "--spp", "0"], "--spp 0"),
         (
             vec!["render", "-o", p, "--width", "30000", "--height", "30000"],

@@ -207,7 +207,13 @@ fn gib(bytes: u64) -> f64 {
 fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
     let width = args.size.or(args.width).unwrap_or(512);
     let height = args.size.or(args.height).unwrap_or(512);
-    for (name, value) in [("width", width), ("height", height)] {
+    // Named as the user typed it: --size sets both sides.
+    let (width_flag, height_flag) = if args.size.is_some() {
+        ("size", "size")
+    } else {
+        ("width", "height")
+    };
+    for (name, value) in [(width_flag, width), (height_flag, height)] {
         if value == 0 || value > MAX_SIDE_PX {
             return Err(format!(
                 "--{name} {value}: allowed 1 to {MAX_SIDE_PX} pixels"
