@@ -261,3 +261,46 @@ fn a_directory_or_non_utf8_file_is_refused_with_its_name() {
         );
     }
 }
+
+#[test]
+fn slice_prints_the_lobe_in_the_plane_with_the_walk_beside_it() {
+    // Gold, a bare metal: its lobe peaks on the mirror side (θₒ = +30° for
+    // light at 30°), nothing comes back on the light's side near the
+    // horizon, and the model agrees with its random walk at the peak.
+    let out = lapidary(&["brdf", "gold", "--slice", "30", "--reference"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(
+        lines[0],
+        "theta_o_deg,r,g,b,reference_r,reference_g,reference_b"
+    );
+    let rows: Vec<Vec<f64>> = lines[1..]
+        .iter()
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 59);
+    assert_eq!((rows[0][0], rows[58][0]), (-87.0, 87.0));
+    let peak = rows.iter().max_by(|a, b| a[1].total_cmp(&b[1])).unwrap();
+    assert!((peak[0] - 30.0).abs() <= 3.0, "peak at {}°", peak[0]);
+    assert!(
+        (peak[1] / peak[4] - 1.0).abs() < 0.1,
+        "model {} against the walk {} at the peak",
+        peak[1],
+        peak[4]
+    );
+    assert_eq!(
+        rows[0][1], 0.0,
+        "light's side at the horizon: {:?}",
+        rows[0]
+    );
+
+    // Out of range: a clear message and exit 1.
+    let out = lapidary(&["brdf", "gold", "--slice", "95"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--slice 95: allowed 0 to 90"));
+}

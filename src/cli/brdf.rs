@@ -32,9 +32,16 @@ pub fn run(args: BrdfArgs) -> Result<(), String> {
         lapidary::output::check_writable(path).map_err(|e| e.to_string())?;
     }
     let eval_angles = args.eval.as_deref().map(parse_eval_angles).transpose()?;
+    if let Some(theta_i) = args.slice {
+        if !(0.0..=90.0).contains(&theta_i) {
+            return Err(format!("--slice {theta_i}: allowed 0 to 90 degrees"));
+        }
+    }
     let brdf = load(&args)?;
     if args.albedo {
         print_albedo(&brdf, args.reference);
+    } else if let Some(theta_i) = args.slice {
+        print_slice(&brdf, theta_i, args.reference);
     } else if let Some([ti, pi, to, po]) = eval_angles {
         let f = brdf.eval(
             direction_from_degrees(ti, pi),
@@ -47,7 +54,9 @@ pub fn run(args: BrdfArgs) -> Result<(), String> {
         eprintln!("wrote {}", path.display());
     } else {
         return Err(
-            "say what to show: --albedo, --eval THETA_I,PHI_I,THETA_O,PHI_O, or -o PLOT.png".into(),
+            "say what to show: --albedo, --slice THETA_I, --eval THETA_I,PHI_I,THETA_O,PHI_O, \
+             or -o PLOT.png"
+                .into(),
         );
     }
     Ok(())
@@ -96,6 +105,31 @@ fn print_albedo(brdf: &LayeredBrdf, with_reference: bool) {
         } else {
             super::emit(&format!("{theta},{:.4},{:.4},{:.4}", m.x, m.y, m.z));
         }
+    }
+}
+
+/// The in-plane slice f·cosθₒ for light at `theta_i` degrees as CSV, with
+/// the random walk's (2 M paths, bins 0.02 wide in sin θₒ) beside it when
+/// asked: the model against its reference as numbers, for the lobes a plot
+/// flattens.
+fn print_slice(brdf: &LayeredBrdf, theta_i: f64, with_reference: bool) {
+    let angles: Vec<f64> = (0..=58).map(|k| -87.0 + f64::from(k) * 3.0).collect();
+    let wi = direction_from_degrees(theta_i, 180.0);
+    let reference =
+        with_reference.then(|| reference_slice(brdf, theta_i, &angles, 2_000_000, 0.02, SEED));
+    if with_reference {
+        super::emit("theta_o_deg,r,g,b,reference_r,reference_g,reference_b");
+    } else {
+        super::emit("theta_o_deg,r,g,b");
+    }
+    for (k, &theta_o) in angles.iter().enumerate() {
+        let wo = direction_from_degrees(theta_o.abs(), if theta_o < 0.0 { 180.0 } else { 0.0 });
+        let v = brdf.eval(wi, wo) * wo.z;
+        let mut line = format!("{theta_o},{:.6},{:.6},{:.6}", v.x, v.y, v.z);
+        if let Some(r) = reference.as_ref().map(|r| r[k]) {
+            line += &format!(",{:.6},{:.6},{:.6}", r.x, r.y, r.z);
+        }
+        super::emit(&line);
     }
 }
 

@@ -84,8 +84,13 @@ struct BrdfArgs {
     /// A library name (see `lapidary list`) or a RON material file.
     material: String,
     /// Print CSV `theta_deg,r,g,b`: directional albedo at 0, 5, … 85°.
-    #[arg(long, conflicts_with_all = ["eval", "output"])]
+    #[arg(long, conflicts_with_all = ["eval", "output", "slice"])]
     albedo: bool,
+    /// Print CSV `theta_o_deg,r,g,b`: f·cosθₒ in the plane of incidence for
+    /// light at THETA_I degrees, θₒ from −87 to 87 in steps of 3 (negative:
+    /// on the light's side).
+    #[arg(long, value_name = "THETA_I", conflicts_with_all = ["eval", "output"], allow_hyphen_values = true)]
+    slice: Option<f64>,
     /// Print `r,g,b`, the BRDF value f (no cosine) for THETA_I,PHI_I,THETA_O,PHI_O in degrees.
     #[arg(
         long,
@@ -98,7 +103,7 @@ struct BrdfArgs {
     #[arg(short = 'o', long = "output", value_name = "PLOT.png")]
     output: Option<PathBuf>,
     /// Overlay the Monte Carlo random-walk reference on the plot, or add its
-    /// albedo columns to --albedo.
+    /// columns to --albedo or --slice.
     #[arg(long)]
     reference: bool,
     /// Use the seed-faithful single-crossing model (no multiple-scattering compensation).
