@@ -12,6 +12,18 @@ fn lapidary(args: &[&str]) -> Output {
         .expect("binary runs")
 }
 
+/// The standard output of a command that must succeed (its stderr in the
+/// failure message otherwise).
+fn stdout_of_success(args: &[&str]) -> String {
+    let out = lapidary(args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
 fn scratch_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("lapidary-cli-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
@@ -21,13 +33,7 @@ fn scratch_dir(name: &str) -> PathBuf {
 
 #[test]
 fn albedo_prints_csv_for_0_to_85_degrees() {
-    let out = lapidary(&["brdf", "gold", "--albedo"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8(out.stdout).unwrap();
+    let text = stdout_of_success(&["brdf", "gold", "--albedo"]);
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines[0], "theta_deg,r,g,b");
     assert_eq!(lines.len(), 19);
@@ -267,13 +273,7 @@ fn slice_prints_the_lobe_in_the_plane_with_the_walk_beside_it() {
     // Gold, a bare metal: its lobe peaks on the mirror side (θₒ = +30° for
     // light at 30°), nothing comes back on the light's side near the
     // horizon, and the model agrees with its random walk at the peak.
-    let out = lapidary(&["brdf", "gold", "--slice", "30", "--reference"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8(out.stdout).unwrap();
+    let text = stdout_of_success(&["brdf", "gold", "--slice", "30", "--reference"]);
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(
         lines[0],
