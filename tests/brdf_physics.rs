@@ -5,7 +5,7 @@
 use glam::DVec3;
 use lapidary::brdf::albedo::{directional_albedo, in_plane};
 use lapidary::brdf::fresnel;
-use lapidary::brdf::reference::reference_albedo;
+use lapidary::brdf::reference::{model_slice, reference_albedo, reference_slice};
 use lapidary::brdf::{LayeredBrdf, Rgb};
 use lapidary::recipe::compile::{compile_material, parse_material, MaterialSource};
 use lapidary::recipe::library::builtin_material_names;
@@ -196,3 +196,35 @@ fn compensation_lobe_is_reciprocal() {
 
 // Thread-count independence of the tables is tested past the material
 // cache in tests/compile_speed.rs (`walked_tables_are_identical_on_1_and_4_threads`).
+
+#[test]
+fn library_lobes_follow_the_random_walk_in_the_plane_of_incidence() {
+    // The model as renders use it (compensation on) against its random
+    // walk, both binned alike (squares of 0.02 on the projected disc),
+    // light at 30°: the L1 error Σ|model − walk|·cosθₒ / Σ walk·cosθₒ over
+    // the in-plane slice, green. Measured 2026-12-04 (bench/results/
+    // 2026-12-04-lobe-accuracy.md): a varnish, a bare metal and a smooth
+    // coat over colour 0.00, a rough coat over colour 0.03, a rough paint
+    // 0.08. (The coated metals, 0.1–1.0 off under section 4.2.3's
+    // roughness, wait on a decision and are not pinned here.)
+    let angles: Vec<f64> = (0..=58).map(|k| -87.0 + f64::from(k) * 3.0).collect();
+    for (name, limit) in [
+        ("plastics", 0.03),
+        ("gold", 0.03),
+        ("red-acrylic", 0.03),
+        ("red-garnet", 0.06),
+        ("green-latex", 0.12),
+    ] {
+        let brdf = load_material(name).unwrap();
+        let model = model_slice(&brdf, 30.0, &angles, 0.02);
+        let walk = reference_slice(&brdf, 30.0, &angles, 2_000_000, 0.02, 7);
+        let (mut difference, mut total) = (0.0, 0.0);
+        for ((theta, m), w) in angles.iter().zip(&model).zip(&walk) {
+            let cos = theta.to_radians().cos();
+            difference += cos * (m.y - w.y).abs();
+            total += cos * w.y;
+        }
+        let error = difference / total;
+        assert!(error < limit, "{name}: L1 error {error:.3} (limit {limit})");
+    }
+}

@@ -454,6 +454,45 @@ pub fn reference_albedo_with(
     (mean, (variance / n).map(f64::sqrt))
 }
 
+/// Grid points per side with which [`model_slice`] averages the model over
+/// one of [`reference_slice`]'s squares.
+const SLICE_GRID: usize = 16;
+
+/// The model's in-plane slice binned exactly as [`reference_slice`] bins
+/// the walk's, to compare the two like with like: f·cosθₒ at signed
+/// outgoing angles `theta_o_deg` (light on the φ = π side), f averaged
+/// over the square of side `bin` on the projected unit disc about each
+/// angle's projection (a 16 × 16 grid; points off the disc count 0, as no
+/// path exits there). A lobe much narrower than the grid's spacing
+/// (bin/16; a mirror-like coat) is a spike the grid does not resolve.
+pub fn model_slice(
+    brdf: &LayeredBrdf,
+    theta_i_deg: f64,
+    theta_o_deg: &[f64],
+    bin: f64,
+) -> Vec<Rgb> {
+    let wi = crate::sampling::direction_from_degrees(theta_i_deg, 180.0);
+    let step = bin / SLICE_GRID as f64;
+    theta_o_deg
+        .iter()
+        .map(|t| {
+            let centre = t.to_radians().sin();
+            let mut sum = Rgb::ZERO;
+            for i in 0..SLICE_GRID {
+                for j in 0..SLICE_GRID {
+                    let x = centre - bin / 2.0 + (i as f64 + 0.5) * step;
+                    let y = -bin / 2.0 + (j as f64 + 0.5) * step;
+                    let z_squared = 1.0 - x * x - y * y;
+                    if z_squared > 0.0 {
+                        sum += brdf.eval(wi, DVec3::new(x, y, z_squared.sqrt()));
+                    }
+                }
+            }
+            sum / (SLICE_GRID * SLICE_GRID) as f64 * t.to_radians().cos()
+        })
+        .collect()
+}
+
 /// In-plane slice of the reference BRDF for the polar plots: f·cosθₒ at
 /// signed outgoing angles `theta_o_deg` (φ = 0 for positive, π for negative
 /// angles, the light at φ = π side), estimated by counting exits in small

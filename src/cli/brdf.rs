@@ -2,7 +2,7 @@
 
 use super::BrdfArgs;
 use lapidary::brdf::albedo::{albedo_angles_deg, directional_albedo, in_plane};
-use lapidary::brdf::reference::{reference_albedo_with, reference_slice, WalkTables};
+use lapidary::brdf::reference::{model_slice, reference_albedo_with, reference_slice, WalkTables};
 use lapidary::brdf::LayeredBrdf;
 use lapidary::gallery::plot::{polar_plot, PolarPanel, PolarPlotStyle};
 use lapidary::recipe::compile::load_material_with;
@@ -110,62 +110,42 @@ fn print_albedo(brdf: &LayeredBrdf, with_reference: bool) {
 
 /// Side of the walk's bins on the projected unit disc, for `--slice`.
 const SLICE_BIN: f64 = 0.02;
-/// Grid points per side with which `--slice --reference` averages the
-/// model over each of the walk's bins.
-const SLICE_BIN_GRID: usize = 16;
 
 /// The in-plane slice f·cosθₒ for light at `theta_i` degrees as CSV, with
 /// the random walk's (2 M paths, squares of side 0.02 on the projected
 /// disc) beside it when asked. Beside the walk the model is averaged over
-/// the same squares (a 16 × 16 grid), so that a lobe narrower than a
+/// the same squares ([`model_slice`]), so that a lobe narrower than a
 /// square compares like with like; a mirror-like coat (below about 0.1°)
-/// is a spike that grid does not resolve at its peak.
+/// is a spike that average does not resolve at its peak.
 fn print_slice(brdf: &LayeredBrdf, theta_i: f64, with_reference: bool) {
     let angles: Vec<f64> = (0..=58).map(|k| -87.0 + f64::from(k) * 3.0).collect();
-    let wi = direction_from_degrees(theta_i, 180.0);
-    let reference =
-        with_reference.then(|| reference_slice(brdf, theta_i, &angles, 2_000_000, SLICE_BIN, SEED));
+    let (model, reference) = if with_reference {
+        (
+            model_slice(brdf, theta_i, &angles, SLICE_BIN),
+            Some(reference_slice(
+                brdf, theta_i, &angles, 2_000_000, SLICE_BIN, SEED,
+            )),
+        )
+    } else {
+        let wi = direction_from_degrees(theta_i, 180.0);
+        let points = angles.iter().map(|&t| {
+            let wo = direction_from_degrees(t.abs(), if t < 0.0 { 180.0 } else { 0.0 });
+            brdf.eval(wi, wo) * wo.z
+        });
+        (points.collect(), None)
+    };
     if with_reference {
         super::emit("theta_o_deg,r,g,b,reference_r,reference_g,reference_b");
     } else {
         super::emit("theta_o_deg,r,g,b");
     }
-    for (k, &theta_o) in angles.iter().enumerate() {
-        let v = match &reference {
-            None => {
-                let wo =
-                    direction_from_degrees(theta_o.abs(), if theta_o < 0.0 { 180.0 } else { 0.0 });
-                brdf.eval(wi, wo) * wo.z
-            }
-            Some(_) => bin_average(brdf, wi, theta_o) * theta_o.to_radians().cos(),
-        };
+    for (k, (&theta_o, v)) in angles.iter().zip(&model).enumerate() {
         let mut line = format!("{theta_o},{:.6},{:.6},{:.6}", v.x, v.y, v.z);
         if let Some(r) = reference.as_ref().map(|r| r[k]) {
             line += &format!(",{:.6},{:.6},{:.6}", r.x, r.y, r.z);
         }
         super::emit(&line);
     }
-}
-
-/// The mean of f(`wi`, ω) over the square of side [`SLICE_BIN`] on the
-/// projected unit disc centred where the in-plane direction at signed
-/// `theta_o_deg` projects (the walk's bin in `reference_slice`; points
-/// off the disc count 0, as no path exits there).
-fn bin_average(brdf: &LayeredBrdf, wi: glam::DVec3, theta_o_deg: f64) -> lapidary::brdf::Rgb {
-    let centre = theta_o_deg.to_radians().sin();
-    let step = SLICE_BIN / SLICE_BIN_GRID as f64;
-    let mut sum = lapidary::brdf::Rgb::ZERO;
-    for i in 0..SLICE_BIN_GRID {
-        for j in 0..SLICE_BIN_GRID {
-            let x = centre - SLICE_BIN / 2.0 + (i as f64 + 0.5) * step;
-            let y = -SLICE_BIN / 2.0 + (j as f64 + 0.5) * step;
-            let z_squared = 1.0 - x * x - y * y;
-            if z_squared > 0.0 {
-                sum += brdf.eval(wi, glam::DVec3::new(x, y, z_squared.sqrt()));
-            }
-        }
-    }
-    sum / (SLICE_BIN_GRID * SLICE_BIN_GRID) as f64
 }
 
 /// In-plane slice f(ωᵢ, ωₒ)·cosθₒ; light on the φ = 180° side.
