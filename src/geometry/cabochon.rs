@@ -286,6 +286,14 @@ impl Cabochon {
     /// The body function `N(x, y, z) = (sᵖ + ζᵖ)^(1/p)` (1 on the dome,
     /// band and domed base) and its gradient.
     pub fn body_and_gradient(&self, point: DVec3) -> (f64, DVec3) {
+        let terms = self.body_terms(point);
+        (terms.n, terms.gradient())
+    }
+
+    /// The body function's value and the parts of its gradient at `point`
+    /// (see [`BodyTerms`]).
+    #[inline(always)]
+    fn body_terms(&self, point: DVec3) -> BodyTerms {
         let (s, grad_s) = self.footprint.gauge_and_gradient(point.x, point.y);
         let z = point.z;
         let (zeta, dzeta) = if z > 0.0 {
@@ -295,24 +303,47 @@ impl Cabochon {
         } else {
             (0.0, 0.0)
         };
+        let terms = |n, k_s, k_zeta| BodyTerms {
+            s,
+            grad_s,
+            zeta,
+            dzeta,
+            n,
+            k_s,
+            k_zeta,
+        };
         if zeta == 0.0 {
-            return (s, grad_s.extend(0.0));
+            return terms(s, 1.0, 0.0);
         }
         if s == 0.0 {
-            return (zeta, DVec3::new(0.0, 0.0, dzeta));
+            return terms(zeta, 0.0, 1.0);
         }
         let p = self.p;
         if p == 2.0 {
             let n = (s * s + zeta * zeta).sqrt();
             let inv_n = 1.0 / n;
-            return (n, (grad_s * (s * inv_n)).extend(dzeta * zeta * inv_n));
+            return terms(n, s * inv_n, zeta * inv_n);
         }
-        // (s/N)^(p−1) = s^(p−1) · N / Σ with Σ = sᵖ + ζᵖ = Nᵖ.
-        let (sp1, zp1) = (pow(s, p - 1.0), pow(zeta, p - 1.0));
-        let sum = sp1 * s + zp1 * zeta;
-        let n = root(sum, p);
-        let k = n / sum;
-        (n, (grad_s * (sp1 * k)).extend(dzeta * zp1 * k))
+        // With m = max(s, ζ) and r = min(s, ζ)/m ≤ 1: N = m·Q, Q = q^(1/p),
+        // q = 1 + rᵖ; ∂N/∂x = (x/N)^(p−1) is Q/q = Q^(1−p) for the larger
+        // term and r^(p−1)·Q/q = (rᵖ/r)·Q/q for the smaller. Two powers
+        // where sᵖ⁻¹, ζᵖ⁻¹ and Σ^(1/p) took three (they are most of a
+        // general stone's intersection time), and rᵖ ≤ 1 never overflows.
+        let (m, r) = if s >= zeta {
+            (s, zeta / s)
+        } else {
+            (zeta, s / zeta)
+        };
+        let r_p = pow(r, p);
+        let q = 1.0 + r_p;
+        let big_q = root(q, p);
+        let k_larger = big_q / q;
+        let k_smaller = r_p / r * k_larger;
+        if s >= zeta {
+            terms(m * big_q, k_larger, k_smaller)
+        } else {
+            terms(m * big_q, k_smaller, k_larger)
+        }
     }
 
     /// A signed distance estimate to the surface (negative inside): the
@@ -371,6 +402,8 @@ impl Cabochon {
     /// manifold solver's Jacobian. The buff-top and base planes do not
     /// turn; a flat oval's dome and band are quadrics, answered in closed
     /// form, N = Hp/|Hp| with dN = (I − NNᵀ)H·dp/|Hp|; every other body by
+    /// the same formula with the body function's Hessian (see
+    /// `body_hessian_times`), or near its axis and girdle plane by
     /// differences of its gradient's direction over a step of 10⁻⁶ of the
     /// stone's size.
     pub fn normal_change(&self, point: DVec3, dp: [DVec3; 2]) -> [DVec3; 2] {
@@ -397,20 +430,65 @@ impl Cabochon {
                 turn - normal * normal.dot(turn)
             });
         }
-        let (n, grad) = self.body_and_gradient(point);
-        if self.nearest_side(point, n, grad) != Side::Body {
+        let terms = self.body_terms(point);
+        let grad = terms.gradient();
+        if self.nearest_side(point, terms.n, grad) != Side::Body {
             return [DVec3::ZERO; 2];
         }
         let normal = self.side_normal(Side::Body, grad);
         let step = 1e-6 * self.size;
+        // Near the axis (s → 0) and the girdle plane (ζ → 0) the terms
+        // ∇s/s and ∇ζ/ζ grow without bound while N stays smooth: there
+        // the normal's own difference over the step.
+        const NEAR_ZERO: f64 = 1e-3;
+        if terms.s < NEAR_ZERO || (terms.zeta > 0.0 && terms.zeta < NEAR_ZERO) {
+            return dp.map(|d| {
+                let length = d.length();
+                if !(length > 0.0 && length.is_finite()) {
+                    return DVec3::ZERO;
+                }
+                let moved = self.body_and_gradient(point + d * (step / length)).1;
+                (moved.try_normalize().unwrap_or(normal) - normal) * (length / step)
+            });
+        }
+        let inv_length = 1.0 / grad.length();
         dp.map(|d| {
-            let length = d.length();
-            if !(length > 0.0 && length.is_finite()) {
-                return DVec3::ZERO;
-            }
-            let moved = self.body_and_gradient(point + d * (step / length)).1;
-            (moved.try_normalize().unwrap_or(normal) - normal) * (length / step)
+            let turn = self.body_hessian_times(&terms, point, d, step) * inv_length;
+            turn - normal * normal.dot(turn)
         })
+    }
+
+    /// The body function's Hessian times `d` at `point`, its `terms` there
+    /// given. With ∇N = a∇s + b∇ζ, a = (s/N)^(p−1), b = (ζ/N)^(p−1) and ζ
+    /// linear in z: H·d = a·H_s·d + ∇s (∇a·d) + ∇ζ (∇b·d), where
+    /// ∇a = (p − 1)·a·(∇s/s − ∇N/N) and ∇b = (p − 1)·b·(∇ζ/ζ − ∇N/N); the
+    /// outline gauge's own H_s·d by a difference of its gradient over
+    /// `step` (no power of the profile: those are most of a body
+    /// evaluation).
+    fn body_hessian_times(&self, terms: &BodyTerms, point: DVec3, d: DVec3, step: f64) -> DVec3 {
+        let length = d.length();
+        if !(length > 0.0 && length.is_finite()) {
+            return DVec3::ZERO;
+        }
+        let across = d.truncate() * (step / length);
+        let moved = self
+            .footprint
+            .gauge_and_gradient(point.x + across.x, point.y + across.y)
+            .1;
+        let gauge_turn = ((moved - terms.grad_s) * (length / step)).extend(0.0);
+        let grad_s = terms.grad_s.extend(0.0);
+        let grad_zeta = DVec3::new(0.0, 0.0, terms.dzeta);
+        let grad_n_along = terms.gradient().dot(d) / terms.n;
+        let p1 = self.p - 1.0;
+        let mut turn = gauge_turn * terms.k_s;
+        if terms.s > 0.0 && terms.k_s > 0.0 {
+            turn += grad_s * (p1 * terms.k_s * (grad_s.dot(d) / terms.s - grad_n_along));
+        }
+        if terms.zeta > 0.0 && terms.k_zeta > 0.0 {
+            turn +=
+                grad_zeta * (p1 * terms.k_zeta * (grad_zeta.dot(d) / terms.zeta - grad_n_along));
+        }
+        turn
     }
 
     fn side_normal(&self, side: Side, body_grad: DVec3) -> DVec3 {
@@ -464,9 +542,7 @@ impl Cabochon {
     #[inline]
     pub fn exit(&self, origin: DVec3, dir: DVec3) -> Option<Hit> {
         if !self.flat_oval {
-            return self
-                .intersect_general(origin, dir, 0.0, f64::INFINITY)
-                .filter(|hit| !hit.entering);
+            return self.exit_general(origin, dir);
         }
         let origin_scaled = origin * self.inv_axes;
         let dir_scaled = dir * self.inv_axes;
@@ -560,11 +636,50 @@ impl Cabochon {
         t_max: f64,
     ) -> Option<Hit> {
         let chord = if self.ellipsoidal {
-            self.body_chord_exact(origin, dir)
+            self.body_chord_exact(origin, dir).map(ChordEnd::pair)
         } else {
             self.body_chord_newton(origin, dir)
         };
         self.finish(origin, dir, t_min, t_max, chord)
+    }
+
+    /// [`Self::exit`] for every stone but a flat oval: the far end of the
+    /// body chord alone (a round or oval p = 2 stone's by its quadratics;
+    /// any other by the Newton search `body_chord_newton` runs for it, from
+    /// the far side of the box back towards the origin: the same iterates,
+    /// so the same t), cut by the buff top when rising and the flat base
+    /// when falling. Half the Newton work of the whole chord, whose near
+    /// end lies behind a ray from inside.
+    fn exit_general(&self, origin: DVec3, dir: DVec3) -> Option<Hit> {
+        if !(origin.is_finite() && dir.is_finite()) || dir == DVec3::ZERO {
+            return None;
+        }
+        let body_exit = if self.ellipsoidal {
+            ChordEnd::at(self.body_chord_exact(origin, dir)?.1)
+        } else {
+            let (_, t_far) = self.box_range(origin, dir)?;
+            let tol = 1e-12 * self.size / dir.length();
+            // A body exit behind the origin (or none) is no exit.
+            self.newton_root(origin, dir, t_far, 0.0, tol, -1.0)?
+        };
+        let mut span = Span::body(f64::NEG_INFINITY, body_exit.t);
+        if self.buffed {
+            span.clip(origin.z, dir.z, self.z_top, true, Side::Top);
+        }
+        if self.flat_base {
+            span.clip(origin.z, dir.z, -self.girdle, false, Side::Bottom);
+        }
+        let (t, side) = (span.t_out, span.side_out);
+        if !(t > 0.0 && t < f64::INFINITY) {
+            return None;
+        }
+        let point = origin + t * dir;
+        Some(Hit {
+            t,
+            point,
+            normal: self.end_normal(side, body_exit, point),
+            entering: false,
+        })
     }
 
     /// [`Self::intersect`] for a flat-backed oval, in the space where the
@@ -768,10 +883,10 @@ impl Cabochon {
         dir: DVec3,
         t_min: f64,
         t_max: f64,
-        chord: Option<(f64, f64)>,
+        chord: Option<(ChordEnd, ChordEnd)>,
     ) -> Option<Hit> {
-        let (t_in, t_out) = chord?;
-        let mut span = Span::body(t_in, t_out);
+        let (body_entry, body_exit) = chord?;
+        let mut span = Span::body(body_entry.t, body_exit.t);
         if self.buffed {
             span.clip(origin.z, dir.z, self.z_top, true, Side::Top);
         }
@@ -783,17 +898,26 @@ impl Cabochon {
         }
         let (t, side, entering) = span.first_end(t_min, t_max)?;
         let point = origin + t * dir;
-        let grad = if side == Side::Body {
-            self.body_and_gradient(point).1
-        } else {
-            DVec3::ZERO
-        };
+        let body_end = if entering { body_entry } else { body_exit };
         Some(Hit {
             t,
             point,
-            normal: self.side_normal(side, grad),
+            normal: self.end_normal(side, body_end, point),
             entering,
         })
+    }
+
+    /// The unit outward normal at `point`, an end of a chord on `side`;
+    /// on the body from the gradient its root search left in `body_end`,
+    /// if any (within the search's tolerance of the point), else from the
+    /// gradient there.
+    fn end_normal(&self, side: Side, body_end: ChordEnd, point: DVec3) -> DVec3 {
+        let grad = match (side, body_end.gradient) {
+            (Side::Body, Some(grad)) => grad,
+            (Side::Body, None) => self.body_and_gradient(point).1,
+            _ => DVec3::ZERO,
+        };
+        self.side_normal(side, grad)
     }
 
     /// The line's parameter range inside the bounding box grown by a small
@@ -824,19 +948,21 @@ impl Cabochon {
     /// is convex along the line, so each Newton iterate started outside stays
     /// outside and approaches its root monotonically; a step away from the
     /// body or beyond the range means a miss.
-    fn body_chord_newton(&self, origin: DVec3, dir: DVec3) -> Option<(f64, f64)> {
+    fn body_chord_newton(&self, origin: DVec3, dir: DVec3) -> Option<(ChordEnd, ChordEnd)> {
         if !(origin.is_finite() && dir.is_finite()) || dir == DVec3::ZERO {
             return None;
         }
         let (t0, t1) = self.box_range(origin, dir)?;
         let tol = 1e-12 * self.size / dir.length();
-        let t_in = self.newton_root(origin, dir, t0, t1, tol, 1.0)?;
-        let t_out = self.newton_root(origin, dir, t1, t_in, tol, -1.0)?;
-        Some((t_in, t_out))
+        let entry = self.newton_root(origin, dir, t0, t1, tol, 1.0)?;
+        let exit = self.newton_root(origin, dir, t1, entry.t, tol, -1.0)?;
+        Some((entry, exit))
     }
 
     /// Newton on `f(t) = N(origin + t·dir) − 1` from `start` towards `limit`
-    /// (`sense` = +1 forwards, −1 backwards).
+    /// (`sense` = +1 forwards, −1 backwards): the root, with the body's
+    /// gradient at the last point evaluated (the root itself, or a step of
+    /// at most `tol` from it), which serves as the normal there.
     fn newton_root(
         &self,
         origin: DVec3,
@@ -845,13 +971,13 @@ impl Cabochon {
         limit: f64,
         tol: f64,
         sense: f64,
-    ) -> Option<f64> {
+    ) -> Option<ChordEnd> {
         let mut t = start;
         for _ in 0..MAX_NEWTON_STEPS {
             let (n, grad) = self.body_and_gradient(origin + t * dir);
             let f = n - 1.0;
             if f <= 0.0 {
-                return Some(t);
+                return Some(ChordEnd::with_gradient(t, grad));
             }
             // Slope along the search direction; must point into the body.
             let slope = grad.dot(dir) * sense;
@@ -864,7 +990,7 @@ impl Cabochon {
                 return None;
             }
             if step <= tol {
-                return Some(t);
+                return Some(ChordEnd::with_gradient(t, grad));
             }
         }
         None
@@ -988,6 +1114,57 @@ impl Span {
         } else {
             None
         }
+    }
+}
+
+/// The body function `N = (sᵖ + ζᵖ)^(1/p)` at a point with its parts:
+/// the outline gauge `s` and its gradient, the normalised height `ζ` and
+/// its z derivative, and the factors `k_s = (s/N)^(p−1)`,
+/// `k_ζ = (ζ/N)^(p−1)` of the gradient `∇N = k_s∇s + k_ζ∇ζ`.
+#[derive(Debug, Clone, Copy)]
+struct BodyTerms {
+    s: f64,
+    grad_s: DVec2,
+    zeta: f64,
+    dzeta: f64,
+    n: f64,
+    k_s: f64,
+    k_zeta: f64,
+}
+
+impl BodyTerms {
+    /// ∇N.
+    #[inline(always)]
+    fn gradient(&self) -> DVec3 {
+        (self.grad_s * self.k_s).extend(self.dzeta * self.k_zeta)
+    }
+}
+
+/// One end of a body chord: its t and, where the root search evaluated
+/// the body there, its gradient.
+#[derive(Debug, Clone, Copy)]
+struct ChordEnd {
+    t: f64,
+    gradient: Option<DVec3>,
+}
+
+impl ChordEnd {
+    /// An end without a gradient (found in closed form).
+    fn at(t: f64) -> Self {
+        Self { t, gradient: None }
+    }
+
+    /// An end whose search left the body's gradient there.
+    fn with_gradient(t: f64, gradient: DVec3) -> Self {
+        Self {
+            t,
+            gradient: Some(gradient),
+        }
+    }
+
+    /// Both ends of a closed-form chord.
+    fn pair((t_in, t_out): (f64, f64)) -> (Self, Self) {
+        (Self::at(t_in), Self::at(t_out))
     }
 }
 
