@@ -530,15 +530,15 @@ impl Cabochon {
     }
 
     /// Where the ray `origin + t·dir` from a point inside the stone leaves
-    /// it (t > 0): [`Self::intersect`]`(origin, dir, 0, ∞)` when that is an
-    /// exit, `None` when the ray meets no surface ahead or its first
-    /// crossing enters (an origin outside).
+    /// it (t > 0): [`Self::intersect`]`(origin, dir, 0, ∞)`, an exit;
+    /// `None` when the ray meets no surface ahead. Only the far end of the
+    /// chord is sought, so an origin outside is not detected: the answer
+    /// is then the far end of the chord ahead, if any.
     ///
-    /// A flat-backed oval needs only the far end of its chord: the far
-    /// root of the one quadric the ray leaves through (the dome above
-    /// z = 0, the band's cylinder below), clipped by the plane it may cross
-    /// first, so one square root instead of the chord's two. Other stones
-    /// take [`Self::intersect`].
+    /// A flat-backed oval's far end is the far root of the one quadric the
+    /// ray leaves through (the dome above z = 0, the band's cylinder
+    /// below), clipped by the plane it may cross first, so one square root
+    /// instead of the chord's two; other stones take `exit_general`.
     #[inline]
     pub fn exit(&self, origin: DVec3, dir: DVec3) -> Option<Hit> {
         if !self.flat_oval {
