@@ -47,7 +47,7 @@
 use glam::{DVec2, DVec3};
 
 use super::error::{check_positive, GeometryError};
-use super::outline::{pow, root, Footprint, Outline};
+use super::outline::{p_norm, Footprint, Outline};
 
 /// The base of the stone, below the girdle band.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -324,26 +324,8 @@ impl Cabochon {
             let inv_n = 1.0 / n;
             return terms(n, s * inv_n, zeta * inv_n);
         }
-        // With m = max(s, ζ) and r = min(s, ζ)/m ≤ 1: N = m·Q, Q = q^(1/p),
-        // q = 1 + rᵖ; ∂N/∂x = (x/N)^(p−1) is Q/q = Q^(1−p) for the larger
-        // term and r^(p−1)·Q/q = (rᵖ/r)·Q/q for the smaller. Two powers
-        // where sᵖ⁻¹, ζᵖ⁻¹ and Σ^(1/p) took three (they are most of a
-        // general stone's intersection time), and rᵖ ≤ 1 never overflows.
-        let (m, r) = if s >= zeta {
-            (s, zeta / s)
-        } else {
-            (zeta, s / zeta)
-        };
-        let r_p = pow(r, p);
-        let q = 1.0 + r_p;
-        let big_q = root(q, p);
-        let k_larger = big_q / q;
-        let k_smaller = r_p / r * k_larger;
-        if s >= zeta {
-            terms(m * big_q, k_larger, k_smaller)
-        } else {
-            terms(m * big_q, k_smaller, k_larger)
-        }
+        let (n, k_s, k_zeta) = p_norm(s, zeta, p);
+        terms(n, k_s, k_zeta)
     }
 
     /// A signed distance estimate to the surface (negative inside): the
