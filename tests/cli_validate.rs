@@ -318,6 +318,16 @@ fn broken_files_name_the_file_and_what_was_expected() {
         Some(13),
         &["the file ends here"],
     );
+    // A stray bracket after a map entry: its line, no field of the closed
+    // entry, and what it may be.
+    let stray = GOOD_GEM.replace("(material: \"gold\"),", "(material: \"gold\")),");
+    broken(
+        &dir,
+        "stray.ron",
+        &stray,
+        Some(14),
+        &[":14:31: Expected comma (is this `)` one too many, or the wrong kind of bracket?)"],
+    );
     // Not UTF-8 (a Latin-1 `é` in a comment).
     let mut bytes = b"// caf\xe9\n".to_vec();
     bytes.extend_from_slice(GOOD_GEM.as_bytes());

@@ -253,9 +253,10 @@ pub fn validate_text(
     }
 }
 
-/// Plainer words for RON's type errors, and, for an error placed where
-/// only whitespace and comments follow, that the file ends there (RON's own
-/// message, "expected `(`", does not say so).
+/// Plainer words for RON's type errors; for an error outside any field's
+/// value where a closing bracket stands, that it may be one too many; and,
+/// for an error placed where only whitespace and comments follow, that the
+/// file ends there (RON's own message, "expected `(`", does not say so).
 fn with_truncation_hint(mut e: RecipeError, text: &str) -> RecipeError {
     // RON's type errors say what it expected in its own words; add what
     // to write.
@@ -284,6 +285,15 @@ fn with_truncation_hint(mut e: RecipeError, text: &str) -> RecipeError {
         .nth(col.saturating_sub(1))
         .map_or(text.len(), |(i, _)| line_start + i);
     let rest = &text[offset.min(text.len())..];
+    // RON expected something else where a closing bracket stands, outside
+    // any field's value (a field's own error names the field): one too
+    // many, or of the wrong kind; RON says only what it expected.
+    let closer = rest.chars().next().filter(|c| matches!(c, ')' | ']' | '}'));
+    if let Some(c) = closer.filter(|_| e.message.starts_with("Expected")) {
+        e.message.push_str(&format!(
+            " (is this `{c}` one too many, or the wrong kind of bracket?)"
+        ));
+    }
     if first_code_offset(rest) >= rest.len() {
         e.message.push_str(
             " (the file ends here: is it cut short, or is a closing `)`, `]` or `}` missing?)",

@@ -155,8 +155,10 @@ pub fn line_col_of_offset(source: &str, offset: usize) -> (usize, usize) {
 }
 
 /// The name of the field whose value starts at or before (line, col): the
-/// last `identifier:` in the text up to that point. RON's type errors
-/// ("Expected float") do not name the field; this recovers it.
+/// last `identifier:` in the text up to that point, unless the item that
+/// field belongs to closed before it (a stray bracket after the last
+/// field: naming that field would send a reader to the wrong place). RON's
+/// type errors ("Expected float") do not name the field; this recovers it.
 pub(crate) fn field_before(source: &str, line: usize, col: usize) -> Option<String> {
     let mut offset = 0;
     for (k, text) in source.split_inclusive('\n').enumerate() {
@@ -177,6 +179,9 @@ pub(crate) fn field_before(source: &str, line: usize, col: usize) -> Option<Stri
         .collect::<Vec<_>>()
         .join("\n");
     let colon = cleaned.rfind(':')?;
+    if closes_its_item(&cleaned[colon + 1..]) {
+        return None;
+    }
     let name: String = cleaned[..colon]
         .trim_end()
         .chars()
@@ -187,6 +192,35 @@ pub(crate) fn field_before(source: &str, line: usize, col: usize) -> Option<Stri
         .rev()
         .collect();
     (!name.is_empty()).then_some(name)
+}
+
+/// Whether `text` (what follows a field's colon) closes more brackets than
+/// it opens, outside strings: the item holding the field has ended.
+fn closes_its_item(text: &str) -> bool {
+    let (mut depth, mut in_string, mut escaped) = (0i32, false, false);
+    for c in text.chars() {
+        if in_string {
+            match c {
+                _ if escaped => escaped = false,
+                '\\' => escaped = true,
+                '"' => in_string = false,
+                _ => {}
+            }
+            continue;
+        }
+        match c {
+            '"' => in_string = true,
+            '(' | '[' | '{' => depth += 1,
+            ')' | ']' | '}' => {
+                depth -= 1;
+                if depth < 0 {
+                    return true;
+                }
+            }
+            _ => {}
+        }
+    }
+    false
 }
 
 /// The closest of `candidates` to `word` by edit distance, if close enough
@@ -218,6 +252,17 @@ mod tests {
     fn field_before_finds_the_last_field_name_ignoring_comments() {
         let src = "Layer(\n  ior: \"x\", // note: here\n";
         assert_eq!(field_before(src, 2, 8).as_deref(), Some("ior"));
+    }
+
+    #[test]
+    fn field_before_names_no_field_of_an_item_already_closed() {
+        // A stray bracket after a light: the light's last field is not the
+        // culprit.
+        let src = "lights: [\n  Point(at: (1, 2, 3), intensity: (7, 7, 7)),\n  ),\n]";
+        assert_eq!(field_before(src, 3, 3), None);
+        // Brackets inside a string do not count; a value still open does.
+        let src = "Gem(description: \"a (note\", seed: (1, 2 x";
+        assert_eq!(field_before(src, 1, 41).as_deref(), Some("seed"));
     }
 
     #[test]
