@@ -62,3 +62,19 @@ pub fn albedo_angles_deg() -> impl Iterator<Item = f64> {
 pub fn in_plane(theta_deg: f64) -> DVec3 {
     crate::sampling::direction_from_degrees(theta_deg, 0.0)
 }
+
+/// The in-plane slice f(ωᵢ, ωₒ)·cosθₒ for light at `theta_i_deg` on the
+/// φ = 180° side, at signed outgoing angles `theta_o_deg` (negative: on the
+/// light's side), each the model's value at that one direction (what
+/// `lapidary brdf --slice` prints and the polar plots draw).
+pub fn in_plane_slice(brdf: &LayeredBrdf, theta_i_deg: f64, theta_o_deg: &[f64]) -> Vec<Rgb> {
+    let wi = crate::sampling::direction_from_degrees(theta_i_deg, 180.0);
+    theta_o_deg
+        .iter()
+        .map(|&t| {
+            let wo =
+                crate::sampling::direction_from_degrees(t.abs(), if t < 0.0 { 180.0 } else { 0.0 });
+            brdf.eval(wi, wo) * wo.z
+        })
+        .collect()
+}

@@ -1,10 +1,10 @@
 //! `lapidary brdf`: albedo tables, point evaluations and polar plots.
 
 use super::BrdfArgs;
-use lapidary::brdf::albedo::{albedo_angles_deg, directional_albedo, in_plane};
+use lapidary::brdf::albedo::{albedo_angles_deg, directional_albedo, in_plane, in_plane_slice};
 use lapidary::brdf::reference::{model_slice, reference_albedo_with, reference_slice, WalkTables};
 use lapidary::brdf::LayeredBrdf;
-use lapidary::gallery::plot::{polar_plot, PolarPanel, PolarPlotStyle};
+use lapidary::gallery::plot::{in_plane_panel, polar_plot, rgb_curves, PolarPanel, PolarPlotStyle};
 use lapidary::recipe::compile::load_material_with;
 use lapidary::recipe::gem::Tables;
 use lapidary::sampling::direction_from_degrees;
@@ -118,7 +118,7 @@ const SLICE_BIN: f64 = 0.02;
 /// square compares like with like; a mirror-like coat (below about 0.1°)
 /// is a spike that average does not resolve at its peak.
 fn print_slice(brdf: &LayeredBrdf, theta_i: f64, with_reference: bool) {
-    let angles: Vec<f64> = (0..=58).map(|k| -87.0 + f64::from(k) * 3.0).collect();
+    let angles = walk_angles_deg();
     let (model, reference) = if with_reference {
         (
             model_slice(brdf, theta_i, &angles, SLICE_BIN),
@@ -127,12 +127,7 @@ fn print_slice(brdf: &LayeredBrdf, theta_i: f64, with_reference: bool) {
             )),
         )
     } else {
-        let wi = direction_from_degrees(theta_i, 180.0);
-        let points = angles.iter().map(|&t| {
-            let wo = direction_from_degrees(t.abs(), if t < 0.0 { 180.0 } else { 0.0 });
-            brdf.eval(wi, wo) * wo.z
-        });
-        (points.collect(), None)
+        (in_plane_slice(brdf, theta_i, &angles), None)
     };
     if with_reference {
         super::emit("theta_o_deg,r,g,b,reference_r,reference_g,reference_b");
@@ -148,38 +143,24 @@ fn print_slice(brdf: &LayeredBrdf, theta_i: f64, with_reference: bool) {
     }
 }
 
+/// The signed outgoing angles at which the random walk's slice is
+/// estimated: −87° to 87° in steps of 3.
+fn walk_angles_deg() -> Vec<f64> {
+    (0..=58).map(|k| -87.0 + f64::from(k) * 3.0).collect()
+}
+
 /// In-plane slice f(ωᵢ, ωₒ)·cosθₒ; light on the φ = 180° side.
 fn plot(brdf: &LayeredBrdf, with_reference: bool) -> image::RgbImage {
     let panels: Vec<PolarPanel> = PLOT_INCIDENCE_DEG
         .iter()
         .map(|&theta_i| {
-            let wi = direction_from_degrees(theta_i, 180.0);
-            let mut curves: [Vec<(f64, f64)>; 3] = Default::default();
-            for step in 0..=720 {
-                let theta_o = -90.0 + step as f64 * 0.25;
-                let wo =
-                    direction_from_degrees(theta_o.abs(), if theta_o < 0.0 { 180.0 } else { 0.0 });
-                let v = brdf.eval(wi, wo) * wo.z;
-                for (c, curve) in curves.iter_mut().enumerate() {
-                    curve.push((theta_o, v[c]));
-                }
-            }
-            let reference = with_reference.then(|| {
-                let angles: Vec<f64> = (0..=58).map(|k| -87.0 + k as f64 * 3.0).collect();
+            let mut panel = in_plane_panel(brdf, theta_i);
+            panel.reference = with_reference.then(|| {
+                let angles = walk_angles_deg();
                 let values = reference_slice(brdf, theta_i, &angles, 400_000, 0.05, SEED);
-                let mut r: [Vec<(f64, f64)>; 3] = Default::default();
-                for (a, v) in angles.iter().zip(values) {
-                    for (c, curve) in r.iter_mut().enumerate() {
-                        curve.push((*a, v[c]));
-                    }
-                }
-                r
+                rgb_curves(&angles, &values)
             });
-            PolarPanel {
-                incidence_deg: theta_i,
-                curves,
-                reference,
-            }
+            panel
         })
         .collect();
     let style = PolarPlotStyle {

@@ -28,7 +28,7 @@ use rayon::prelude::*;
 use crate::brdf::classify::classify;
 use crate::brdf::LayeredBrdf;
 use crate::gallery::plot::text::{draw_text_centred, text_height, text_width, ClipRect};
-use crate::gallery::plot::{polar_plot, PolarPanel, PolarPlotStyle};
+use crate::gallery::plot::{in_plane_panel, polar_plot, PolarPlotStyle};
 use crate::geometry::{Base, CabochonParams, Outline};
 use crate::output::tonemap::DisplayTransform;
 use crate::recipe::compile::load_material_with;
@@ -544,26 +544,6 @@ pub fn figure_3_2(settings: &GallerySettings, cache: &TableCache) -> Result<RgbI
     ))
 }
 
-/// The in-plane slice `f(ωi, ωo)·cosθo` of `brdf` at incidence
-/// `incidence_deg`, light on the φ = 180° side (as `lapidary brdf -o`).
-pub(crate) fn in_plane_slice(brdf: &LayeredBrdf, incidence_deg: f64) -> PolarPanel {
-    let wi = direction_from_degrees(incidence_deg, 180.0);
-    let mut curves: [Vec<(f64, f64)>; 3] = Default::default();
-    for step in 0..=720 {
-        let theta_o = -90.0 + f64::from(step) * 0.25;
-        let wo = direction_from_degrees(theta_o.abs(), if theta_o < 0.0 { 180.0 } else { 0.0 });
-        let v = brdf.eval(wi, wo) * wo.z;
-        for (c, curve) in curves.iter_mut().enumerate() {
-            curve.push((theta_o, v[c]));
-        }
-    }
-    PolarPanel {
-        incidence_deg,
-        curves,
-        reference: None,
-    }
-}
-
 /// Figure 4.3: the two materials of `FIGURE_4_3_MATERIALS` on larger
 /// spheres, each over its BRDF slice at `FIGURE_4_3_INCIDENCE_DEG`: the
 /// frosted metal's single highlight lobe against the patina's sharp lobe
@@ -582,7 +562,7 @@ pub fn figure_4_3(settings: &GallerySettings, cache: &TableCache) -> Result<RgbI
             panel_size_px: side_px,
             title: format!("{name}: f·cos θo"),
         };
-        let plot = polar_plot(&[in_plane_slice(&brdf, FIGURE_4_3_INCIDENCE_DEG)], &style);
+        let plot = polar_plot(&[in_plane_panel(&brdf, FIGURE_4_3_INCIDENCE_DEG)], &style);
         tiles.push(Tile {
             image: stack_vertically(&sphere, &plot),
             lines: vec![name.to_string(), what.to_string()],

@@ -435,19 +435,26 @@ impl Cabochon {
         }
         let inv_length = 1.0 / grad.length();
         dp.map(|d| {
-            let turn = self.body_hessian_times(&terms, point, d, step) * inv_length;
+            let turn = self.body_hessian_times(&terms, grad, point, d, step) * inv_length;
             turn - normal * normal.dot(turn)
         })
     }
 
-    /// The body function's Hessian times `d` at `point`, its `terms` there
-    /// given. With ∇N = a∇s + b∇ζ, a = (s/N)^(p−1), b = (ζ/N)^(p−1) and ζ
+    /// The body function's Hessian times `d` at `point`, its `terms` and
+    /// gradient `grad` there given. With ∇N = a∇s + b∇ζ, a = (s/N)^(p−1), b = (ζ/N)^(p−1) and ζ
     /// linear in z: H·d = a·H_s·d + ∇s (∇a·d) + ∇ζ (∇b·d), where
     /// ∇a = (p − 1)·a·(∇s/s − ∇N/N) and ∇b = (p − 1)·b·(∇ζ/ζ − ∇N/N); the
     /// outline gauge's own H_s·d by a difference of its gradient over
     /// `step` (no power of the profile: those are most of a body
     /// evaluation).
-    fn body_hessian_times(&self, terms: &BodyTerms, point: DVec3, d: DVec3, step: f64) -> DVec3 {
+    fn body_hessian_times(
+        &self,
+        terms: &BodyTerms,
+        grad: DVec3,
+        point: DVec3,
+        d: DVec3,
+        step: f64,
+    ) -> DVec3 {
         let length = d.length();
         if !(length > 0.0 && length.is_finite()) {
             return DVec3::ZERO;
@@ -460,7 +467,7 @@ impl Cabochon {
         let gauge_turn = ((moved - terms.grad_s) * (length / step)).extend(0.0);
         let grad_s = terms.grad_s.extend(0.0);
         let grad_zeta = DVec3::new(0.0, 0.0, terms.dzeta);
-        let grad_n_along = terms.gradient().dot(d) / terms.n;
+        let grad_n_along = grad.dot(d) / terms.n;
         let p1 = self.p - 1.0;
         let mut turn = gauge_turn * terms.k_s;
         if terms.s > 0.0 && terms.k_s > 0.0 {
@@ -645,12 +652,7 @@ impl Cabochon {
             self.newton_root(origin, dir, t_far, 0.0, tol, -1.0)?
         };
         let mut span = Span::body(f64::NEG_INFINITY, body_exit.t);
-        if self.buffed {
-            span.clip(origin.z, dir.z, self.z_top, true, Side::Top);
-        }
-        if self.flat_base {
-            span.clip(origin.z, dir.z, -self.girdle, false, Side::Bottom);
-        }
+        self.clip_by_planes(&mut span, origin, dir);
         let (t, side) = (span.t_out, span.side_out);
         if !(t > 0.0 && t < f64::INFINITY) {
             return None;
@@ -869,12 +871,7 @@ impl Cabochon {
     ) -> Option<Hit> {
         let (body_entry, body_exit) = chord?;
         let mut span = Span::body(body_entry.t, body_exit.t);
-        if self.buffed {
-            span.clip(origin.z, dir.z, self.z_top, true, Side::Top);
-        }
-        if self.flat_base {
-            span.clip(origin.z, dir.z, -self.girdle, false, Side::Bottom);
-        }
+        self.clip_by_planes(&mut span, origin, dir);
         if !self.long_enough(&span, dir) {
             return None;
         }
@@ -887,6 +884,17 @@ impl Cabochon {
             normal: self.end_normal(side, body_end, point),
             entering,
         })
+    }
+
+    /// Cuts a body chord's span by the buff-top plane and the flat base,
+    /// where the stone has them.
+    fn clip_by_planes(&self, span: &mut Span, origin: DVec3, dir: DVec3) {
+        if self.buffed {
+            span.clip(origin.z, dir.z, self.z_top, true, Side::Top);
+        }
+        if self.flat_base {
+            span.clip(origin.z, dir.z, -self.girdle, false, Side::Bottom);
+        }
     }
 
     /// The unit outward normal at `point`, an end of a chord on `side`;

@@ -49,6 +49,33 @@ pub struct PolarPanel {
     pub reference: Option<[Vec<(f64, f64)>; 3]>,
 }
 
+/// The panel of `brdf`'s in-plane slice `f(ωi, ωo)·cosθo` at incidence
+/// `incidence_deg`, light on the φ = 180° side, θo from −90° to 90° in
+/// quarter degrees, without a reference.
+pub fn in_plane_panel(brdf: &crate::brdf::LayeredBrdf, incidence_deg: f64) -> PolarPanel {
+    let angles: Vec<f64> = (0..=720)
+        .map(|step| -90.0 + f64::from(step) * 0.25)
+        .collect();
+    let values = crate::brdf::albedo::in_plane_slice(brdf, incidence_deg, &angles);
+    PolarPanel {
+        incidence_deg,
+        curves: rgb_curves(&angles, &values),
+        reference: None,
+    }
+}
+
+/// Per-channel curves `(θo, value)` in [`PolarPanel`]'s layout, of RGB
+/// `values` at the outgoing angles `theta_o_deg`.
+pub fn rgb_curves(theta_o_deg: &[f64], values: &[crate::brdf::Rgb]) -> [Vec<(f64, f64)>; 3] {
+    std::array::from_fn(|c| {
+        theta_o_deg
+            .iter()
+            .zip(values)
+            .map(|(&theta, v)| (theta, v[c]))
+            .collect()
+    })
+}
+
 /// How a polar plot looks.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PolarPlotStyle {
