@@ -336,7 +336,7 @@ fn a_string_where_a_number_belongs() {
         "cell_size: 0.1,",
         "cell_size: \"0.1\",",
         "cell_size: \"0.1\"",
-        &["cell_size"],
+        &["cell_size", "allowed: a number such as 1.5, without quotes"],
     );
 }
 
@@ -624,16 +624,81 @@ fn a_truncated_file() {
     let path = dir.join("truncated.ron");
     std::fs::write(&path, text).unwrap();
     let line = text.lines().count();
-    let needle = format!("{}:{line}:", path.display());
+    let needles = [
+        format!("{}:{line}:", path.display()),
+        "the file ends here".to_string(),
+    ];
     let out = lapidary(&[OsString::from("validate"), path.clone().into()]);
-    assert_refused("truncated", &out, std::slice::from_ref(&needle));
+    assert_refused("truncated", &out, &needles);
     let render = [
         OsString::from("render"),
         path.clone().into(),
         "--size".into(),
         "8".into(),
     ];
-    assert_refused_writing("truncated", &render, "gem.png", &[needle]);
+    assert_refused_writing("truncated", &render, "gem.png", &needles);
+}
+
+#[test]
+fn a_file_of_another_kind() {
+    // A scene given where a gem belongs, a material where a scene belongs,
+    // a gem where a material belongs: each says what it is, what was
+    // expected and how that kind of file is used.
+    let dir = scratch("other-kind");
+    let scene = dir.join("scene.ron");
+    let material = dir.join("material.ron");
+    let gem = dir.join("gem.ron");
+    std::fs::write(&scene, GOOD_SCENE).unwrap();
+    std::fs::write(&material, GOOD_MATERIAL).unwrap();
+    std::fs::write(&gem, GOOD_GEM).unwrap();
+    let at = |path: &Path| format!("{}:1:", path.display());
+    let render_gem = [
+        OsString::from("render"),
+        scene.clone().into(),
+        "--size".into(),
+        "8".into(),
+    ];
+    assert_refused_writing(
+        "scene-as-gem",
+        &render_gem,
+        "gem.png",
+        &[
+            at(&scene),
+            "this is a scene (`Scene(…)`) where a gem recipe (`Gem(…)`) was expected".into(),
+            "lapidary render --scene FILE".into(),
+        ],
+    );
+    let render_scene = [
+        OsString::from("render"),
+        "--scene".into(),
+        material.clone().into(),
+        "--size".into(),
+        "8".into(),
+    ];
+    assert_refused_writing(
+        "material-as-scene",
+        &render_scene,
+        "scene.png",
+        &[
+            at(&material),
+            "this is a material (`Material(…)`) where a scene (`Scene(…)`) was expected".into(),
+            "lapidary brdf FILE".into(),
+        ],
+    );
+    let out = lapidary(&[
+        OsString::from("brdf"),
+        gem.clone().into(),
+        "--albedo".into(),
+    ]);
+    assert_refused(
+        "gem-as-material",
+        &out,
+        &[
+            at(&gem),
+            "this is a gem recipe (`Gem(…)`) where a material (`Material(…)`) was expected".into(),
+            "lapidary render FILE".into(),
+        ],
+    );
 }
 
 // ---- files that are not recipes ------------------------------------------

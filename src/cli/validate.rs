@@ -14,7 +14,7 @@
 use lapidary::recipe::compile::{
     compile_material, locate_material, names_a_file, parse_material, read_ron_file, MaterialSource,
 };
-use lapidary::recipe::error::{did_you_mean, line_col_of_offset, RecipeError};
+use lapidary::recipe::error::{did_you_mean, first_code_offset, line_col_of_offset, RecipeError};
 use lapidary::recipe::gem::{parse_gem, Body, GemSource};
 use lapidary::recipe::library::{
     builtin_gem_names, builtin_gem_source, builtin_material_names, builtin_material_source,
@@ -39,30 +39,6 @@ pub enum RecipeKind {
     Material,
     /// `Scene(…)`: a scene for `lapidary render --scene`.
     Scene,
-}
-
-/// Byte offset of the first character of `text` that is not whitespace, a
-/// `//` or `/* */` comment, or a RON `#![enable(…)]` attribute.
-fn first_code_offset(text: &str) -> usize {
-    let bytes = text.as_bytes();
-    let mut i = 0;
-    while i < bytes.len() {
-        let rest = &text[i..];
-        if bytes[i].is_ascii_whitespace() {
-            i += 1;
-        } else if rest.starts_with("//") {
-            i += rest.find('\n').map_or(rest.len(), |e| e + 1);
-        } else if let Some(body) = rest.strip_prefix("/*") {
-            i += body.find("*/").map_or(rest.len(), |e| e + 4);
-        } else if rest.starts_with("#!") {
-            i += rest.find(']').map_or(rest.len(), |e| e + 1);
-        } else if rest.starts_with('\u{feff}') {
-            i += '\u{feff}'.len_utf8();
-        } else {
-            break;
-        }
-    }
-    i
 }
 
 /// The kind of RON file `text` is, from its top-level struct name; an
@@ -253,55 +229,6 @@ pub fn validate_text(
     }
 }
 
-/// Plainer words for RON's type errors; for an error outside any field's
-/// value where a closing bracket stands, that it may be one too many; and,
-/// for an error placed where only whitespace and comments follow, that the
-/// file ends there (RON's own message, "expected `(`", does not say so).
-fn with_truncation_hint(mut e: RecipeError, text: &str) -> RecipeError {
-    // RON's type errors say what it expected in its own words; add what
-    // to write.
-    for (ron_says, allowed) in [
-        ("Expected float", "a number such as 1.5, without quotes"),
-        (
-            "Expected integer",
-            "a whole number such as 4, without quotes",
-        ),
-        ("Expected string", "a name in double quotes"),
-    ] {
-        if e.message.ends_with(ron_says) {
-            e.message.push_str(&format!("; allowed: {allowed}"));
-        }
-    }
-    let Some((line, col)) = e.position else {
-        return e;
-    };
-    let line_start: usize = text
-        .split_inclusive('\n')
-        .take(line - 1)
-        .map(str::len)
-        .sum();
-    let offset = text[line_start.min(text.len())..]
-        .char_indices()
-        .nth(col.saturating_sub(1))
-        .map_or(text.len(), |(i, _)| line_start + i);
-    let rest = &text[offset.min(text.len())..];
-    // RON expected something else where a closing bracket stands, outside
-    // any field's value (a field's own error names the field): one too
-    // many, or of the wrong kind; RON says only what it expected.
-    let closer = rest.chars().next().filter(|c| matches!(c, ')' | ']' | '}'));
-    if let Some(c) = closer.filter(|_| e.message.starts_with("Expected")) {
-        e.message.push_str(&format!(
-            " (is this `{c}` one too many, or the wrong kind of bracket?)"
-        ));
-    }
-    if first_code_offset(rest) >= rest.len() {
-        e.message.push_str(
-            " (the file ends here: is it cut short, or is a closing `)`, `]` or `}` missing?)",
-        );
-    }
-    e
-}
-
 /// Validate one command-line argument (a file or a built-in name); returns
 /// the display path and the success summary, or the error.
 pub fn validate_one(spec: &str) -> Result<(String, String), RecipeError> {
@@ -310,8 +237,7 @@ pub fn validate_one(spec: &str) -> Result<(String, String), RecipeError> {
         let name = Path::new(spec)
             .file_stem()
             .map_or(spec.to_string(), |s| s.to_string_lossy().into_owned());
-        let summary = validate_text(spec, Some(Path::new(spec)), &name, &text)
-            .map_err(|e| with_truncation_hint(e, &text))?;
+        let summary = validate_text(spec, Some(Path::new(spec)), &name, &text)?;
         return Ok((spec.to_string(), summary));
     }
     let builtin = |prefix: &str| format!("builtin:{prefix}");

@@ -4,7 +4,9 @@
 
 use crate::brdf::fresnel;
 use crate::brdf::{Base, Interface, LayeredBrdf, Microfacet, Rgb};
-use crate::recipe::error::{did_you_mean, field_before, find_position, RecipeError};
+use crate::recipe::error::{
+    did_you_mean, field_before, find_position, with_ron_hints, RecipeError,
+};
 use crate::recipe::gem::Tables;
 use crate::recipe::library::{builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
@@ -44,6 +46,25 @@ pub(crate) fn ron_error(path: &str, source: &str, e: ron::error::SpannedError) -
             outer.as_deref().unwrap_or("this item")
         ),
         E::Message(m) => m.clone(),
+        E::ExpectedDifferentStructName { expected, found } => {
+            let what = |kind: &str| match kind {
+                "Gem" => "a gem recipe",
+                "Material" => "a material",
+                "Scene" => "a scene",
+                _ => "a file",
+            };
+            let use_it = match found.as_str() {
+                "Gem" => "; render it with `lapidary render FILE`",
+                "Material" => "; inspect it with `lapidary brdf FILE`",
+                "Scene" => "; render it with `lapidary render --scene FILE`",
+                _ => "",
+            };
+            format!(
+                "this is {} (`{found}(…)`) where {} (`{expected}(…)`) was expected{use_it}",
+                what(found),
+                what(expected)
+            )
+        }
         other => {
             let text = other.to_string();
             match field_before(source, line, col) {
@@ -52,7 +73,7 @@ pub(crate) fn ron_error(path: &str, source: &str, e: ron::error::SpannedError) -
             }
         }
     };
-    RecipeError::at(path, line, col, message)
+    RecipeError::at(path, line, col, with_ron_hints(message, source, line, col))
 }
 
 /// Where a material comes from: the built-in library or a file.

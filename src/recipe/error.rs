@@ -223,6 +223,83 @@ fn closes_its_item(text: &str) -> bool {
     false
 }
 
+/// Byte offset of the first character of `text` that is not whitespace, a
+/// `//` or `/* */` comment, or a RON `#![enable(…)]` attribute.
+pub fn first_code_offset(text: &str) -> usize {
+    let bytes = text.as_bytes();
+    let mut i = 0;
+    while i < bytes.len() {
+        let rest = &text[i..];
+        if bytes[i].is_ascii_whitespace() {
+            i += 1;
+        } else if rest.starts_with("//") {
+            i += rest.find('\n').map_or(rest.len(), |e| e + 1);
+        } else if let Some(body) = rest.strip_prefix("/*") {
+            i += body.find("*/").map_or(rest.len(), |e| e + 4);
+        } else if rest.starts_with("#!") {
+            i += rest.find(']').map_or(rest.len(), |e| e + 1);
+        } else if rest.starts_with('\u{feff}') {
+            i += '\u{feff}'.len_utf8();
+        } else {
+            break;
+        }
+    }
+    i
+}
+
+/// RON's `message` for an error at (line, col) of `source`, with plainer
+/// words for its type errors (what to write); where a closing bracket
+/// stands at an error outside any field's value, that it may be one too
+/// many; and where only whitespace and comments follow, that the file ends
+/// there (RON's own message, "expected `(`", does not say so).
+pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col: usize) -> String {
+    for (ron_says, allowed) in [
+        ("Expected float", "a number such as 1.5, without quotes"),
+        (
+            "Expected integer",
+            "a whole number such as 4, without quotes",
+        ),
+        ("Expected string", "a name in double quotes"),
+    ] {
+        if message.ends_with(ron_says) {
+            message.push_str(&format!("; allowed: {allowed}"));
+        }
+    }
+    let line_start: usize = source
+        .split_inclusive('\n')
+        .take(line.saturating_sub(1))
+        .map(str::len)
+        .sum();
+    let offset = source[line_start.min(source.len())..]
+        .char_indices()
+        .nth(col.saturating_sub(1))
+        .map_or(source.len(), |(i, _)| line_start + i);
+    let rest = &source[offset.min(source.len())..];
+    // RON expected something else where a closing bracket stands, outside
+    // any field's value (a field's own error names the field): one too
+    // many, or of the wrong kind; RON says only what it expected.
+    let closer = rest.chars().next().filter(|c| matches!(c, ')' | ']' | '}'));
+    if let Some(c) = closer.filter(|_| message.starts_with("Expected")) {
+        message.push_str(&format!(
+            " (is this `{c}` one too many, or the wrong kind of bracket?)"
+        ));
+    }
+    // RON places an error at the end of a file without a final newline on
+    // its last character: past a last character that closes nothing (a
+    // comma, a number) the file ends all the same.
+    let last_opens_or_continues = closer.is_none()
+        && rest
+            .chars()
+            .next()
+            .is_some_and(|c| first_code_offset(&rest[c.len_utf8()..]) >= rest.len() - c.len_utf8());
+    if first_code_offset(rest) >= rest.len() || last_opens_or_continues {
+        message.push_str(
+            " (the file ends here: is it cut short, or is a closing `)`, `]` or `}` missing?)",
+        );
+    }
+    message
+}
+
 /// The closest of `candidates` to `word` by edit distance, if close enough
 /// to be a likely typo.
 pub fn did_you_mean<'a>(
