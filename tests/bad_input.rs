@@ -637,6 +637,26 @@ fn a_truncated_file() {
         "8".into(),
     ];
     assert_refused_writing("truncated", &render, "gem.png", &needles);
+    // Cut after a closing bracket, with no final newline: RON places the
+    // error on the last character, and the message still says where the
+    // file ends (the column after it).
+    let text = &GOOD_GEM[..GOOD_GEM.rfind("))").unwrap() + 2];
+    std::fs::write(&path, text).unwrap();
+    let last = text.lines().last().unwrap().chars().count();
+    let needles = [
+        format!("{}:{}:{}: ", path.display(), text.lines().count(), last + 1),
+        "the file ends here".to_string(),
+    ];
+    let out = lapidary(&[OsString::from("validate"), path.clone().into()]);
+    assert_refused("truncated after a bracket", &out, &needles);
+    // One closing bracket too many at the end.
+    std::fs::write(&path, format!("{GOOD_GEM})")).unwrap();
+    let out = lapidary(&[OsString::from("validate"), path.clone().into()]);
+    assert_refused(
+        "one bracket too many",
+        &out,
+        &["after the end of the recipe (is a closing bracket before it one too many?)".into()],
+    );
 }
 
 #[test]

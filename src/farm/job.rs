@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use serde::de::Error;
 use serde::{Deserialize, Deserializer};
 
-use crate::recipe::compile::{read_ron_file, ron_error};
+use crate::recipe::compile::{parse_ron, read_ron_file, ron_error};
 use crate::recipe::error::RecipeError;
 use crate::scene::spec::TurntableSpec;
 use crate::scene::Turntable;
@@ -241,7 +241,7 @@ impl Job {
     pub fn load(path: &Path) -> Result<Job, RecipeError> {
         let display = path.display().to_string();
         let text = read_ron_file(&display, "job file")?;
-        let spec: JobSpec = ron::from_str(&text).map_err(|e| ron_error(&display, &text, e))?;
+        let spec: JobSpec = parse_ron(&text).map_err(|e| ron_error(&display, &text, e))?;
         let dir = path.parent().unwrap_or(Path::new(""));
         Job::from_spec(&spec, dir)
             .map_err(|(needle, message)| RecipeError::at_text(&display, &text, needle, message))

@@ -19,7 +19,22 @@ pub const COMPENSATION_SEED: u64 = 0x1a9d_a41e;
 /// Parse RON text into a [`Material`], mapping every RON/serde error to
 /// `path:line:col: message` with the field name added where RON omits it.
 pub fn parse_material(path: &str, source: &str) -> Result<Material, RecipeError> {
-    ron::from_str::<Material>(source).map_err(|e| ron_error(path, source, e))
+    parse_ron::<Material>(source).map_err(|e| ron_error(path, source, e))
+}
+
+/// `ron::from_str` of a user's file `text`, read as if it ended with a
+/// newline: RON places an error at the end of a file without one on its
+/// last character, where [`ron_error`] could not tell it from an error at
+/// that character (a file cut short after a `)` would not be said to end
+/// there). Every other position is the same.
+pub(crate) fn parse_ron<T: serde::de::DeserializeOwned>(
+    text: &str,
+) -> Result<T, ron::error::SpannedError> {
+    if text.ends_with('\n') {
+        ron::from_str(text)
+    } else {
+        ron::from_str(&format!("{text}\n"))
+    }
 }
 
 /// Turn a RON error into a [`RecipeError`] a person can act on.

@@ -249,9 +249,10 @@ pub fn first_code_offset(text: &str) -> usize {
 
 /// RON's `message` for an error at (line, col) of `source`, with plainer
 /// words for its type errors (what to write); where a closing bracket
-/// stands at an error outside any field's value, that it may be one too
-/// many; and where only whitespace and comments follow, that the file ends
-/// there (RON's own message, "expected `(`", does not say so).
+/// stands at an error outside any field's value, or text follows the
+/// recipe's end, that a bracket may be one too many; and where only
+/// whitespace and comments follow, that the file ends there (RON's own
+/// message, "expected `(`", does not say so).
 pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col: usize) -> String {
     for (ron_says, allowed) in [
         ("Expected float", "a number such as 1.5, without quotes"),
@@ -284,15 +285,12 @@ pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col
             " (is this `{c}` one too many, or the wrong kind of bracket?)"
         ));
     }
-    // RON places an error at the end of a file without a final newline on
-    // its last character: past a last character that closes nothing (a
-    // comma, a number) the file ends all the same.
-    let last_opens_or_continues = closer.is_none()
-        && rest
-            .chars()
-            .next()
-            .is_some_and(|c| first_code_offset(&rest[c.len_utf8()..]) >= rest.len() - c.len_utf8());
-    if first_code_offset(rest) >= rest.len() || last_opens_or_continues {
+    if message == "Non-whitespace trailing characters" {
+        message.push_str(
+            " after the end of the recipe (is a closing bracket before it one too many?)",
+        );
+    }
+    if first_code_offset(rest) >= rest.len() {
         message.push_str(
             " (the file ends here: is it cut short, or is a closing `)`, `]` or `}` missing?)",
         );

@@ -24,7 +24,7 @@ use super::{
 };
 use crate::brdf::Rgb;
 use crate::geometry::{Base, Cabochon, CabochonParams, GeometryError, Outline};
-use crate::recipe::compile::{read_ron_file, ron_error};
+use crate::recipe::compile::{parse_ron, read_ron_file, ron_error};
 use crate::recipe::error::{
     blank_comments_and_strings, did_you_mean, line_col_of_offset, RecipeError,
 };
@@ -70,7 +70,7 @@ pub fn default_scene() -> Scene {
 }
 
 fn parse_named(text: &str, display: &str, path: Option<&Path>) -> Result<Scene, RecipeError> {
-    let spec: SceneSpec = ron::from_str(text).map_err(|e| scene_ron_error(display, text, e))?;
+    let spec: SceneSpec = parse_ron(text).map_err(|e| scene_ron_error(display, text, e))?;
     Compiler {
         display,
         locator: Locator::new(text),
