@@ -235,17 +235,24 @@ fn bad_gem(case: &str, from: &str, to: &str, marker: &str, needles: &[&str]) {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A scratch folder `name` holding [`GOOD_GEM`], [`GOOD_MATERIAL`] and
+/// [`GOOD_SCENE`] as `gem.ron`, `material.ron` and `scene.ron`: the folder
+/// and the three paths.
+fn good_files(name: &str) -> (PathBuf, PathBuf, PathBuf, PathBuf) {
+    let dir = scratch(name);
+    let paths = ["gem.ron", "material.ron", "scene.ron"].map(|file| dir.join(file));
+    for (path, text) in paths.iter().zip([GOOD_GEM, GOOD_MATERIAL, GOOD_SCENE]) {
+        std::fs::write(path, text).unwrap();
+    }
+    let [gem, material, scene] = paths;
+    (dir, gem, material, scene)
+}
+
 #[test]
 fn the_good_inputs_are_accepted() {
     // The bad inputs below are one mistake away from these: they must be
     // valid, or the refusals would prove nothing.
-    let dir = scratch("good");
-    let gem = dir.join("gem.ron");
-    let material = dir.join("material.ron");
-    let scene = dir.join("scene.ron");
-    std::fs::write(&gem, GOOD_GEM).unwrap();
-    std::fs::write(&material, GOOD_MATERIAL).unwrap();
-    std::fs::write(&scene, GOOD_SCENE).unwrap();
+    let (dir, gem, material, scene) = good_files("good");
     let out = lapidary(&[
         OsString::from("validate"),
         gem.clone().into(),
@@ -664,13 +671,7 @@ fn a_file_of_another_kind() {
     // A scene given where a gem belongs, a material where a scene belongs,
     // a gem where a material belongs: each says what it is, what was
     // expected and how that kind of file is used.
-    let dir = scratch("other-kind");
-    let scene = dir.join("scene.ron");
-    let material = dir.join("material.ron");
-    let gem = dir.join("gem.ron");
-    std::fs::write(&scene, GOOD_SCENE).unwrap();
-    std::fs::write(&material, GOOD_MATERIAL).unwrap();
-    std::fs::write(&gem, GOOD_GEM).unwrap();
+    let (_, gem, material, scene) = good_files("other-kind");
     let at = |path: &Path| format!("{}:1:", path.display());
     let render_gem = [
         OsString::from("render"),
