@@ -136,7 +136,7 @@ pub fn worker_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> 
         .map_err(|e| format!("cannot start worker threads: {e}"))
 }
 
-/// The copy of the row loop to render with: the best this CPU runs, or the
+/// The copy of the pixel loop to render with: the best this CPU runs, or the
 /// portable one when `LAPIDARY_SIMD=off` (to check that both write the
 /// same bytes, or to rule the vector code out when chasing a problem).
 pub fn code_path_from_env() -> lapidary::render::cpu::CodePath {

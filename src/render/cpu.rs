@@ -1,9 +1,9 @@
-//! Which compiled copy of the row loop runs: the portable code of the
+//! Which compiled copy of the pixel loop runs: the portable code of the
 //! build target, or a copy of the same source compiled for the x86-64-v3
 //! features (AVX2, FMA, BMI1/2, LZCNT: Haswell, every Zen and later).
 //!
 //! The film (`crate::render::film`) picks the copy once, at the entry of
-//! each row; nothing below it (integrator, BRDF, textures, geometry) knows
+//! each span of a row; nothing below it (integrator, BRDF, textures, geometry) knows
 //! about CPU features. The copies do the same IEEE operations in the same
 //! order (Rust never fuses a multiply and an add unless asked), so they
 //! write the same bytes; [`FilmSettings::code_path`](crate::render::film::FilmSettings)
@@ -11,7 +11,7 @@
 
 use std::sync::OnceLock;
 
-/// A compiled copy of the row loop, in increasing order of the CPU
+/// A compiled copy of the pixel loop, in increasing order of the CPU
 /// features it needs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum CodePath {

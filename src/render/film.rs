@@ -30,14 +30,14 @@ pub struct FilmSettings {
     pub samples_per_pixel: u32,
     /// Seed of every random number of the render.
     pub seed: u64,
-    /// The most CPU-specific copy of the row loop to run (capped at
+    /// The most CPU-specific copy of the pixel loop to run (capped at
     /// [`CodePath::best_available`]); every copy writes the same bytes.
     pub code_path: CodePath,
 }
 
 impl FilmSettings {
     /// `width` × `height` pixels, `samples_per_pixel` samples each, drawn
-    /// from `seed`, on the best copy of the row loop this CPU runs.
+    /// from `seed`, on the best copy of the pixel loop this CPU runs.
     pub fn new(width: u32, height: u32, samples_per_pixel: u32, seed: u64) -> Self {
         Self {
             width,
@@ -102,8 +102,26 @@ pub struct RenderStats {
     pub bad_samples: u64,
 }
 
-/// One row of the film, borrowed for writing.
-struct RowOut<'a> {
+impl RenderStats {
+    /// The counts of two parts of a film together.
+    fn plus(self, other: Self) -> Self {
+        RenderStats {
+            traced_rays: self.traced_rays + other.traced_rays,
+            shadow_rays: self.shadow_rays + other.shadow_rays,
+            bad_samples: self.bad_samples + other.bad_samples,
+        }
+    }
+}
+
+/// Pixels in the unit of parallel work: a row is cut into spans of this
+/// many, so that at the end of a film the last rows are shared among the
+/// cores instead of each waiting on one thread (a row of the peer scene
+/// at 64 spp is ≈ 10 ms on one core; a span of 64 pixels ≈ 1 ms). Each
+/// pixel is keyed by its place in the film: the same bytes at any span.
+const SPAN_PIXELS: usize = 64;
+
+/// A span of pixels of one row of the film, borrowed for writing.
+struct SpanOut<'a> {
     rgb: &'a mut [[f32; 3]],
     alpha: &'a mut [f32],
     albedo: &'a mut [[f32; 3]],
@@ -114,6 +132,51 @@ struct RowOut<'a> {
     inclusion: &'a mut [f32],
     material_id: &'a mut [u32],
     ao: &'a mut [f32],
+}
+
+impl<'a> SpanOut<'a> {
+    /// The span cut into consecutive spans of `pixels` (the last one
+    /// shorter), in parallel: the film into rows, a row into spans.
+    fn into_chunks(self, pixels: usize) -> impl IndexedParallelIterator<Item = SpanOut<'a>> {
+        (
+            self.rgb.par_chunks_mut(pixels),
+            self.alpha.par_chunks_mut(pixels),
+            self.albedo.par_chunks_mut(pixels),
+            self.normal.par_chunks_mut(pixels),
+            self.depth.par_chunks_mut(pixels),
+            self.surface_cell.par_chunks_mut(pixels),
+            self.glitter.par_chunks_mut(pixels),
+            self.inclusion.par_chunks_mut(pixels),
+            self.material_id.par_chunks_mut(pixels),
+            self.ao.par_chunks_mut(pixels),
+        )
+            .into_par_iter()
+            .map(
+                |(
+                    rgb,
+                    alpha,
+                    albedo,
+                    normal,
+                    depth,
+                    surface_cell,
+                    glitter,
+                    inclusion,
+                    material_id,
+                    ao,
+                )| SpanOut {
+                    rgb,
+                    alpha,
+                    albedo,
+                    normal,
+                    depth,
+                    surface_cell,
+                    glitter,
+                    inclusion,
+                    material_id,
+                    ao,
+                },
+            )
+    }
 }
 
 /// A sample of the tent filter of radius 1 by inverting its CDF.
@@ -131,7 +194,7 @@ fn tent(u: f64) -> f64 {
 /// The camera rays' directions for the first `lanes` samples of a batch of
 /// pixel (x, y): the footprints (pair 0) through the tent filter, then
 /// [`PinholeCamera::directions`]; the same bits as `camera.ray` per sample.
-/// Inlined into the row loop, whose x86-64-v3 copy compiles the lanes four
+/// Inlined into the pixel loop, whose x86-64-v3 copy compiles the lanes four
 /// to a register. A partial batch (a pixel's last samples)
 /// takes one `camera.ray` per sample instead.
 #[inline(always)]
@@ -193,7 +256,8 @@ fn to_f32x3(v: DVec3) -> [f32; 3] {
     [v.x as f32, v.y as f32, v.z as f32]
 }
 
-/// Renders row `y` into `row`; returns its ray counts.
+/// Renders the pixels of row `y` from column `x_first` on into `row`
+/// (one span of the row); returns their ray counts.
 ///
 /// The one place where a per-CPU copy is chosen
 /// ([`crate::render::cpu`]): with [`CodePath::X86_64V3`] the row is
@@ -201,51 +265,54 @@ fn to_f32x3(v: DVec3) -> [f32; 3] {
 /// three-operand instructions drop register copies and spills from the
 /// path tracer's loop; the sampler's and camera's lane loops inline into
 /// it and run on AVX2). Both copies write the same bytes (tested).
-fn render_row(
+fn render_span(
     scene: &RenderScene,
     camera: &PinholeCamera,
     settings: &FilmSettings,
     y: u32,
-    row: RowOut<'_>,
+    x_first: u32,
+    span: SpanOut<'_>,
 ) -> RenderStats {
     #[cfg(target_arch = "x86_64")]
     if settings.code_path.min(CodePath::best_available()) == CodePath::X86_64V3 {
         // SAFETY: this CPU has every feature of the copy.
-        return unsafe { render_row_x86_64_v3(scene, camera, settings, y, row) };
+        return unsafe { render_span_x86_64_v3(scene, camera, settings, y, x_first, span) };
     }
-    render_row_portable(scene, camera, settings, y, row)
+    render_span_portable(scene, camera, settings, y, x_first, span)
 }
 
-/// [`render_row_portable`] compiled for x86-64-v3 (see [`render_row`]).
+/// [`render_span_portable`] compiled for x86-64-v3 (see [`render_span`]).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt")]
-fn render_row_x86_64_v3(
+fn render_span_x86_64_v3(
     scene: &RenderScene,
     camera: &PinholeCamera,
     settings: &FilmSettings,
     y: u32,
-    row: RowOut<'_>,
+    x_first: u32,
+    span: SpanOut<'_>,
 ) -> RenderStats {
-    render_row_portable(scene, camera, settings, y, row)
+    render_span_portable(scene, camera, settings, y, x_first, span)
 }
 
-/// The row loop itself, for the baseline x86-64 (or any other) target;
-/// inlined into [`render_row_x86_64_v3`] for the other copy. Each sample
+/// The pixel loop itself, for the baseline x86-64 (or any other) target;
+/// inlined into [`render_span_x86_64_v3`] for the other copy. Each sample
 /// is traced by [`RenderScene::radiance`] and summed in sample order.
 #[inline(always)]
-fn render_row_portable(
+fn render_span_portable(
     scene: &RenderScene,
     camera: &PinholeCamera,
     settings: &FilmSettings,
     y: u32,
-    row: RowOut<'_>,
+    x_first: u32,
+    span: SpanOut<'_>,
 ) -> RenderStats {
     let mut stats = RenderStats::default();
     let spp = settings.samples_per_pixel;
     // The pairs every sample draws, made for
     // the batch at once; deeper ones when a path draws them.
     let eager_pairs = scene.first_vertex_pairs();
-    for x in 0..settings.width {
+    for (i, x) in (x_first..).take(span.rgb.len()).enumerate() {
         let pixel_index = u64::from(y) * u64::from(settings.width) + u64::from(x);
         let pixel = PixelSampler::new(settings.seed, pixel_index);
         let mut sum = Rgb::ZERO;
@@ -282,28 +349,27 @@ fn render_row_portable(
             }
         }
         let n = f64::from(spp);
-        let x = x as usize;
-        row.rgb[x] = to_f32x3(sum / n);
+        span.rgb[i] = to_f32x3(sum / n);
         let first = &first_hits;
-        row.alpha[x] = (f64::from(first.hits) / n) as f32;
-        row.albedo[x] = to_f32x3(first.albedo / n);
-        row.normal[x] = to_f32x3(first.normal / n);
-        row.depth[x] = if first.hits > 0 {
+        span.alpha[i] = (f64::from(first.hits) / n) as f32;
+        span.albedo[i] = to_f32x3(first.albedo / n);
+        span.normal[i] = to_f32x3(first.normal / n);
+        span.depth[i] = if first.hits > 0 {
             (first.depth / f64::from(first.hits)) as f32
         } else {
             f32::INFINITY
         };
-        row.surface_cell[x] = first.surface_cell;
-        row.glitter[x] = (f64::from(first.glints) / n) as f32;
-        row.inclusion[x] = (f64::from(first.inclusions) / n) as f32;
-        row.material_id[x] = first.material_id;
-        row.ao[x] = (first.unoccluded / n) as f32;
+        span.surface_cell[i] = first.surface_cell;
+        span.glitter[i] = (f64::from(first.glints) / n) as f32;
+        span.inclusion[i] = (f64::from(first.inclusions) / n) as f32;
+        span.material_id[i] = first.material_id;
+        span.ao[i] = (first.unoccluded / n) as f32;
     }
     stats
 }
 
 /// Renders the film on the current rayon pool. `progress` is called with
-/// each finished row's number of pixels (from any thread, in any order).
+/// each finished span's number of pixels (from any thread, in any order).
 pub fn render(
     scene: &RenderScene,
     camera: &PinholeCamera,
@@ -316,7 +382,7 @@ pub fn render(
 }
 
 /// [`render`], stopping early (returning None) once `cancel` is set, e.g.
-/// by Ctrl-C. Rows already started finish, the others are skipped; no
+/// by Ctrl-C. Spans of rows already started finish, the others are skipped; no
 /// partial film is returned.
 pub fn render_cancellable(
     scene: &RenderScene,
@@ -372,65 +438,41 @@ pub fn render_rows_cancellable(
         ao: vec![0.0; pixels],
         stats: RenderStats::default(),
     };
-    // Every row is written in place by whichever thread takes it: no
-    // barrier between groups of rows (an idle core steals the next row at
-    // once) and no second copy of the film.
-    let rows = (
-        film.rgb.par_chunks_mut(w),
-        film.alpha.par_chunks_mut(w),
-        film.albedo.par_chunks_mut(w),
-        film.normal.par_chunks_mut(w),
-        film.depth.par_chunks_mut(w),
-        film.surface_cell.par_chunks_mut(w),
-        film.glitter.par_chunks_mut(w),
-        film.inclusion.par_chunks_mut(w),
-        film.material_id.par_chunks_mut(w),
-        film.ao.par_chunks_mut(w),
-    );
-    let stats = rows
-        .into_par_iter()
+    // Every span of a row is written in place by whichever thread takes
+    // it: no barrier between groups of rows (an idle core steals the next
+    // row, or the rest of a row, at once) and no second copy of the film.
+    let whole = SpanOut {
+        rgb: &mut film.rgb,
+        alpha: &mut film.alpha,
+        albedo: &mut film.albedo,
+        normal: &mut film.normal,
+        depth: &mut film.depth,
+        surface_cell: &mut film.surface_cell,
+        glitter: &mut film.glitter,
+        inclusion: &mut film.inclusion,
+        material_id: &mut film.material_id,
+        ao: &mut film.ao,
+    };
+    let stats = whole
+        .into_chunks(w)
         .enumerate()
-        .map(
-            |(
-                y,
-                (
-                    rgb,
-                    alpha,
-                    albedo,
-                    normal,
-                    depth,
-                    surface_cell,
-                    glitter,
-                    inclusion,
-                    material_id,
-                    ao,
-                ),
-            )| {
-                if cancel.load(Ordering::Relaxed) {
-                    return RenderStats::default();
-                }
-                let row = RowOut {
-                    rgb,
-                    alpha,
-                    albedo,
-                    normal,
-                    depth,
-                    surface_cell,
-                    glitter,
-                    inclusion,
-                    material_id,
-                    ao,
-                };
-                let stats = render_row(scene, camera, settings, first_row + y as u32, row);
-                progress(u64::from(settings.width));
-                stats
-            },
-        )
-        .reduce(RenderStats::default, |a, b| RenderStats {
-            traced_rays: a.traced_rays + b.traced_rays,
-            shadow_rays: a.shadow_rays + b.shadow_rays,
-            bad_samples: a.bad_samples + b.bad_samples,
-        });
+        .map(|(y, row)| {
+            row.into_chunks(SPAN_PIXELS)
+                .enumerate()
+                .map(|(k, span)| {
+                    if cancel.load(Ordering::Relaxed) {
+                        return RenderStats::default();
+                    }
+                    let pixels = span.rgb.len() as u64;
+                    let x_first = (k * SPAN_PIXELS) as u32;
+                    let stats =
+                        render_span(scene, camera, settings, first_row + y as u32, x_first, span);
+                    progress(pixels);
+                    stats
+                })
+                .reduce(RenderStats::default, RenderStats::plus)
+        })
+        .reduce(RenderStats::default, RenderStats::plus);
     if cancel.load(Ordering::Relaxed) {
         return None;
     }

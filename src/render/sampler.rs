@@ -225,7 +225,7 @@ type BatchPoints = [[[f64; 2]; SOBOL_PAIRS as usize]; SAMPLE_BATCH as usize];
 /// sample `first_sample + lane` of the pixel whose pairs are scrambled by
 /// `pair_seeds`, as loops over fixed-size lane arrays, which the compiler
 /// vectorises: every step of [`owen_sobol_point`] is one operation on all
-/// lanes (`reverse_bits` becomes byte shuffles). Inlined into the row loop,
+/// lanes (`reverse_bits` becomes byte shuffles). Inlined into the pixel loop,
 /// so its x86-64-v3 copy (`crate::render::cpu`) runs eight lanes per
 /// instruction; integer arithmetic, so every copy gives the same bits.
 #[inline(always)]

@@ -3,7 +3,7 @@
 //!
 //! Bands of rows, not squares: the film is stored row by row, so a tile is
 //! one slice of each buffer, and [`crate::render::film::render_rows_cancellable`]
-//! renders it by the same row loop as the whole film. Each pixel is keyed
+//! renders it by the same pixel loop as the whole film. Each pixel is keyed
 //! by its place in the whole film, so a tile's pixels are the same bits as
 //! in a single render and the merged tiles are the single render.
 
