@@ -256,11 +256,11 @@ fn to_f32x3(v: DVec3) -> [f32; 3] {
     [v.x as f32, v.y as f32, v.z as f32]
 }
 
-/// Renders the pixels of row `y` from column `x_first` on into `row`
+/// Renders the pixels of row `y` from column `x_first` on into `span`
 /// (one span of the row); returns their ray counts.
 ///
 /// The one place where a per-CPU copy is chosen
-/// ([`crate::render::cpu`]): with [`CodePath::X86_64V3`] the row is
+/// ([`crate::render::cpu`]): with [`CodePath::X86_64V3`] the span is
 /// rendered by a copy of the same code compiled for those features (VEX
 /// three-operand instructions drop register copies and spills from the
 /// path tracer's loop; the sampler's and camera's lane loops inline into
