@@ -482,7 +482,72 @@ pub fn render_rows_cancellable(
 
 #[cfg(test)]
 mod tests {
-    use super::tent;
+    use super::*;
+    use crate::recipe::gem::{GemSource, Tables};
+    use crate::recipe::TableCache;
+    use crate::render::integrator::MATERIAL_ID_FIRST_STONE;
+    use crate::render::prepare;
+    use crate::scene::default_scene;
+
+    #[test]
+    fn every_span_renders_its_own_pixels_as_one_pixel_alone_would() {
+        // Rows 130 pixels wide (spans of 64, 64 and 2) against each
+        // pixel rendered as a span of its own: every AOV the same bits,
+        // so a span's pixels are keyed by their place in the row.
+        let scene = default_scene();
+        let gem = GemSource::load("sunstone").unwrap();
+        let cache = TableCache::in_memory();
+        let traced =
+            prepare::prepare_scene(&scene, &gem, None, 1, Tables::Computed(&cache), &|_| {})
+                .unwrap();
+        // Rows through the middle of a square film (a tile of them).
+        let (width, height, rows) = (130, 130, 62..65);
+        let camera = prepare::camera_for(&scene, width, height);
+        let settings = FilmSettings::new(width, height, 2, 7);
+        let never = AtomicBool::new(false);
+        let film =
+            render_rows_cancellable(&traced, &camera, &settings, rows.clone(), &|_| {}, &never)
+                .unwrap();
+        let mut covered = 0;
+        for y in rows.clone() {
+            for x in 0..width {
+                let mut pixel = ([[0.0f32; 3]; 3], [0.0f32; 5], [0u32; 2]);
+                let ([rgb, albedo, normal], [alpha, depth, glitter, inclusion, ao], [cell, id]) =
+                    &mut pixel;
+                let span = SpanOut {
+                    rgb: std::slice::from_mut(rgb),
+                    alpha: std::slice::from_mut(alpha),
+                    albedo: std::slice::from_mut(albedo),
+                    normal: std::slice::from_mut(normal),
+                    depth: std::slice::from_mut(depth),
+                    surface_cell: std::slice::from_mut(cell),
+                    glitter: std::slice::from_mut(glitter),
+                    inclusion: std::slice::from_mut(inclusion),
+                    material_id: std::slice::from_mut(id),
+                    ao: std::slice::from_mut(ao),
+                };
+                render_span(&traced, &camera, &settings, y, x, span);
+                let i = ((y - rows.start) * width + x) as usize;
+                let bits = |v: &[f32]| v.iter().map(|c| c.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(rgb), bits(&film.rgb[i]), "rgb at ({x}, {y})");
+                assert_eq!(bits(albedo), bits(&film.albedo[i]), "albedo at ({x}, {y})");
+                assert_eq!(bits(normal), bits(&film.normal[i]), "normal at ({x}, {y})");
+                let scalars = [*alpha, *depth, *glitter, *inclusion, *ao];
+                let film_scalars = [
+                    film.alpha[i],
+                    film.depth[i],
+                    film.glitter[i],
+                    film.inclusion[i],
+                    film.ao[i],
+                ];
+                assert_eq!(bits(&scalars), bits(&film_scalars), "scalars at ({x}, {y})");
+                assert_eq!([*cell, *id], [film.surface_cell[i], film.material_id[i]]);
+                covered += usize::from(film.material_id[i] >= MATERIAL_ID_FIRST_STONE);
+            }
+        }
+        // The stone is in these rows, beside the ground and the sky.
+        assert!(covered > 10, "{covered} pixels saw the stone");
+    }
 
     /// The tent's inverse CDF written out by halves: F(t) = (1 + t)²/2 on
     /// [−1, 0] and 1 − (1 − t)²/2 on [0, 1].
