@@ -475,22 +475,71 @@ fn bad_jobs_are_refused_with_the_place_and_the_allowed_range() {
         (JOB.replace("tiles: 2,\n)", "tiles: 2"), "job.ron:"),
         (
             JOB.replace("recipes: [\"sunstone\"]", "recipes: [\"sunstones\"]"),
-            "sunstones",
+            "job.ron:3:15: recipe `sunstones` does not load",
         ),
     ];
     for (text, expected) in cases {
         std::fs::write(&job, &text).unwrap();
-        let args = if text.contains("sunstones") {
-            vec!["batch", s(&job), "--task", "0", "-q"]
-        } else {
-            vec!["batch", s(&job)]
-        };
-        refused(&args, expected);
+        let out = refused(&["batch", s(&job)], expected);
+        assert!(lapidary(&["batch", s(&job)]).stdout.is_empty(), "{out}");
+        if text.contains("sunstones") {
+            // Named where the job names it, and what it might be; a task
+            // run anyway says so too.
+            assert!(out.contains("did you mean `sunstone`?"), "{out}");
+            refused(&["batch", s(&job), "--task", "0", "-q"], "sunstones");
+        }
     }
     std::fs::write(&job, JOB).unwrap();
     refused(&["batch", s(&job), "--task", "4"], "allowed 0 to 3");
     refused(&["batch", s(&job), "--merge"], "4 of 4 tiles are missing");
     assert!(!dir.join("out").join("sunstone-studio.png").exists());
+}
+
+#[test]
+fn validate_checks_a_job_and_every_recipe_and_scene_it_names() {
+    let dir = scratch("validate-jobs");
+    let job = dir.join("job.ron");
+    std::fs::write(&job, JOB).unwrap();
+    let out = lapidary(&["validate", s(&job)]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let summary = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        summary.contains("ok (job, 4 tasks: 1 images × 2 frames × 2 tiles)"),
+        "{summary}"
+    );
+    // A scene that is a gem, and a gem file with a mistake: each named
+    // where the job names it, with the file's own error after it.
+    std::fs::write(dir.join("gem.ron"), "Gem(name: \"x\")\n").unwrap();
+    let cases = [
+        (
+            JOB.replace(
+                "recipes: [\"sunstone\"],",
+                "recipes: [\"sunstone\"], scenes: [\"gem.ron\"],",
+            ),
+            "job.ron:3:38: scene",
+            "where a scene (`Scene(…)`) was expected",
+        ),
+        (
+            JOB.replace(
+                "recipes: [\"sunstone\"]",
+                "recipes: [\"sunstone\", \"gem.ron\"]",
+            ),
+            "job.ron:3:28: recipe",
+            "gem.ron:1:14: missing field `surface` in Gem",
+        ),
+    ];
+    for (text, place, nested) in cases {
+        std::fs::write(&job, &text).unwrap();
+        for args in [vec!["validate", s(&job)], vec!["batch", s(&job)]] {
+            let out = lapidary(&args);
+            let all = format!("{}{}", String::from_utf8_lossy(&out.stdout), stderr(&out));
+            assert_eq!(out.status.code(), Some(1), "{args:?}: {all}");
+            assert!(
+                all.contains(place) && all.contains(nested),
+                "{args:?}: {all}"
+            );
+        }
+    }
 }
 
 /// `NAME = value` lines and the `queue` line of an HTCondor submit file.

@@ -7,9 +7,11 @@ use std::path::{Path, PathBuf};
 use lapidary::farm::job::{FormatSpec, Job, TonemapSpec};
 use lapidary::farm::merge::{merge, read_tile};
 use lapidary::output::animation::write_apng;
+use lapidary::recipe::compile::read_ron_file;
 use lapidary::render::tiles::TileSplit;
 
 use super::render::{RenderArgs, TaskOutcome, TonemapArg, ANIMATION_FRAMES_PER_SECOND};
+use super::validate::validate_job;
 
 /// Arguments of `lapidary batch`.
 #[derive(clap::Args, Debug)]
@@ -40,6 +42,10 @@ pub fn run(args: BatchArgs) -> Result<(), String> {
         (Some(task), _) => run_task(&job, task, &args),
         (None, true) => merge_all(&job, &args),
         (None, false) => {
+            // Every recipe and scene checked before the list a farm submits.
+            let display = args.job.display().to_string();
+            let text = read_ron_file(&display, "job file").map_err(|e| e.to_string())?;
+            validate_job(&display, &args.job, &text).map_err(|e| e.to_string())?;
             list_tasks(&job);
             Ok(())
         }

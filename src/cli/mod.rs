@@ -48,12 +48,14 @@ enum Command {
     /// Render a gem (default: green-aventurine) on a cabochon in a scene
     /// (default: the studio scene), to PNG or EXR.
     Render(render::RenderArgs),
-    /// Check gem recipes, material files, scene files or built-in names:
-    /// prints `file:line:col: message` per error, `file: ok (…)` per valid
-    /// input; exit status 1 when any has an error.
+    /// Check gem recipes, material files, scene files, batch jobs (with
+    /// every recipe and scene they name) or built-in names: prints
+    /// `file:line:col: message` per error, `file: ok (…)` per valid input;
+    /// exit status 1 when any has an error.
     Validate {
-        /// RON files (gem, material or scene, told apart by their top-level
-        /// `Gem(`, `Material(` or `Scene(`) or built-in names.
+        /// RON files (gem, material, scene or job, told apart by their
+        /// top-level `Gem(`, `Material(`, `Scene(` or `Job(`) or built-in
+        /// names.
         #[arg(required = true, value_name = "RECIPE")]
         recipes: Vec<String>,
     },

@@ -1,16 +1,18 @@
 //! `lapidary validate RECIPE...`: check gem recipes, material files, scene
-//! files and built-in names the way the renderer would read them, and print
-//! `file:line:col: message` for each error or `file: ok (…)` for each valid
-//! input.
+//! files, batch jobs and built-in names the way the renderer would read
+//! them, and print `file:line:col: message` for each error or `file: ok
+//! (…)` for each valid input.
 //!
 //! A file's kind is its RON top-level struct name (`Gem(`, `Material(`,
-//! `Scene(`), read after comments and whitespace. Validation runs the same
-//! parse and compile steps as `lapidary render` (the gem's pattern tree, and
-//! every material compiled with `multiple_scattering` off, which skips the
-//! slow compensation tables but none of the checks), so semantic errors —
-//! unknown names, weights summing to zero, maps that contain themselves —
-//! are caught here and not at render time.
+//! `Scene(`, `Job(`), read after comments and whitespace. Validation runs
+//! the same parse and compile steps as `lapidary render` (the gem's
+//! pattern tree, and every material compiled with `multiple_scattering`
+//! off, which skips the slow compensation tables but none of the checks),
+//! so semantic errors — unknown names, weights summing to zero, maps that
+//! contain themselves — are caught here and not at render time; a job's
+//! recipes and scenes are checked with it.
 
+use lapidary::farm::job::Job;
 use lapidary::recipe::compile::{
     compile_material, locate_material, names_a_file, parse_material, read_ron_file, MaterialSource,
 };
@@ -39,13 +41,15 @@ pub enum RecipeKind {
     Material,
     /// `Scene(…)`: a scene for `lapidary render --scene`.
     Scene,
+    /// `Job(…)`: a batch job for `lapidary batch`.
+    Job,
 }
 
 /// The kind of RON file `text` is, from its top-level struct name; an
 /// error at the first token says what was expected otherwise.
 pub fn recipe_kind(path: &str, text: &str) -> Result<RecipeKind, RecipeError> {
     const EXPECTED: &str =
-        "expected a recipe starting with `Gem(`, `Material(` or `Scene(` (after comments)";
+        "expected a recipe starting with `Gem(`, `Material(`, `Scene(` or `Job(` (after comments)";
     let start = first_code_offset(text);
     if start >= text.len() {
         let what = if text.trim().is_empty() {
@@ -63,6 +67,7 @@ pub fn recipe_kind(path: &str, text: &str) -> Result<RecipeKind, RecipeError> {
         "Gem" => Some(RecipeKind::Gem),
         "Material" => Some(RecipeKind::Material),
         "Scene" => Some(RecipeKind::Scene),
+        "Job" => Some(RecipeKind::Job),
         _ => None,
     };
     match kind {
@@ -77,7 +82,7 @@ pub fn recipe_kind(path: &str, text: &str) -> Result<RecipeKind, RecipeError> {
             } else {
                 word.clone()
             };
-            let hint = did_you_mean(&word, ["Gem", "Material", "Scene"])
+            let hint = did_you_mean(&word, ["Gem", "Material", "Scene", "Job"])
                 .filter(|_| !word.is_empty())
                 .map(|s| format!(" (did you mean `{s}`?)"))
                 .unwrap_or_default();
@@ -226,7 +231,61 @@ pub fn validate_text(
         RecipeKind::Gem => validate_gem(path, text),
         RecipeKind::Material => validate_material(path, name, text),
         RecipeKind::Scene => validate_scene(path, file, text),
+        RecipeKind::Job => validate_job(path, file.unwrap_or(Path::new(path)), text),
     }
+}
+
+/// Validate a batch job: the job itself ([`Job::load`]: fields, ranges,
+/// image names, the task count) and every recipe and scene it names, each
+/// as `validate` checks it, so that a farm array never starts on a broken
+/// input; an input's error is placed where the job names it.
+pub fn validate_job(path: &str, file: &Path, text: &str) -> Result<String, RecipeError> {
+    let job = Job::load(file)?;
+    let recipes = job
+        .images
+        .iter()
+        .map(|image| ("recipe", image.recipe.clone()));
+    let scenes = job
+        .images
+        .iter()
+        .filter_map(|image| image.scene.as_ref())
+        .map(|scene| ("scene", scene.display().to_string()));
+    let mut checked = std::collections::HashSet::new();
+    for (what, spec) in recipes.chain(scenes) {
+        if !checked.insert(spec.clone()) {
+            continue;
+        }
+        let loaded = if what == "recipe" {
+            GemSource::load(&spec).and_then(|source| validate_gem(&source.path, &source.text))
+        } else {
+            read_ron_file(&spec, "scene file")
+                .and_then(|text| validate_scene(&spec, Some(Path::new(&spec)), &text))
+        };
+        loaded.map_err(|e| {
+            // Where the job names it: a built-in's name in quotes, a
+            // file's name (the job may write a folder before it).
+            let written = if names_a_file(&spec) {
+                Path::new(&spec)
+                    .file_name()
+                    .map_or(spec.clone(), |n| n.to_string_lossy().into_owned())
+            } else {
+                format!("\"{spec}\"")
+            };
+            RecipeError::at_text(
+                path,
+                text,
+                &written,
+                format!("{what} `{spec}` does not load: {e}"),
+            )
+        })?;
+    }
+    Ok(format!(
+        "ok (job, {} tasks: {} images × {} frames × {} tiles)",
+        job.task_count(),
+        job.images.len(),
+        job.turntable.map_or(1, |t| t.frames),
+        job.tiles
+    ))
 }
 
 /// Validate one command-line argument (a file or a built-in name); returns
