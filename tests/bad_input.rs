@@ -893,6 +893,19 @@ fn brdf_of_an_unknown_library_name() {
         &out,
         &["golld".to_string(), "gold".to_string()],
     );
+    // A gem's name where a material belongs: what it is and what renders it.
+    for args in [
+        &["brdf", "goldstone", "--albedo"][..],
+        &["classify", "goldstone"],
+    ] {
+        let out = lapidary(&os(args));
+        assert_refused(
+            "brdf-of-a-gem",
+            &out,
+            &["`goldstone` is a built-in gem, not a material: `lapidary render goldstone` renders it"
+                .to_string()],
+        );
+    }
 }
 
 // ---- scenes -------------------------------------------------------------------

@@ -8,7 +8,7 @@ use crate::recipe::error::{
     did_you_mean, field_before, find_position, with_ron_hints, RecipeError,
 };
 use crate::recipe::gem::Tables;
-use crate::recipe::library::{builtin_material_names, builtin_material_source};
+use crate::recipe::library::{builtin_gem_source, builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
 use std::path::Path;
 
@@ -145,6 +145,10 @@ pub fn locate_material(spec: &str) -> Result<MaterialSource, RecipeError> {
             name: spec.to_string(),
             text: text.to_string(),
         }),
+        None if builtin_gem_source(spec).is_some() => Err(RecipeError::whole_file(
+            spec,
+            format!("`{spec}` is a built-in gem, not a material: `lapidary render {spec}` renders it; a material is one of the library (`lapidary list`) or a `Material(…)` file"),
+        )),
         None => {
             let hint = did_you_mean(spec, builtin_material_names())
                 .map(|s| format!(" (did you mean `{s}`?)"))
