@@ -886,14 +886,21 @@ fn material_with_a_boolean_written_as_a_word() {
 }
 
 #[test]
-fn brdf_of_an_unknown_library_name() {
+fn unknown_names_and_names_of_the_other_kind() {
     let out = lapidary(&os(&["brdf", "golld", "--albedo"]));
     assert_refused(
         "brdf-unknown",
         &out,
         &["golld".to_string(), "gold".to_string()],
     );
-    // A gem's name where a material belongs: what it is and what renders it.
+    // A material's name where a gem belongs, and a gem's where a material
+    // belongs: what each is and which command takes it.
+    let out = lapidary(&os(&["render", "brass", "-o", "/nonexistent/x.png"]));
+    assert_refused(
+        "render-a-material",
+        &out,
+        &["`brass` is a built-in material, not a gem: `lapidary brdf brass` shows it".to_string()],
+    );
     for args in [
         &["brdf", "goldstone", "--albedo"][..],
         &["classify", "goldstone"],

@@ -1416,6 +1416,15 @@ fn load_gem_source(spec: &str) -> Result<(String, String), RecipeError> {
     }
     match builtin_gem_source(spec) {
         Some(text) => Ok((format!("builtin:{spec}"), text.to_string())),
+        None if crate::recipe::library::builtin_material_source(spec).is_some() => {
+            Err(RecipeError::whole_file(
+                spec,
+                format!(
+                    "`{spec}` is a built-in material, not a gem: `lapidary brdf {spec}` shows it, and a gem names it in its maps (`lapidary new NAME --from goldstone` starts one); built-in gems: {}",
+                    builtin_gem_names().collect::<Vec<_>>().join(", ")
+                ),
+            ))
+        }
         None => {
             let hint = did_you_mean(spec, builtin_gem_names())
                 .map(|s| format!(" (did you mean `{s}`?)"))
