@@ -77,6 +77,41 @@ fn thread_count_does_not_change_a_single_byte() {
 }
 
 #[test]
+fn scene_studio_is_the_built_in_scene_and_a_gem_is_no_scene() {
+    // `--scene studio` (no file of that name here) is the default scene,
+    // as `validate studio` and a job's `scenes: ["studio"]` name it.
+    let dir = scratch("scene-studio");
+    let named = dir.join("named.png");
+    let default = dir.join("default.png");
+    for (path, extra) in [(&named, &["--scene", "studio"][..]), (&default, &[][..])] {
+        let mut args = vec!["render", "-o", path.to_str().unwrap(), "--size", "16"];
+        args.extend(["--spp", "2", "-q"]);
+        args.extend(extra);
+        let out = lapidary(&args);
+        assert!(out.status.success(), "{}", stderr(&out));
+    }
+    assert_eq!(
+        std::fs::read(&named).unwrap(),
+        std::fs::read(&default).unwrap()
+    );
+    let gem = dir.join("gem.png");
+    let out = lapidary(&[
+        "render",
+        "--scene",
+        "goldstone",
+        "-o",
+        gem.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        stderr(&out).contains("`goldstone` is a built-in gem, not a scene"),
+        "{}",
+        stderr(&out)
+    );
+    assert!(!gem.exists());
+}
+
+#[test]
 fn footprints_by_default_and_exact_flakes_on_request_and_neither_with_the_thread_count() {
     // Goldstone's copper at 32 px: about a hundred flakes to a pixel, and
     // any met after a flake's reflection, so by default some are shaded by

@@ -6,6 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
+use super::validate::BUILTIN_SCENE_NAME;
 use indicatif::{ProgressBar, ProgressStyle};
 use lapidary::farm::job::frame_suffix;
 use lapidary::farm::merge::read_tile;
@@ -54,7 +55,7 @@ pub struct RenderArgs {
     /// green-aventurine. Used by every stone of the scene that names none.
     pub(super) recipe: Option<String>,
     /// A RON scene (camera, stones, ground, lights, environment); default:
-    /// the built-in studio scene.
+    /// the built-in studio scene (also `--scene studio`).
     #[arg(long, value_name = "SCENE.ron")]
     pub(super) scene: Option<PathBuf>,
     /// The image to write: .png (tone-mapped sRGB) or .exr (linear, with AOV layers).
@@ -445,13 +446,31 @@ struct Inputs {
     sha256: String,
 }
 
+/// The scene file `--scene` names; None for the built-in studio scene
+/// (no `--scene`, or `--scene studio` where no file of that name is, as
+/// `validate` and batch jobs name it).
+fn scene_file(args: &RenderArgs) -> Option<&Path> {
+    args.scene
+        .as_deref()
+        .filter(|path| *path != Path::new(BUILTIN_SCENE_NAME) || path.exists())
+}
+
 impl Inputs {
     fn load(args: &RenderArgs) -> Result<Inputs, String> {
-        let (scene, scene_bytes) = match &args.scene {
-            Some(path) => (
-                load_scene(path).map_err(|e| e.to_string())?,
-                std::fs::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?,
-            ),
+        let (scene, scene_bytes) = match scene_file(args) {
+            Some(path) => {
+                let name = path.to_string_lossy();
+                if !path.exists() && GemSource::load(&name).is_ok() {
+                    return Err(format!(
+                        "--scene {name}: `{name}` is a built-in gem, not a scene: `lapidary render {name}` renders it in the studio, `--scene FILE` takes a `Scene(…)` file or `studio`"
+                    ));
+                }
+                (
+                    load_scene(path).map_err(|e| e.to_string())?,
+                    std::fs::read(path)
+                        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?,
+                )
+            }
             None => (default_scene(), DEFAULT_SCENE_SOURCE.as_bytes().to_vec()),
         };
         let gem = GemSource::load(args.recipe.as_deref().unwrap_or(DEFAULT_GEM))
@@ -570,7 +589,7 @@ impl Renderer {
         )?;
         // A stone sunk into the ground or crossing another renders, but
         // not as the physics assumes: said even when quiet.
-        let scene_name = args.scene.as_ref().map_or_else(
+        let scene_name = scene_file(args).map_or_else(
             || "the studio scene".to_string(),
             |p| p.display().to_string(),
         );
