@@ -504,7 +504,7 @@ fn validate_checks_a_job_and_every_recipe_and_scene_it_names() {
     assert!(out.status.success(), "{}", stderr(&out));
     let summary = String::from_utf8(out.stdout).unwrap();
     assert!(
-        summary.contains("ok (job, 4 tasks: 1 images × 2 frames × 2 tiles)"),
+        summary.contains("ok (job, 4 tasks: 1 image × 2 frames × 2 tiles)"),
         "{summary}"
     );
     // A scene that is a gem, and a gem file with a mistake: each named

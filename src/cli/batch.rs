@@ -66,11 +66,11 @@ fn list_tasks(job: &Job) {
         super::emit(&format!("{index} {name}"));
     }
     eprintln!(
-        "{} tasks: {} images × {} frames × {} tiles; run each with `lapidary batch JOB --task I`, then `lapidary batch JOB --merge`",
-        job.task_count(),
-        job.images.len(),
-        job.turntable.map_or(1, |t| t.frames),
-        job.tiles
+        "{}: {} × {} × {}; run each with `lapidary batch JOB --task I`, then `lapidary batch JOB --merge`",
+        super::counted(job.task_count(), "task"),
+        super::counted(job.images.len() as u64, "image"),
+        super::counted(job.turntable.map_or(1, |t| t.frames), "frame"),
+        super::counted(job.tiles, "tile")
     );
 }
 

@@ -113,6 +113,12 @@ struct BrdfArgs {
     single_crossing: bool,
 }
 
+/// `n` and the noun `what`, plural unless n is 1: "1 frame", "4 tiles".
+pub fn counted(n: impl Into<u64>, what: &str) -> String {
+    let n = n.into();
+    format!("{n} {what}{}", if n == 1 { "" } else { "s" })
+}
+
 /// Print one line to stdout. A closed pipe (`lapidary list | head`) ends
 /// the program quietly with success instead of panicking like `println!`.
 pub fn emit(line: &str) {

@@ -12,6 +12,7 @@
 //! contain themselves — are caught here and not at render time; a job's
 //! recipes and scenes are checked with it.
 
+use super::counted;
 use lapidary::farm::job::Job;
 use lapidary::recipe::compile::{
     compile_material, locate_material, names_a_file, parse_material, read_ron_file, MaterialSource,
@@ -100,12 +101,11 @@ pub fn recipe_kind(path: &str, text: &str) -> Result<RecipeKind, RecipeError> {
 /// material it uses.
 fn validate_gem(path: &str, text: &str) -> Result<String, RecipeError> {
     let gem = parse_gem(path, text)?;
-    let plural = |n: usize, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
     Ok(format!(
         "ok (gem \"{}\", {}, {}{}{})",
         gem.name,
-        plural(gem.materials.len(), "material"),
-        plural(gem.map_names.len(), "map"),
+        counted(gem.materials.len() as u64, "material"),
+        counted(gem.map_names.len() as u64, "map"),
         if gem.spec.glitter.is_some() {
             ", glitter"
         } else {
@@ -134,10 +134,9 @@ fn validate_material(path: &str, name: &str, text: &str) -> Result<String, Recip
         BaseSpec::Conductor { .. } => "Conductor",
         BaseSpec::Black => "Black",
     };
-    let layers = material.layers.len();
     Ok(format!(
-        "ok (material, {layers} layer{}, {base} base)",
-        if layers == 1 { "" } else { "s" }
+        "ok (material, {}, {base} base)",
+        counted(material.layers.len() as u64, "layer")
     ))
 }
 
@@ -207,9 +206,9 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<String,
         .map(|problem| format!("\n{path}: warning: {problem}"))
         .collect();
     Ok(format!(
-        "ok (scene, {n} stone{}, {l} light{}{}){warnings}",
-        if n == 1 { "" } else { "s" },
-        if l == 1 { "" } else { "s" },
+        "ok (scene, {}, {}{}){warnings}",
+        counted(n as u64, "stone"),
+        counted(l as u64, "light"),
         if scene.ground.is_some() {
             ", ground"
         } else {
@@ -280,11 +279,11 @@ pub fn validate_job(path: &str, file: &Path, text: &str) -> Result<String, Recip
         })?;
     }
     Ok(format!(
-        "ok (job, {} tasks: {} images × {} frames × {} tiles)",
-        job.task_count(),
-        job.images.len(),
-        job.turntable.map_or(1, |t| t.frames),
-        job.tiles
+        "ok (job, {}: {} × {} × {})",
+        counted(job.task_count(), "task"),
+        counted(job.images.len() as u64, "image"),
+        counted(job.turntable.map_or(1, |t| t.frames), "frame"),
+        counted(job.tiles, "tile")
     ))
 }
 
@@ -345,9 +344,8 @@ pub fn run(recipes: &[String]) -> Result<(), String> {
         Ok(())
     } else {
         Err(format!(
-            "{failed} of {} input{} ha{} errors",
-            recipes.len(),
-            if recipes.len() == 1 { "" } else { "s" },
+            "{failed} of {} ha{} errors",
+            counted(recipes.len() as u64, "input"),
             if failed == 1 { "s" } else { "ve" }
         ))
     }
