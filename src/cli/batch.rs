@@ -11,7 +11,7 @@ use lapidary::recipe::compile::read_ron_file;
 use lapidary::render::tiles::TileSplit;
 
 use super::render::{RenderArgs, TaskOutcome, TonemapArg, ANIMATION_FRAMES_PER_SECOND};
-use super::validate::validate_job;
+use super::validate::check_job_inputs;
 
 /// Arguments of `lapidary batch`.
 #[derive(clap::Args, Debug)]
@@ -45,7 +45,7 @@ pub fn run(args: BatchArgs) -> Result<(), String> {
             // Every recipe and scene checked before the list a farm submits.
             let display = args.job.display().to_string();
             let text = read_ron_file(&display, "job file").map_err(|e| e.to_string())?;
-            validate_job(&display, &args.job, &text).map_err(|e| e.to_string())?;
+            check_job_inputs(&display, &text, &job).map_err(|e| e.to_string())?;
             list_tasks(&job);
             Ok(())
         }

@@ -6,7 +6,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
-use super::validate::BUILTIN_SCENE_NAME;
 use indicatif::{ProgressBar, ProgressStyle};
 use lapidary::farm::job::frame_suffix;
 use lapidary::farm::merge::read_tile;
@@ -29,6 +28,8 @@ use lapidary::scene::spec::MAX_FRAMES;
 use lapidary::scene::{
     default_scene, load_scene, Scene, TurnSpec, Turntable, DEFAULT_SCENE_SOURCE,
 };
+
+use super::validate::BUILTIN_SCENE_NAME;
 
 /// Largest image side accepted, in pixels.
 pub const MAX_SIDE_PX: u32 = 32_768;

@@ -235,11 +235,24 @@ pub fn validate_text(
 }
 
 /// Validate a batch job: the job itself ([`Job::load`]: fields, ranges,
-/// image names, the task count) and every recipe and scene it names, each
-/// as `validate` checks it, so that a farm array never starts on a broken
-/// input; an input's error is placed where the job names it.
+/// image names, the task count) and every recipe and scene it names
+/// ([`check_job_inputs`]).
 pub fn validate_job(path: &str, file: &Path, text: &str) -> Result<String, RecipeError> {
     let job = Job::load(file)?;
+    check_job_inputs(path, text, &job)?;
+    Ok(format!(
+        "ok (job, {}: {} × {} × {})",
+        counted(job.task_count(), "task"),
+        counted(job.images.len() as u64, "image"),
+        counted(job.turntable.map_or(1, |t| t.frames), "frame"),
+        counted(job.tiles, "tile")
+    ))
+}
+
+/// Every recipe and scene of `job` (read from `text` at `path`), each as
+/// `validate` checks it, so that a farm array never starts on a broken
+/// input; an input's error is placed where the job names it.
+pub fn check_job_inputs(path: &str, text: &str, job: &Job) -> Result<(), RecipeError> {
     let recipes = job
         .images
         .iter()
@@ -278,13 +291,7 @@ pub fn validate_job(path: &str, file: &Path, text: &str) -> Result<String, Recip
             )
         })?;
     }
-    Ok(format!(
-        "ok (job, {}: {} × {} × {})",
-        counted(job.task_count(), "task"),
-        counted(job.images.len() as u64, "image"),
-        counted(job.turntable.map_or(1, |t| t.frames), "frame"),
-        counted(job.tiles, "tile")
-    ))
+    Ok(())
 }
 
 /// Validate one command-line argument (a file or a built-in name); returns
