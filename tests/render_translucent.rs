@@ -14,6 +14,9 @@ use lapidary::render::integrator::RenderScene;
 use lapidary::render::lights::Light;
 use lapidary::render::world::{StoneInstance, World};
 
+mod common;
+use common::scenes::three_quarter_camera;
+
 /// A stone of `shape` at the origin whose gem has body `body`, under
 /// `environment` and `lights`, seen by `camera`.
 fn render_body(
@@ -118,18 +121,6 @@ fn soft_box_below(radiance: Rgb) -> Light {
         height: 200.0,
         radiance,
     }
-}
-
-/// A camera 50 mm from the origin, 37° above the ground, 12° field.
-fn three_quarter_camera(size: u32) -> PinholeCamera {
-    PinholeCamera::new(
-        DVec3::new(0.0, -40.0, 30.0),
-        DVec3::ZERO,
-        DVec3::Z,
-        12.0,
-        size,
-        size,
-    )
 }
 
 /// The pixels wholly on the stone.

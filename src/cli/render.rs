@@ -102,14 +102,17 @@ pub struct RenderArgs {
     /// occlusion itself (white: open, black: enclosed) instead of the beauty.
     #[arg(long, value_name = "DIST")]
     pub(super) ao: Option<f64>,
-    /// Shade every flake inside a translucent stone by its own normal, at
-    /// any scale. By default a flake met where the pixel's footprint holds
+    /// Shade every flake inside a translucent stone, and every glitter
+    /// facet of an opaque one, by its own normal, at any scale. By default a flake met where the pixel's footprint holds
     /// hundreds is shaded by its population's average lobe, and a path
     /// past the vertex where the pixel's footprint ends meets the flakes as
     /// a medium of the same flakes: less noise and time, the same picture
     /// within noise
     /// (where a pixel holds over a thousand, the recipe's average stone, a
-    /// few per cent from this stone's own flakes).
+    /// few per cent from this stone's own flakes). Likewise the glitter
+    /// facets of an opaque stone: where a footprint holds hundreds, a
+    /// vertex draws 8 facets from the map's tilts instead of taking the one
+    /// under its point (the same expected picture, less noise).
     #[arg(long)]
     pub(super) exact_flakes: bool,
     /// Largest film memory to allow, in GiB (default 4); the render is

@@ -36,6 +36,7 @@ use rayon::prelude::*;
 
 use crate::brdf::{LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem, Inclusions};
+use crate::render::glitter_facets::GlitterFacets;
 use crate::sampling::{cosine_hemisphere, sin_cos_turns, Rng};
 
 /// Nodes of the albedo table, at cos θ = (k + ½)/N.
@@ -237,22 +238,38 @@ impl FlakeLobeAt<'_> {
     }
 }
 
-/// The aggregate lobes of a scene's flake populations, per gem and
-/// population ([`FlakeLobes::of_gems`]); the default has none, and then
-/// every flake is shaded by its own normal.
+/// How a scene's flakes are shaded by their footprint
+/// ([`FlakeLobes::of_gems`]): per gem, the aggregate lobes of the flake
+/// populations of a translucent body, and the glitter facets of an opaque
+/// one to draw where a footprint holds many
+/// (`render::glitter_facets`). The default has none, and then every flake
+/// and facet is shaded by its own normal.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct FlakeLobes(Vec<Arc<[Option<FlakeLobe>]>>);
+pub struct FlakeLobes {
+    /// Per gem, per flake population.
+    populations: Vec<Arc<[Option<FlakeLobe>]>>,
+    /// Per gem.
+    facets: Vec<Option<GlitterFacets>>,
+}
 
 impl FlakeLobes {
-    /// The lobes of every flake population of every gem of a scene (none
-    /// for a gem without flakes at depth).
+    /// The lobes of every flake population, and the glitter facets, of
+    /// every gem of a scene.
     pub fn of_gems(gems: &[Gem]) -> Self {
-        Self(lobes_of_gems(gems))
+        Self {
+            populations: lobes_of_gems(gems),
+            facets: gems.iter().map(GlitterFacets::of_gem).collect(),
+        }
     }
 
     /// The lobe of population `population` of gem `gem`, if it has one.
     pub(crate) fn get(&self, gem: usize, population: usize) -> Option<&FlakeLobe> {
-        self.0.get(gem)?.get(population)?.as_ref()
+        self.populations.get(gem)?.get(population)?.as_ref()
+    }
+
+    /// The glitter facets of gem `gem`, if they are shaded by footprint.
+    pub(crate) fn facets(&self, gem: usize) -> Option<&GlitterFacets> {
+        self.facets.get(gem)?.as_ref()
     }
 }
 
@@ -488,6 +505,7 @@ mod tests {
     use super::*;
     use crate::recipe::gem::{parse_gem, Body};
     use crate::recipe::library::builtin_gem_source;
+    use crate::render::chi2_cells::Tally;
     use crate::sampling::Rng;
 
     /// Goldstone's first population (isotropic copper triangles) and its
@@ -637,34 +655,24 @@ mod tests {
                     }
                     observed[cell_of((wo + wi).normalize())] += 1;
                 }
-                let (mut chi2, mut dof, mut pooled_e, mut pooled_o) = (0.0, 0usize, 0.0, 0.0);
-                let (mut edge_e, mut edge_o) = (0.0, 0.0);
-                for ((e, o), &(least, most)) in expected.iter().zip(&observed).zip(&range) {
-                    let (e, o) = (e / total * samples as f64, f64::from(*o));
-                    if most > 4.0 * least {
-                        edge_e += e;
-                        edge_o += o;
-                    } else if e < 5.0 {
-                        pooled_e += e;
-                        pooled_o += o;
-                    } else {
-                        chi2 += (o - e).powi(2) / e;
-                        dof += 1;
-                    }
-                }
-                if pooled_e >= 5.0 {
-                    chi2 += (pooled_o - pooled_e).powi(2) / pooled_e;
-                    dof += 1;
-                }
+                let expected: Vec<f64> = expected
+                    .iter()
+                    .map(|e| e / total * samples as f64)
+                    .collect();
+                let tally = Tally::new(&expected, &observed, &range);
                 assert!(
-                    (edge_o - edge_e).abs() <= 0.03 * edge_e + 4.0 * edge_e.sqrt(),
-                    "{name}, {wo}: {edge_o} samples in the uneven cells, expected {edge_e:.0}"
+                    tally.uneven_cells_agree(),
+                    "{name}, {wo}: {} samples in the uneven cells, expected {:.0}",
+                    tally.uneven_observed,
+                    tally.uneven_expected
                 );
-                // Far beyond chance: 6 standard deviations of χ² (mean dof,
-                // variance 2·dof) over its mean.
-                let bound = (dof - 1) as f64 + 6.0 * (2.0 * dof as f64).sqrt();
-                assert!(dof > 20, "{name}: {dof} cells");
-                assert!(chi2 < bound, "{name}, {wo}: χ² {chi2:.0} over {dof} cells");
+                assert!(tally.cells > 20, "{name}: {} cells", tally.cells);
+                assert!(
+                    tally.passes(),
+                    "{name}, {wo}: χ² {:.0} over {} cells",
+                    tally.chi2,
+                    tally.cells
+                );
             }
         }
     }

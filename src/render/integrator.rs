@@ -16,6 +16,7 @@ use crate::render::environment::{Environment, EnvironmentMap, Texel};
 use crate::render::flake_lobe::{FlakeLobe, FlakeLobes};
 use crate::render::flake_medium::{FlakeView, OwnCell};
 use crate::render::footprint::{aggregate_probability, RayCone};
+use crate::render::glitter_facets::{FacetMix, GlitterFacets};
 use crate::render::lights::Light;
 use crate::render::manifold::MAX_REFLECTIONS;
 use crate::render::medium::{
@@ -24,12 +25,16 @@ use crate::render::medium::{
 use crate::render::refracted_light::ConnectedVertex;
 use crate::render::sampler::{SampleStream, SOBOL_PAIRS};
 use crate::render::world::{Surface, SurfaceHit, World, RAY_OFFSET};
-use crate::sampling::cosine_hemisphere;
+use crate::sampling::{cosine_hemisphere, Rng};
 
 /// Length in texture space of one scene unit: recipes write cell sizes in
 /// centimetres of stone (a 10 mm stone is one texture unit long), scenes
 /// write stones in millimetres.
 pub(crate) const TEXTURE_UNITS_PER_SCENE_UNIT: f64 = 0.1;
+
+/// Stream of the generator that draws a vertex's glitter facets (seeded by
+/// a number of the path's sample stream).
+const FACET_DRAW_STREAM: u64 = 0xface7;
 
 /// Everything the integrator reads.
 pub struct RenderScene {
@@ -60,9 +65,11 @@ pub struct RenderScene {
     /// converges far more slowly under small lights (for comparisons).
     pub connect_through_surfaces: bool,
     /// Per gem, per flake population of its translucent body, the lobe that
-    /// shades a flake when the pixel's footprint holds many (see
+    /// shades a flake when the pixel's footprint holds many, and the
+    /// glitter facets of an opaque one to draw there (see
     /// `render::footprint` and [`RenderScene::shade_flakes_by_footprint`]);
-    /// [`FlakeLobes::default`], as prepared: every flake by its own normal.
+    /// [`FlakeLobes::default`], as prepared: every flake and facet by its
+    /// own normal.
     pub flake_lobes: FlakeLobes,
 }
 
@@ -241,6 +248,10 @@ struct Shading<'a> {
     brdf: &'a LayeredBrdf,
     frame: Frame,
     pick: MaterialPick,
+    /// Where the footprint holds many glitter facets: the gem's facets,
+    /// to draw for the vertex from a generator of this seed (the frame is
+    /// then the stone's).
+    facets: Option<(&'a GlitterFacets, u64)>,
 }
 
 /// The pattern's choice at a hit, as the first-hit AOVs report it.
@@ -266,12 +277,21 @@ impl RenderScene {
     }
 
     /// Picks the material at a hit seen from direction `wo` (world, unit,
-    /// pointing away from the surface). Inlined like
+    /// pointing away from the surface) by a footprint `footprint_width_mm`
+    /// wide: at a point of a glitter facet where the footprint holds many
+    /// facets, it draws facets for the vertex (`render::glitter_facets`;
+    /// a blend from `stream`, as a flake's). Inlined like
     /// [`RenderScene::radiance`]: out of line it cost a call, six saved
     /// registers and the `Option<Shading>` through memory at every vertex
     /// (keeping only the stone branch out of line saved less).
     #[inline(always)]
-    fn shade(&self, hit: &SurfaceHit, wo: DVec3) -> Option<Shading<'_>> {
+    fn shade(
+        &self,
+        hit: &SurfaceHit,
+        wo: DVec3,
+        footprint_width_mm: f64,
+        stream: &mut SampleStream,
+    ) -> Option<Shading<'_>> {
         match hit.surface {
             Surface::Ground => Some(Shading {
                 brdf: self.ground_brdf.as_ref()?,
@@ -285,6 +305,7 @@ impl RenderScene {
                     surface_cell: 0,
                     glitter: false,
                 },
+                facets: None,
             }),
             Surface::Stone {
                 index,
@@ -296,11 +317,27 @@ impl RenderScene {
                 let resolved = gem
                     .pattern
                     .resolve(object_point * TEXTURE_UNITS_PER_SCENE_UNIT);
+                // The facets a footprint holds: its area on the surface
+                // (the cone's width widened by the view's slant) over a
+                // facet's.
+                let facets = resolved
+                    .flake_normal
+                    .and_then(|_| self.flake_lobes.facets(stone.gem))
+                    .filter(|facets| {
+                        let slant = wo.dot(hit.normal).max(1e-3).sqrt();
+                        let p = aggregate_probability(
+                            footprint_width_mm * TEXTURE_UNITS_PER_SCENE_UNIT / slant,
+                            facets.facet_area_texture_units2,
+                        );
+                        p >= 1.0 || (p > 0.0 && stream.next_1d() < p)
+                    })
+                    .map(|facets| (facets, stream.next_1d().to_bits()));
                 // A flake tilts the shading normal (figure 4.6 ③); if the
                 // viewer is behind the tilted facet, fall back to the
                 // stone's normal rather than shade a back face.
                 let normal = resolved
                     .flake_normal
+                    .filter(|_| facets.is_none())
                     .map(|f| (stone.rotation * f.world(object_normal)).normalize())
                     .filter(|n| n.dot(wo) > 0.0 && n.dot(hit.normal) > 0.0)
                     .unwrap_or(hit.normal);
@@ -312,6 +349,7 @@ impl RenderScene {
                         glitter: resolved.glitter_cell.is_some(),
                         material_id: self.material_id_bases[stone.gem] + resolved.material,
                     },
+                    facets,
                 })
             }
         }
@@ -801,7 +839,7 @@ impl RenderScene {
             }
             let wo_world = -direction;
             self.prefetch_environment_sample(stream, self.lights.len());
-            let Some(shading) = self.shade(&hit, wo_world) else {
+            let Some(shading) = self.shade(&hit, wo_world, cone.width_at(hit.t), stream) else {
                 break;
             };
             let wo = shading.frame.to_local(wo_world);
@@ -812,6 +850,26 @@ impl RenderScene {
             // What depends on wo alone, computed once for the light samples
             // and the BRDF sample of this vertex.
             let brdf_at = shading.brdf.at(wo);
+            let mix = shading.facets.and_then(|(facets, seed)| match hit.surface {
+                Surface::Stone {
+                    index,
+                    object_normal,
+                    ..
+                } => Some(FacetMix::new(
+                    shading.brdf,
+                    &facets.draw(
+                        (
+                            object_normal,
+                            hit.normal,
+                            self.world.stones()[index].rotation,
+                        ),
+                        wo_world,
+                        &mut Rng::new(seed, FACET_DRAW_STREAM),
+                    ),
+                    wo_world,
+                )),
+                Surface::Ground => None,
+            });
 
             // Next-event estimation: every light, then the environment.
             for light in &self.lights {
@@ -821,7 +879,7 @@ impl RenderScene {
                 };
                 let contribution = self.direct(
                     &shading,
-                    &brdf_at,
+                    (&brdf_at, mix.as_ref()),
                     &hit,
                     point,
                     sample.direction,
@@ -840,7 +898,7 @@ impl RenderScene {
             {
                 let contribution = self.direct(
                     &shading,
-                    &brdf_at,
+                    (&brdf_at, mix.as_ref()),
                     &hit,
                     point,
                     sample.direction,
@@ -853,13 +911,20 @@ impl RenderScene {
                 radiance += throughput * contribution;
             }
 
-            // Continue the path by sampling the BRDF.
-            let sample = brdf_at.sample(stream.next_3d());
+            // Continue the path by sampling the BRDF: (ωi in world space,
+            // f·cosθi/pdf, pdf).
+            let u = stream.next_3d();
+            let sample = match &mix {
+                Some(mix) => mix.sample(u),
+                None => brdf_at
+                    .sample(u)
+                    .map(|s| (shading.frame.to_world(s.wi), s.weight(), s.pdf)),
+            };
             if bounce == 0 {
                 let first = FirstHit {
                     depth: hit.t,
                     normal: shading.frame.n,
-                    albedo: sample.map_or(Rgb::ZERO, |s| s.weight()),
+                    albedo: sample.map_or(Rgb::ZERO, |s| s.1),
                     unoccluded: match self.ambient_occlusion {
                         Some(distance) => self.unoccluded(&hit, point, distance, stream, counts),
                         None => 1.0,
@@ -871,18 +936,17 @@ impl RenderScene {
                 first_hits.add(&first, first_sample);
                 first_recorded = true;
             }
-            let Some(sample) = sample else {
+            let Some((wi_world, weight, pdf)) = sample else {
                 break;
             };
-            let wi_world = shading.frame.to_world(sample.wi);
             if wi_world.dot(hit.normal) <= 0.0 {
                 break; // below the geometric surface: blocked by the stone itself
             }
-            throughput *= sample.weight();
+            throughput *= weight;
             if throughput.max_element() <= 0.0 {
                 break;
             }
-            previous = Some((point, sample.pdf));
+            previous = Some((point, pdf));
             leaving = hit.stone_index();
             origin = point;
             direction = wi_world;
@@ -1027,11 +1091,12 @@ impl RenderScene {
         sum
     }
 
-    /// Shades the flakes inside translucent bodies by their pixel's
-    /// footprint: a flake met where the footprint holds many is shaded by
-    /// its population's aggregate lobe (as `lapidary render` and `lapidary
-    /// gallery` do unless `--exact-flakes`); without it, every flake by its
-    /// own normal.
+    /// Shades the flakes inside translucent bodies, and the glitter facets
+    /// of opaque stones, by their pixel's footprint: a flake met where the
+    /// footprint holds many is shaded by its population's aggregate lobe,
+    /// a point of a glitter facet by facets drawn from its map's tilts (as
+    /// `lapidary render` and `lapidary gallery` do unless `--exact-flakes`);
+    /// without it, every flake and facet by its own normal.
     pub fn shade_flakes_by_footprint(&mut self) {
         self.flake_lobes = FlakeLobes::of_gems(&self.gems);
     }
@@ -1133,7 +1198,7 @@ impl RenderScene {
     fn direct(
         &self,
         shading: &Shading<'_>,
-        brdf_at: &BrdfAt<'_>,
+        (brdf_at, mix): (&BrdfAt<'_>, Option<&FacetMix<'_>>),
         hit: &SurfaceHit,
         point: DVec3,
         direction: DVec3,
@@ -1150,7 +1215,15 @@ impl RenderScene {
         if wi.z <= 0.0 {
             return Rgb::ZERO;
         }
-        let (f, brdf_pdf) = brdf_at.eval_and_pdf(wi);
+        let (f, brdf_pdf) = match mix {
+            Some(mix) => {
+                // The facets' f·cosθi, each by its own normal, as an f
+                // against the stone's cos θi (wi.z > 0 here).
+                let (value, pdf) = mix.eval_cos_and_pdf(direction);
+                (value / wi.z, pdf)
+            }
+            None => brdf_at.eval_and_pdf(wi),
+        };
         if f.max_element() <= 0.0 || incoming.max_element() <= 0.0 {
             return Rgb::ZERO;
         }

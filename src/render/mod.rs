@@ -6,6 +6,8 @@
 //! image is the same whatever the thread count.
 
 pub mod camera;
+#[cfg(test)]
+mod chi2_cells;
 pub mod cpu;
 pub mod dielectric;
 pub mod distribution;
@@ -14,6 +16,7 @@ pub mod film;
 pub mod flake_lobe;
 pub(crate) mod flake_medium;
 pub(crate) mod footprint;
+pub(crate) mod glitter_facets;
 pub(crate) mod inclusions;
 pub mod integrator;
 pub mod lights;

@@ -603,22 +603,36 @@ impl FacetBumpMap {
     /// documentation for the exact formulas).
     #[inline]
     pub(crate) fn normal_of_cell(&self, cell_id: u64) -> FlakeNormal {
-        let u1 = unit_f64(derive_stream(cell_id, STREAM_TILT));
-        let phi = TAU * unit_f64(derive_stream(cell_id, STREAM_AZIMUTH));
+        self.normal_from(
+            unit_f64(derive_stream(cell_id, STREAM_TILT)),
+            || unit_f64(derive_stream(cell_id, STREAM_GAUSS)),
+            unit_f64(derive_stream(cell_id, STREAM_AZIMUTH)),
+        )
+    }
+
+    /// The tilted normal the numbers `u_tilt`, `u_gauss()` (asked for by
+    /// a Gaussian tilt only) and `u_azimuth` in [0, 1) give: a facet
+    /// cell's from its hashes, or any facet of the map's distribution.
+    #[inline]
+    pub(crate) fn normal_from(
+        &self,
+        u_tilt: f64,
+        u_gauss: impl FnOnce() -> f64,
+        u_azimuth: f64,
+    ) -> FlakeNormal {
         let theta = match self.tilt {
             Tilt::UniformCone { max_tilt_deg } => {
                 let cos_max = max_tilt_deg.to_radians().cos();
-                (1.0 - u1 * (1.0 - cos_max)).clamp(-1.0, 1.0).acos()
+                (1.0 - u_tilt * (1.0 - cos_max)).clamp(-1.0, 1.0).acos()
             }
             Tilt::Gaussian { sigma_tilt_deg } => {
-                let u2 = unit_f64(derive_stream(cell_id, STREAM_GAUSS));
-                let normal = (-2.0 * (1.0 - u1).ln()).sqrt() * (TAU * u2).cos();
+                let normal = (-2.0 * (1.0 - u_tilt).ln()).sqrt() * (TAU * u_gauss()).cos();
                 (sigma_tilt_deg.to_radians() * normal.abs()).min(std::f64::consts::FRAC_PI_2)
             }
         };
         FlakeNormal {
             theta,
-            phi,
+            phi: TAU * u_azimuth,
             around: self.around,
         }
     }

@@ -10,9 +10,11 @@
 //! * [`ks`]: one-sample Kolmogorov–Smirnov test of scalar samples against a
 //!   known CDF.
 //! * [`rng`]: deterministic test randomness (xorshift64*).
+//! * [`scenes`]: cameras the render tests share.
 #![allow(dead_code)]
 
 pub mod chi2;
 pub mod cli;
 pub mod ks;
 pub mod rng;
+pub mod scenes;

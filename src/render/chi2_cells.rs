@@ -1,0 +1,63 @@
+//! The tally of the χ² tests of the aggregate lobes' sampling
+//! (`flake_lobe`, `glitter_facets`): cells of a direction grid with the
+//! probability the pdf gives each and the samples that fell in it.
+
+/// A χ² tally over cells: cells expected below five samples are pooled,
+/// and cells over which the pdf varies more than fourfold (where a grid of
+/// sub-cells cannot integrate it well) are only summed, to be compared in
+/// total.
+pub(crate) struct Tally {
+    /// Pearson's χ² over the even cells (and the pool).
+    pub chi2: f64,
+    /// The cells (and the pool) it sums over.
+    pub cells: usize,
+    /// Samples expected and seen in the uneven cells.
+    pub uneven_expected: f64,
+    pub uneven_observed: f64,
+}
+
+impl Tally {
+    /// The tally of `observed` samples per cell against `expected`
+    /// samples, the least and most pdf over each cell in `range`.
+    pub(crate) fn new(expected: &[f64], observed: &[u32], range: &[(f64, f64)]) -> Self {
+        let mut tally = Tally {
+            chi2: 0.0,
+            cells: 0,
+            uneven_expected: 0.0,
+            uneven_observed: 0.0,
+        };
+        let (mut pooled_e, mut pooled_o) = (0.0, 0.0);
+        for ((&e, &o), &(least, most)) in expected.iter().zip(observed).zip(range) {
+            let o = f64::from(o);
+            if most > 4.0 * least {
+                tally.uneven_expected += e;
+                tally.uneven_observed += o;
+            } else if e < 5.0 {
+                pooled_e += e;
+                pooled_o += o;
+            } else {
+                tally.chi2 += (o - e).powi(2) / e;
+                tally.cells += 1;
+            }
+        }
+        if pooled_e >= 5.0 {
+            tally.chi2 += (pooled_o - pooled_e).powi(2) / pooled_e;
+            tally.cells += 1;
+        }
+        tally
+    }
+
+    /// Whether the uneven cells' total is within 3 % and 4σ of what they
+    /// expect.
+    pub(crate) fn uneven_cells_agree(&self) -> bool {
+        (self.uneven_observed - self.uneven_expected).abs()
+            <= 0.03 * self.uneven_expected + 4.0 * self.uneven_expected.sqrt()
+    }
+
+    /// Whether χ² lies below its mean (the cells less one) plus six of its
+    /// standard deviations (√(2·cells)): far beyond chance.
+    pub(crate) fn passes(&self) -> bool {
+        let cells = self.cells as f64;
+        self.chi2 < cells - 1.0 + 6.0 * (2.0 * cells).sqrt()
+    }
+}
