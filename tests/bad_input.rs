@@ -1179,6 +1179,25 @@ fn a_corrupt_environment_map() {
 }
 
 #[test]
+fn a_missing_environment_map_names_the_flag_and_what_it_takes() {
+    // `--env studio` (the built-in scene's light is called so) is not a
+    // file: the message says what --env takes and where the studio is.
+    let render = os(&[
+        "render", "--env", "studio", "--size", "8", "--spp", "1", "-q",
+    ]);
+    assert_refused_writing(
+        "missing-env",
+        &render,
+        "gem.png",
+        &[
+            "--env studio: no such file".to_string(),
+            ".hdr or .exr".to_string(),
+            "leave --env out".to_string(),
+        ],
+    );
+}
+
+#[test]
 fn an_image_of_a_million_by_a_million_pixels() {
     let render = os(&[
         "render", "--width", "1000000", "--height", "1000000", "--spp", "1",

@@ -479,6 +479,12 @@ impl Inputs {
         };
         let gem = GemSource::load(args.recipe.as_deref().unwrap_or(DEFAULT_GEM))
             .map_err(|e| e.to_string())?;
+        if let Some(env) = args.env.as_deref().filter(|path| !path.exists()) {
+            return Err(format!(
+                "--env {}: no such file; --env takes an equirectangular .hdr or .exr map (the procedural studio light is a scene's `environment: Studio(…)`, the built-in scene's own: leave --env out for it)",
+                env.display()
+            ));
+        }
         let sha256 = inputs_sha256(&scene_bytes, &scene, &gem, args.env.as_deref())?;
         Ok(Inputs { scene, gem, sha256 })
     }
