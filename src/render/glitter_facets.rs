@@ -103,7 +103,8 @@ struct Facet<'a> {
 }
 
 impl Facet<'_> {
-    fn to_local(self, v: DVec3) -> DVec3 {
+    /// `v` (world) in the facet's frame.
+    fn local(&self, v: DVec3) -> DVec3 {
         DVec3::new(
             v.dot(self.tangent),
             v.dot(self.bitangent),
@@ -152,7 +153,7 @@ impl<'a> FacetMix<'a> {
             .facets
             .iter()
             .fold((Rgb::ZERO, 0.0), |(value, pdf), facet| {
-                let local = facet.to_local(wi);
+                let local = facet.local(wi);
                 if local.z <= 0.0 {
                     return (value, pdf);
                 }
@@ -209,18 +210,16 @@ mod tests {
     /// normal) and the sunstone's copper platelets (Gaussian 6° about a
     /// fixed cleavage direction).
     fn glitters() -> Vec<(&'static str, GlitterFacets, LayeredBrdf)> {
-        vec![
-            (
-                "lepidolite",
-                glitter_of("lavender-lepidolite", 3).0,
-                glitter_of("lavender-lepidolite", 3).1,
-            ),
-            (
-                "sunstone",
-                glitter_of("sunstone", 0).0,
-                glitter_of("sunstone", 0).1,
-            ),
+        [
+            ("lepidolite", "lavender-lepidolite", 3),
+            ("sunstone", "sunstone", 0),
         ]
+        .into_iter()
+        .map(|(name, gem, entry)| {
+            let (facets, brdf) = glitter_of(gem, entry);
+            (name, facets, brdf)
+        })
+        .collect()
     }
 
     /// Views (ωo, stone rotation) of a stone whose normal is +z: head on,
