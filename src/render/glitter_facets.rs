@@ -245,8 +245,8 @@ mod tests {
     #[test]
     fn facets_drawn_at_a_vertex_follow_the_map_s_tilts() {
         // The tilts of many vertices' facets (the mean of cos θ about the
-        // axis and of cos² θ) against the facet cells' own, for facets
-        // about the stone's normal seen head on (none falls back).
+        // map's axis and of cos² θ) against the facet cells' own, for a
+        // stone seen head on (no facet falls back).
         for (name, glitter, _) in glitters() {
             let mut rng = Rng::new(3, 1);
             let n = 20_000;
