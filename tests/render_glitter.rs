@@ -132,7 +132,7 @@ fn facets_drawn_by_footprint_keep_the_mean_and_lower_the_noise() {
 }
 
 #[test]
-fn lossless_glitter_drawn_by_footprint_never_outshines_a_white_furnace() {
+fn glitter_drawn_by_footprint_never_outshines_a_white_furnace() {
     // White Lambert between facets of a smooth varnish over black, in a
     // white sky: every facet reflects at most what arrives, so no pixel of
     // the stone exceeds the sky; and the stone's mean is that of its
