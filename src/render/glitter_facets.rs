@@ -370,4 +370,54 @@ mod tests {
             }
         }
     }
+
+    #[test]
+    fn white_lambert_facets_reflect_everything_that_arrives() {
+        // A lossless furnace for the mixture: facets of a white Lambert
+        // base each reflect all light over their own hemisphere, so the
+        // mixture's f·cosθi integrates to 1 over the sphere (a fine grid
+        // of eval) and, f·cosθi being the density itself, every sample's
+        // weight is 1.
+        let white = LayeredBrdf::new(
+            "white",
+            crate::brdf::MicrofacetModel::Blinn,
+            vec![],
+            crate::brdf::Base::Diffuse {
+                colour: Rgb::ONE,
+                oren_nayar_sigma_rad: 0.0,
+            },
+        );
+        for (name, glitter, _) in glitters() {
+            for (view, (wo, rotation)) in views().into_iter().enumerate() {
+                let mut rng = Rng::new(view as u64, 5);
+                let normals =
+                    glitter.draw((object_normal(rotation), DVec3::Z, rotation), wo, &mut rng);
+                let mix = FacetMix::new(&white, &normals, wo);
+                let (n_cos, n_phi) = (400, 800);
+                let cell = 2.0 * TAU / (n_cos * n_phi) as f64;
+                let mut integral = Rgb::ZERO;
+                for i in 0..n_cos {
+                    let z = -1.0 + 2.0 * (i as f64 + 0.5) / n_cos as f64;
+                    let r = (1.0 - z * z).sqrt();
+                    for j in 0..n_phi {
+                        let phi = TAU * (j as f64 + 0.5) / n_phi as f64;
+                        let wi = DVec3::new(r * phi.cos(), r * phi.sin(), z);
+                        integral += mix.eval_cos_and_pdf(wi).0 * cell;
+                    }
+                }
+                assert!(
+                    (integral - Rgb::ONE).abs().max_element() < 2e-3,
+                    "{name}, view {view}: {integral}"
+                );
+                for _ in 0..10_000 {
+                    if let Some((_, weight, _)) = mix.sample(rng.next_3()) {
+                        assert!(
+                            (weight - Rgb::ONE).abs().max_element() < 1e-9,
+                            "{name}, view {view}: {weight}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 }
