@@ -1,6 +1,11 @@
-//! The tally of the χ² tests of the aggregate lobes' sampling
-//! (`flake_lobe`, `glitter_facets`): cells of a direction grid with the
-//! probability the pdf gives each and the samples that fell in it.
+//! What the tests of the aggregate lobes' sampling (`flake_lobe`,
+//! `glitter_facets`) share: grids of directions of equal solid angle, and
+//! the χ² tally of cells with the probability the pdf gives each and the
+//! samples that fell in it.
+
+use std::f64::consts::TAU;
+
+use glam::DVec3;
 
 /// A χ² tally over cells: cells expected below five samples are pooled,
 /// and cells over which the pdf varies more than fourfold (where a grid of
@@ -60,4 +65,23 @@ impl Tally {
         let cells = self.cells as f64;
         self.chi2 < cells - 1.0 + 6.0 * (2.0 * cells).sqrt()
     }
+}
+
+/// Directions on a (cos θ, φ) grid over the cap cos θ ≥ `z_min` about
+/// z, of equal solid angle per cell: (direction, the cell's solid
+/// angle).
+pub(crate) fn cap_grid(
+    z_min: f64,
+    n_cos: usize,
+    n_phi: usize,
+) -> impl Iterator<Item = (DVec3, f64)> {
+    let cell = TAU * (1.0 - z_min) / (n_cos * n_phi) as f64;
+    (0..n_cos).flat_map(move |i| {
+        (0..n_phi).map(move |j| {
+            let z = z_min + (1.0 - z_min) * (i as f64 + 0.5) / n_cos as f64;
+            let r = (1.0 - z * z).sqrt();
+            let phi = TAU * (j as f64 + 0.5) / n_phi as f64;
+            (DVec3::new(r * phi.cos(), r * phi.sin(), z), cell)
+        })
+    })
 }

@@ -505,7 +505,7 @@ mod tests {
     use super::*;
     use crate::recipe::gem::{parse_gem, Body};
     use crate::recipe::library::builtin_gem_source;
-    use crate::render::chi2_cells::Tally;
+    use crate::render::chi2_cells::{cap_grid, Tally};
     use crate::sampling::Rng;
 
     /// Goldstone's first population (isotropic copper triangles) and its
@@ -543,21 +543,6 @@ mod tests {
             (name, cone, FlakeLobe::new(&population, &brdf).unwrap())
         })
         .collect()
-    }
-
-    /// Directions on a (cos θ, φ) grid over the cap cos θ ≥ `z_min` about
-    /// z, of equal solid angle per cell: (direction, the cell's solid
-    /// angle).
-    fn cap_grid(z_min: f64, n_cos: usize, n_phi: usize) -> impl Iterator<Item = (DVec3, f64)> {
-        let cell = TAU * (1.0 - z_min) / (n_cos * n_phi) as f64;
-        (0..n_cos).flat_map(move |i| {
-            (0..n_phi).map(move |j| {
-                let z = z_min + (1.0 - z_min) * (i as f64 + 0.5) / n_cos as f64;
-                let r = (1.0 - z * z).sqrt();
-                let phi = TAU * (j as f64 + 0.5) / n_phi as f64;
-                (DVec3::new(r * phi.cos(), r * phi.sin(), z), cell)
-            })
-        })
     }
 
     #[test]

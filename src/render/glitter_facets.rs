@@ -187,7 +187,7 @@ mod tests {
     use crate::recipe::compile::load_material_without_table;
     use crate::recipe::gem::parse_gem;
     use crate::recipe::library::builtin_gem_source;
-    use crate::render::chi2_cells::Tally;
+    use crate::render::chi2_cells::{cap_grid, Tally};
     use crate::texture::pattern::Around;
     use std::f64::consts::TAU;
 
@@ -236,10 +236,15 @@ mod tests {
         ]
     }
 
-    /// The normal at the vertex in object space for a stone turned by
-    /// `rotation` whose world normal is +z.
-    fn object_normal(rotation: DQuat) -> DVec3 {
-        rotation.inverse() * DVec3::Z
+    /// The facets `glitter` draws at a vertex of a stone turned by
+    /// `rotation` whose world normal there is +z, seen from `wo`.
+    fn draw_at(
+        glitter: &GlitterFacets,
+        (wo, rotation): (DVec3, DQuat),
+        rng: &mut Rng,
+    ) -> [DVec3; FACETS_PER_VERTEX] {
+        let object_normal = rotation.inverse() * DVec3::Z;
+        glitter.draw((object_normal, DVec3::Z, rotation), wo, rng)
     }
 
     #[test]
@@ -302,8 +307,7 @@ mod tests {
         for (name, glitter, _) in glitters() {
             for (view, (wo, rotation)) in views().into_iter().enumerate() {
                 let mut rng = Rng::new(view as u64, 9);
-                let normals =
-                    glitter.draw((object_normal(rotation), DVec3::Z, rotation), wo, &mut rng);
+                let normals = draw_at(&glitter, (wo, rotation), &mut rng);
                 let mix = FacetMix::new(&brdf, &normals, wo);
                 let cell_of = |w: DVec3| {
                     let i = ((w.z * N_COS as f64) as usize).min(N_COS - 1);
@@ -313,19 +317,12 @@ mod tests {
                 };
                 let mut expected = vec![0.0; N_COS * N_PHI];
                 let mut range = vec![(f64::INFINITY, 0.0f64); N_COS * N_PHI];
-                let solid_angle = TAU / (N_COS * N_PHI * FINE * FINE) as f64;
-                for i in 0..N_COS * FINE {
-                    let z = (i as f64 + 0.5) / (N_COS * FINE) as f64;
-                    let r = (1.0 - z * z).sqrt();
-                    for j in 0..N_PHI * FINE {
-                        let phi = TAU * (j as f64 + 0.5) / (N_PHI * FINE) as f64;
-                        let w = DVec3::new(r * phi.cos(), r * phi.sin(), z);
-                        let pdf = mix.eval_cos_and_pdf(w).1;
-                        let cell = cell_of(w);
-                        expected[cell] += pdf * solid_angle;
-                        let (least, most) = range[cell];
-                        range[cell] = (least.min(pdf), most.max(pdf));
-                    }
+                for (w, solid_angle) in cap_grid(0.0, N_COS * FINE, N_PHI * FINE) {
+                    let pdf = mix.eval_cos_and_pdf(w).1;
+                    let cell = cell_of(w);
+                    expected[cell] += pdf * solid_angle;
+                    let (least, most) = range[cell];
+                    range[cell] = (least.min(pdf), most.max(pdf));
                 }
                 let samples = 500_000;
                 let mut observed = vec![0u32; N_COS * N_PHI];
@@ -390,21 +387,11 @@ mod tests {
         for (name, glitter, _) in glitters() {
             for (view, (wo, rotation)) in views().into_iter().enumerate() {
                 let mut rng = Rng::new(view as u64, 5);
-                let normals =
-                    glitter.draw((object_normal(rotation), DVec3::Z, rotation), wo, &mut rng);
+                let normals = draw_at(&glitter, (wo, rotation), &mut rng);
                 let mix = FacetMix::new(&white, &normals, wo);
-                let (n_cos, n_phi) = (400, 800);
-                let cell = 2.0 * TAU / (n_cos * n_phi) as f64;
-                let mut integral = Rgb::ZERO;
-                for i in 0..n_cos {
-                    let z = -1.0 + 2.0 * (i as f64 + 0.5) / n_cos as f64;
-                    let r = (1.0 - z * z).sqrt();
-                    for j in 0..n_phi {
-                        let phi = TAU * (j as f64 + 0.5) / n_phi as f64;
-                        let wi = DVec3::new(r * phi.cos(), r * phi.sin(), z);
-                        integral += mix.eval_cos_and_pdf(wi).0 * cell;
-                    }
-                }
+                let integral = cap_grid(-1.0, 400, 800).fold(Rgb::ZERO, |sum, (wi, cell)| {
+                    sum + mix.eval_cos_and_pdf(wi).0 * cell
+                });
                 assert!(
                     (integral - Rgb::ONE).abs().max_element() < 2e-3,
                     "{name}, view {view}: {integral}"
