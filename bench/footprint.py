@@ -258,6 +258,8 @@ def main():
     b.add_argument("--spp", type=int, default=1024)
     b.add_argument("--seeds", type=int, default=8)
     args = parser.parse_args(argv)
+    if getattr(args, "seeds", 1) < 1:
+        parser.error(f"--seeds must be at least 1, got {args.seeds}")
     args.extra = extra
     with tempfile.TemporaryDirectory() as folder:
         {"scale": scale, "convergence": convergence, "turntable": turntable,
