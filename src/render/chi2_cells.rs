@@ -13,12 +13,12 @@ use glam::DVec3;
 /// total.
 pub(crate) struct Tally {
     /// Pearson's χ² over the even cells (and the pool).
-    pub chi2: f64,
+    chi2: f64,
     /// The cells (and the pool) it sums over.
-    pub cells: usize,
+    cells: usize,
     /// Samples expected and seen in the uneven cells.
-    pub uneven_expected: f64,
-    pub uneven_observed: f64,
+    uneven_expected: f64,
+    uneven_observed: f64,
 }
 
 impl Tally {
@@ -54,16 +54,35 @@ impl Tally {
 
     /// Whether the uneven cells' total is within 3 % and 4σ of what they
     /// expect.
-    pub(crate) fn uneven_cells_agree(&self) -> bool {
+    fn uneven_cells_agree(&self) -> bool {
         (self.uneven_observed - self.uneven_expected).abs()
             <= 0.03 * self.uneven_expected + 4.0 * self.uneven_expected.sqrt()
     }
 
     /// Whether χ² lies below its mean (the cells less one) plus six of its
     /// standard deviations (√(2·cells)): far beyond chance.
-    pub(crate) fn passes(&self) -> bool {
+    fn passes(&self) -> bool {
         let cells = self.cells as f64;
         self.chi2 < cells - 1.0 + 6.0 * (2.0 * cells).sqrt()
+    }
+
+    /// Asserts that the uneven cells agree, that more than `least_cells`
+    /// cells were compared, and that χ² passes; `label` names the case in
+    /// the message.
+    pub(crate) fn assert_agrees(&self, least_cells: usize, label: &str) {
+        assert!(
+            self.uneven_cells_agree(),
+            "{label}: {} samples in the uneven cells, expected {:.0}",
+            self.uneven_observed,
+            self.uneven_expected
+        );
+        assert!(self.cells > least_cells, "{label}: {} cells", self.cells);
+        assert!(
+            self.passes(),
+            "{label}: χ² {:.0} over {} cells",
+            self.chi2,
+            self.cells
+        );
     }
 }
 

@@ -645,19 +645,7 @@ mod tests {
                     .map(|e| e / total * samples as f64)
                     .collect();
                 let tally = Tally::new(&expected, &observed, &range);
-                assert!(
-                    tally.uneven_cells_agree(),
-                    "{name}, {wo}: {} samples in the uneven cells, expected {:.0}",
-                    tally.uneven_observed,
-                    tally.uneven_expected
-                );
-                assert!(tally.cells > 20, "{name}: {} cells", tally.cells);
-                assert!(
-                    tally.passes(),
-                    "{name}, {wo}: χ² {:.0} over {} cells",
-                    tally.chi2,
-                    tally.cells
-                );
+                tally.assert_agrees(20, &format!("{name}, {wo}"));
             }
         }
     }

@@ -347,23 +347,7 @@ mod tests {
                 }
                 let expected: Vec<f64> = expected.iter().map(|e| e * samples as f64).collect();
                 let tally = Tally::new(&expected, &observed, &range);
-                assert!(
-                    tally.uneven_cells_agree(),
-                    "{name}, view {view}: {} samples in the uneven cells, expected {:.0}",
-                    tally.uneven_observed,
-                    tally.uneven_expected
-                );
-                assert!(
-                    tally.cells > 100,
-                    "{name}, view {view}: {} cells",
-                    tally.cells
-                );
-                assert!(
-                    tally.passes(),
-                    "{name}, view {view}: χ² {:.0} over {} cells",
-                    tally.chi2,
-                    tally.cells
-                );
+                tally.assert_agrees(100, &format!("{name}, view {view}"));
             }
         }
     }
