@@ -1,0 +1,131 @@
+#!/usr/bin/env python3
+"""Noise at equal samples, lapidary against Mitsuba 3, region by region.
+
+Each renderer against its own long reference (seed 0; their means differ
+by their models), then --seeds renders at --spp with seeds 1, 2, … of
+each; the RMSE of linear RGB over the ground's pixels, the stones', the
+stones' highlights (either reference's luminance above 1: the lights'
+mirror images, whose edges are a few pixels of very large variance), the
+stones' other pixels and all, as the square root of the mean over seeds
+of each render's mean squared error, and the ratio lapidary / Mitsuba
+with its standard error (from the spread of the renders' MSEs). The
+regions are lapidary's `material_id` masks (the two images are aligned).
+Mitsuba renders through bench/peer_mitsuba.py (`llvm_ad_rgb`, max_depth =
+--bounces + 2). Run with bench/.venv/bin/python:
+
+    bench/.venv/bin/python bench/noise_vs_mitsuba.py --scene peer --seeds 16
+    bench/.venv/bin/python bench/noise_vs_mitsuba.py --scene env-softbox
+"""
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import mitsuba as mi
+import numpy as np
+
+BENCH = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(BENCH)
+PYTHON = sys.executable
+BINARY = os.environ.get("LAPIDARY_BINARY", os.path.join(ROOT, "target", "dist", "lapidary"))
+SKY_MAP = os.path.join(BENCH, "out", "suite", "sky-2048x1024.exr")
+
+# (lapidary's scene file, peer_mitsuba.py's arguments for the same scene).
+SCENES = {
+    "peer": (os.path.join(BENCH, "peer-scene.ron"), []),
+    "env-softbox": (os.path.join(BENCH, "suite", "env-softbox.ron"),
+                    ["--suite-scene", "env-softbox", "--env", SKY_MAP]),
+}
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+
+def load(path):
+    """Linear RGB and, where the file has one, the material_id layer."""
+    bitmap = mi.Bitmap(path)
+    names = [field.name for field in bitmap.struct_()]
+    pixels = np.array(bitmap, copy=False)
+    ids = pixels[..., names.index("material_id")] if "material_id" in names else None
+    return pixels[..., :3].astype(np.float64), ids
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scene", choices=sorted(SCENES), default="peer")
+    parser.add_argument("--size", type=int, default=128)
+    parser.add_argument("--spp", type=int, default=16)
+    parser.add_argument("--seeds", type=int, default=16)
+    parser.add_argument("--reference-spp", type=int, default=4096)
+    parser.add_argument("--bounces", type=int, default=4)
+    args = parser.parse_args()
+    if args.seeds < 2:
+        parser.error("--seeds must be at least 2 (the standard error needs two renders)")
+    mi.set_variant("scalar_rgb")
+    scene, mitsuba_scene = SCENES[args.scene]
+    if args.scene == "env-softbox" and not os.path.exists(SKY_MAP):
+        subprocess.run([PYTHON, os.path.join(BENCH, "peer_mitsuba.py"), "suite-maps",
+                        os.path.dirname(SKY_MAP)], check=True)
+
+    def lapidary(spp, seed, out):
+        subprocess.run([BINARY, "render", "-q", "--scene", scene, "--size", str(args.size),
+                        "--spp", str(spp), "--seed", str(seed), "--bounces", str(args.bounces),
+                        "-o", out], check=True, env=dict(os.environ, LAPIDARY_CACHE="off"))
+
+    def mitsuba(spp, seed, out):
+        subprocess.run([PYTHON, os.path.join(BENCH, "peer_mitsuba.py"), "render",
+                        "--size", str(args.size), "--spp", str(spp), "--seed", str(seed),
+                        "--max-depth", str(args.bounces + 2), "--threads", "2",
+                        *mitsuba_scene, out], check=True, capture_output=True)
+
+    renderers = (("lapidary", lapidary), ("Mitsuba", mitsuba))
+    with tempfile.TemporaryDirectory() as folder:
+        references = {}
+        for name, render in renderers:
+            path = os.path.join(folder, f"{name}-reference.exr")
+            render(args.reference_spp, 0, path)
+            references[name], ids = load(path)
+            if name == "lapidary":
+                material = ids
+        stone = material >= 2
+        highlight = stone & (np.maximum(references["lapidary"] @ LUMINANCE,
+                                        references["Mitsuba"] @ LUMINANCE) > 1.0)
+        regions = {
+            "ground": material == 1,
+            "stones": stone,
+            "stones' highlights (reference luminance > 1)": highlight,
+            "stones without highlights": stone & ~highlight,
+            "all": np.ones(stone.shape, bool),
+        }
+        errors = {name: {region: [] for region in regions} for name, _ in renderers}
+        times = {name: [] for name, _ in renderers}
+        for seed in range(1, args.seeds + 1):
+            for name, render in renderers:
+                path = os.path.join(folder, f"{name}.exr")
+                started = time.perf_counter()
+                render(args.spp, seed, path)
+                times[name].append(time.perf_counter() - started)
+                rgb, _ = load(path)
+                for region, mask in regions.items():
+                    errors[name][region].append(((rgb - references[name])[mask] ** 2).mean())
+    print(f"{args.scene}, {args.size}², {args.spp} spp, {args.bounces} bounces, "
+          f"{args.seeds} seeds, references {args.reference_spp} spp")
+    print()
+    print("| region | pixels | lapidary RMSE | Mitsuba RMSE | lapidary / Mitsuba |")
+    print("|---|---:|---:|---:|---:|")
+    for region, mask in regions.items():
+        ours, theirs = (np.array(errors[name][region]) for name, _ in renderers)
+        ratio = np.sqrt(ours.mean() / theirs.mean())
+        # The ratio of root mean MSEs: half the relative standard errors of
+        # the two means, added in quadrature.
+        spread = np.hypot(ours.std(ddof=1) / ours.mean(), theirs.std(ddof=1) / theirs.mean())
+        error = 0.5 * ratio * spread / np.sqrt(args.seeds)
+        print(f"| {region} | {int(mask.sum())} | {np.sqrt(ours.mean()):.4f} | "
+              f"{np.sqrt(theirs.mean()):.4f} | {ratio:.3f} ± {error:.3f} |")
+    print()
+    print("median whole-process time of one render: "
+          + ", ".join(f"{name} {np.median(times[name]):.2f} s" for name, _ in renderers))
+
+
+if __name__ == "__main__":
+    main()
