@@ -16,18 +16,24 @@
 //! is the footprint's mean reflection exactly. Light samples see all the
 //! facets at once; the BRDF sample picks one facet by its first number and
 //! is weighted by the whole mixture (its f·cosθi over its density), so
-//! multiple importance sampling sees one BSDF. (A smooth lobe of mirrors
+//! multiple importance sampling sees one BSDF. Where the footprint is a
+//! pixel's and the facets tilt about the stone's normal, the vertex reads
+//! their mean from a table instead (`render::glitter_aggregate`). (A
+//! smooth lobe of mirrors
 //! of the material's albedo over the widened tilt density, as the flakes
 //! at depth have in `render::flake_lobe`, misses where the facets' own
 //! lobes meet the horizon: 21 % of the energy for the sunstone's copper
 //! platelets seen at 55° with their cleavage axis tilted away.)
 
+use std::sync::OnceLock;
+
 use glam::{DQuat, DVec3};
 
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem};
+use crate::render::glitter_aggregate::{AggregateTable, TableAt};
 use crate::sampling::Rng;
-use crate::texture::pattern::FacetBumpMap;
+use crate::texture::pattern::{Around, FacetBumpMap};
 
 /// Facets drawn per vertex where a footprint holds many.
 pub(crate) const FACETS_PER_VERTEX: usize = 8;
@@ -43,6 +49,11 @@ pub(crate) struct GlitterFacets {
     facets: FacetBumpMap,
     /// Mean area a plane cuts from one facet cell, texture units².
     pub facet_area_texture_units2: f64,
+    /// Per material of the gem, its facets' tabulated mean reflection,
+    /// built when first needed (`render::glitter_aggregate`); empty when
+    /// the facets tilt about a fixed direction, whose mean depends on more
+    /// than θo, θi and φi − φo.
+    aggregates: Vec<OnceLock<AggregateTable>>,
 }
 
 impl GlitterFacets {
@@ -55,13 +66,29 @@ impl GlitterFacets {
         }
         let voronoi = &glitter.facets.voronoi;
         let stretch = voronoi.stretch;
+        let tabulated = matches!(glitter.facets.around, Around::SurfaceNormal);
         Some(Self {
             facets: glitter.facets,
             facet_area_texture_units2: SECTION_AREA_PER_CELL_AREA
                 * voronoi.cell_size
                 * voronoi.cell_size
                 * (stretch.x * stretch.y * stretch.z).powf(2.0 / 3.0),
+            aggregates: if tabulated {
+                gem.brdfs.iter().map(|_| OnceLock::new()).collect()
+            } else {
+                Vec::new()
+            },
         })
+    }
+
+    /// The tabulated mean reflection of these facets in material number
+    /// `material` (`brdf`), built on the first call (about 0.3 s, on the
+    /// calling thread: a build that spawned work could, while waiting, take
+    /// up a render task that waits on this same table); `None` where the
+    /// facets tilt about a fixed direction.
+    pub(crate) fn aggregate(&self, material: u32, brdf: &LayeredBrdf) -> Option<&AggregateTable> {
+        let table = self.aggregates.get(material as usize)?;
+        Some(table.get_or_init(|| AggregateTable::build(self, brdf)))
     }
 
     /// [`FACETS_PER_VERTEX`] facet normals (world space) for a vertex
@@ -95,7 +122,7 @@ impl GlitterFacets {
 
 /// One facet at a vertex: its frame and its material seen from ωo.
 #[derive(Clone, Copy)]
-struct Facet<'a> {
+pub(crate) struct Facet<'a> {
     tangent: DVec3,
     bitangent: DVec3,
     normal: DVec3,
@@ -113,10 +140,16 @@ impl Facet<'_> {
     }
 }
 
-/// The facets drawn at one vertex: a mixture of their BRDFs with equal
-/// weights.
-pub(crate) struct FacetMix<'a> {
-    facets: [Facet<'a>; FACETS_PER_VERTEX],
+/// The facets at one vertex where its footprint holds many: drawn, a
+/// mixture of their BRDFs with equal weights, or their tabulated mean.
+/// It lives on the stack for one vertex, so the drawn variant's size is
+/// not boxed away (that would allocate at every such vertex).
+#[allow(clippy::large_enum_variant)]
+pub(crate) enum FacetMix<'a> {
+    /// [`FACETS_PER_VERTEX`] facets drawn for the vertex.
+    Drawn([Facet<'a>; FACETS_PER_VERTEX]),
+    /// The facets' tabulated mean reflection (`render::glitter_aggregate`).
+    Tabulated(TableAt<'a>),
 }
 
 impl<'a> FacetMix<'a> {
@@ -128,19 +161,17 @@ impl<'a> FacetMix<'a> {
         normals: &[DVec3; FACETS_PER_VERTEX],
         wo: DVec3,
     ) -> Self {
-        Self {
-            facets: std::array::from_fn(|k| {
-                let normal = normals[k];
-                let (tangent, bitangent) = normal.any_orthonormal_pair();
-                let local_wo = DVec3::new(wo.dot(tangent), wo.dot(bitangent), wo.dot(normal));
-                Facet {
-                    tangent,
-                    bitangent,
-                    normal,
-                    brdf_at: brdf.at(local_wo),
-                }
-            }),
-        }
+        Self::Drawn(std::array::from_fn(|k| {
+            let normal = normals[k];
+            let (tangent, bitangent) = normal.any_orthonormal_pair();
+            let local_wo = DVec3::new(wo.dot(tangent), wo.dot(bitangent), wo.dot(normal));
+            Facet {
+                tangent,
+                bitangent,
+                normal,
+                brdf_at: brdf.at(local_wo),
+            }
+        }))
     }
 
     /// The mixture's f·cosθi (each facet's cosine its own) towards the
@@ -149,17 +180,18 @@ impl<'a> FacetMix<'a> {
     /// with drawn facets is rare, and the path tracer's loop stays small.
     #[inline(never)]
     pub(crate) fn eval_cos_and_pdf(&self, wi: DVec3) -> (Rgb, f64) {
-        let (value, pdf) = self
-            .facets
-            .iter()
-            .fold((Rgb::ZERO, 0.0), |(value, pdf), facet| {
-                let local = facet.local(wi);
-                if local.z <= 0.0 {
-                    return (value, pdf);
-                }
-                let (f, p) = facet.brdf_at.eval_and_pdf(local);
-                (value + f * local.z, pdf + p)
-            });
+        let facets = match self {
+            Self::Drawn(facets) => facets,
+            Self::Tabulated(table) => return table.eval_cos_and_pdf(wi),
+        };
+        let (value, pdf) = facets.iter().fold((Rgb::ZERO, 0.0), |(value, pdf), facet| {
+            let local = facet.local(wi);
+            if local.z <= 0.0 {
+                return (value, pdf);
+            }
+            let (f, p) = facet.brdf_at.eval_and_pdf(local);
+            (value + f * local.z, pdf + p)
+        });
         let share = 1.0 / FACETS_PER_VERTEX as f64;
         (value * share, pdf * share)
     }
@@ -169,9 +201,13 @@ impl<'a> FacetMix<'a> {
     /// density, that density).
     #[inline(never)]
     pub(crate) fn sample(&self, u: [f64; 3]) -> Option<(DVec3, Rgb, f64)> {
+        let facets = match self {
+            Self::Drawn(facets) => facets,
+            Self::Tabulated(table) => return table.sample(u),
+        };
         let scaled = u[0] * FACETS_PER_VERTEX as f64;
         let k = (scaled as usize).min(FACETS_PER_VERTEX - 1);
-        let facet = &self.facets[k];
+        let facet = &facets[k];
         let sample = facet.brdf_at.sample([scaled - k as f64, u[1], u[2]])?;
         let wi = facet.tangent * sample.wi.x
             + facet.bitangent * sample.wi.y

@@ -16,6 +16,7 @@ use crate::render::environment::{Environment, EnvironmentMap, Texel};
 use crate::render::flake_lobe::{FlakeLobe, FlakeLobes};
 use crate::render::flake_medium::{FlakeView, OwnCell};
 use crate::render::footprint::{aggregate_probability, RayCone};
+use crate::render::glitter_aggregate::TableAt;
 use crate::render::glitter_facets::{FacetMix, GlitterFacets};
 use crate::render::lights::Light;
 use crate::render::manifold::MAX_REFLECTIONS;
@@ -250,8 +251,10 @@ struct Shading<'a> {
     pick: MaterialPick,
     /// Where the footprint holds many glitter facets: the gem's facets,
     /// to draw for the vertex from a generator of this seed (the frame is
-    /// then the stone's).
-    facets: Option<(&'a GlitterFacets, u64)>,
+    /// then the stone's), and where the footprint is still a pixel's (no
+    /// glossy or diffuse event before), the material whose tabulated mean
+    /// reflection shades them instead when the map has one.
+    facets: Option<(&'a GlitterFacets, u64, Option<u32>)>,
 }
 
 /// The pattern's choice at a hit, as the first-hit AOVs report it.
@@ -331,7 +334,14 @@ impl RenderScene {
                         );
                         p >= 1.0 || (p > 0.0 && stream.next_1d() < p)
                     })
-                    .map(|facets| (facets, stream.next_1d().to_bits()));
+                    .map(|facets| {
+                        let pixel_footprint = footprint_width_mm.is_finite();
+                        (
+                            facets,
+                            stream.next_1d().to_bits(),
+                            pixel_footprint.then_some(resolved.material),
+                        )
+                    });
                 // A flake tilts the shading normal (figure 4.6 ③); if the
                 // viewer is behind the tilted facet, fall back to the
                 // stone's normal rather than shade a back face.
@@ -850,26 +860,36 @@ impl RenderScene {
             // What depends on wo alone, computed once for the light samples
             // and the BRDF sample of this vertex.
             let brdf_at = shading.brdf.at(wo);
-            let mix = shading.facets.and_then(|(facets, seed)| match hit.surface {
-                Surface::Stone {
-                    index,
-                    object_normal,
-                    ..
-                } => Some(FacetMix::new(
-                    shading.brdf,
-                    &facets.draw(
-                        (
-                            object_normal,
-                            hit.normal,
-                            self.world.stones()[index].rotation,
+            let mix = shading
+                .facets
+                .and_then(|(facets, seed, tabulated)| match hit.surface {
+                    Surface::Stone { .. }
+                        if let Some(table) = tabulated
+                            .and_then(|material| facets.aggregate(material, shading.brdf)) =>
+                    {
+                        Some(FacetMix::Tabulated(TableAt::new(
+                            table, hit.normal, wo_world,
+                        )))
+                    }
+                    Surface::Stone {
+                        index,
+                        object_normal,
+                        ..
+                    } => Some(FacetMix::new(
+                        shading.brdf,
+                        &facets.draw(
+                            (
+                                object_normal,
+                                hit.normal,
+                                self.world.stones()[index].rotation,
+                            ),
+                            wo_world,
+                            &mut Rng::new(seed, FACET_DRAW_STREAM),
                         ),
                         wo_world,
-                        &mut Rng::new(seed, FACET_DRAW_STREAM),
-                    ),
-                    wo_world,
-                )),
-                Surface::Ground => None,
-            });
+                    )),
+                    Surface::Ground => None,
+                });
 
             // Next-event estimation: every light, then the environment.
             for light in &self.lights {

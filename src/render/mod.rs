@@ -16,6 +16,7 @@ pub mod film;
 pub mod flake_lobe;
 pub(crate) mod flake_medium;
 pub(crate) mod footprint;
+pub(crate) mod glitter_aggregate;
 pub(crate) mod glitter_facets;
 pub(crate) mod inclusions;
 pub mod integrator;
