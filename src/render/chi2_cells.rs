@@ -104,3 +104,34 @@ pub(crate) fn cap_grid(
         })
     })
 }
+
+/// The cell of a unit direction with z ≥ 0 in the grid of `n_cos` bands of
+/// cos θ by `n_phi` sectors of φ over the hemisphere.
+pub(crate) fn hemisphere_cell(w: DVec3, n_cos: usize, n_phi: usize) -> usize {
+    let i = ((w.z * n_cos as f64) as usize).min(n_cos - 1);
+    let phi = w.y.atan2(w.x).rem_euclid(TAU);
+    let j = ((phi / TAU * n_phi as f64) as usize).min(n_phi - 1);
+    i * n_phi + j
+}
+
+/// For each cell of that grid ([`hemisphere_cell`]), the probability the
+/// density `pdf` (per steradian) gives it, integrated over `fine` × `fine`
+/// sub-cells, and the least and most pdf met over it: what [`Tally::new`]
+/// takes, once the probabilities are scaled to samples.
+pub(crate) fn hemisphere_cells(
+    pdf: impl Fn(DVec3) -> f64,
+    n_cos: usize,
+    n_phi: usize,
+    fine: usize,
+) -> (Vec<f64>, Vec<(f64, f64)>) {
+    let mut probability = vec![0.0; n_cos * n_phi];
+    let mut range = vec![(f64::INFINITY, 0.0f64); n_cos * n_phi];
+    for (w, solid_angle) in cap_grid(0.0, n_cos * fine, n_phi * fine) {
+        let p = pdf(w);
+        let cell = hemisphere_cell(w, n_cos, n_phi);
+        probability[cell] += p * solid_angle;
+        let (least, most) = range[cell];
+        range[cell] = (least.min(p), most.max(p));
+    }
+    (probability, range)
+}

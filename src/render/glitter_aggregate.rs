@@ -327,7 +327,7 @@ mod tests {
     use crate::recipe::compile::load_material_without_table;
     use crate::recipe::gem::parse_gem;
     use crate::recipe::library::builtin_gem_source;
-    use crate::render::chi2_cells::{cap_grid, Tally};
+    use crate::render::chi2_cells::{cap_grid, hemisphere_cell, hemisphere_cells, Tally};
     use crate::render::glitter_facets::FacetMix;
 
     /// The lavender lepidolite's glitter facets (a 20° cone about the
@@ -362,21 +362,8 @@ mod tests {
         let table = AggregateTable::build(&lepidolite_facets(), &brdf);
         for (view, wo) in views().into_iter().enumerate() {
             let at = TableAt::new(&table, DVec3::Z, wo);
-            let cell_of = |w: DVec3| {
-                let i = ((w.z * N_COS as f64) as usize).min(N_COS - 1);
-                let phi = w.y.atan2(w.x).rem_euclid(TAU);
-                let j = ((phi / TAU * N_PHI as f64) as usize).min(N_PHI - 1);
-                i * N_PHI + j
-            };
-            let mut expected = vec![0.0; N_COS * N_PHI];
-            let mut range = vec![(f64::INFINITY, 0.0f64); N_COS * N_PHI];
-            for (w, solid_angle) in cap_grid(0.0, N_COS * 10, N_PHI * 10) {
-                let pdf = at.eval_cos_and_pdf(w).1;
-                let cell = cell_of(w);
-                expected[cell] += pdf * solid_angle;
-                let (least, most) = range[cell];
-                range[cell] = (least.min(pdf), most.max(pdf));
-            }
+            let (expected, range) =
+                hemisphere_cells(|w| at.eval_cos_and_pdf(w).1, N_COS, N_PHI, 10);
             let samples = 400_000;
             let mut observed = vec![0u32; N_COS * N_PHI];
             let mut rng = Rng::new(view as u64, 3);
@@ -387,7 +374,7 @@ mod tests {
                 let (value, eval_pdf) = at.eval_cos_and_pdf(wi);
                 assert!((eval_pdf - pdf).abs() <= 1e-12 * pdf, "{eval_pdf} vs {pdf}");
                 assert!((value / pdf - weight).abs().max_element() <= 1e-12 * weight.max_element());
-                observed[cell_of(wi)] += 1;
+                observed[hemisphere_cell(wi, N_COS, N_PHI)] += 1;
             }
             let expected: Vec<f64> = expected.iter().map(|e| e * samples as f64).collect();
             Tally::new(&expected, &observed, &range).assert_agrees(100, &format!("view {view}"));
@@ -452,15 +439,7 @@ mod tests {
                 );
             }
         }
-        let white = LayeredBrdf::new(
-            "white",
-            crate::brdf::MicrofacetModel::Blinn,
-            vec![],
-            crate::brdf::Base::Diffuse {
-                colour: Rgb::ONE,
-                oren_nayar_sigma_rad: 0.0,
-            },
-        );
+        let white = crate::render::glitter_facets::white_lambert();
         let table = AggregateTable::build(&facets, &white);
         for row in 0..THETA_O_ROWS {
             let (lo, hi) = theta_step(row, THETA_O_ROWS);

@@ -217,15 +217,28 @@ impl<'a> FacetMix<'a> {
     }
 }
 
+/// A white Lambert material: the lossless furnace of the facets' tests.
+#[cfg(test)]
+pub(crate) fn white_lambert() -> LayeredBrdf {
+    LayeredBrdf::new(
+        "white",
+        crate::brdf::MicrofacetModel::Blinn,
+        vec![],
+        crate::brdf::Base::Diffuse {
+            colour: Rgb::ONE,
+            oren_nayar_sigma_rad: 0.0,
+        },
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::recipe::compile::load_material_without_table;
     use crate::recipe::gem::parse_gem;
     use crate::recipe::library::builtin_gem_source;
-    use crate::render::chi2_cells::{cap_grid, Tally};
+    use crate::render::chi2_cells::{cap_grid, hemisphere_cell, hemisphere_cells, Tally};
     use crate::texture::pattern::Around;
-    use std::f64::consts::TAU;
 
     fn unit(v: DVec3) -> DVec3 {
         v.normalize()
@@ -345,21 +358,8 @@ mod tests {
                 let mut rng = Rng::new(view as u64, 9);
                 let normals = draw_at(&glitter, (wo, rotation), &mut rng);
                 let mix = FacetMix::new(&brdf, &normals, wo);
-                let cell_of = |w: DVec3| {
-                    let i = ((w.z * N_COS as f64) as usize).min(N_COS - 1);
-                    let phi = w.y.atan2(w.x).rem_euclid(TAU);
-                    let j = ((phi / TAU * N_PHI as f64) as usize).min(N_PHI - 1);
-                    i * N_PHI + j
-                };
-                let mut expected = vec![0.0; N_COS * N_PHI];
-                let mut range = vec![(f64::INFINITY, 0.0f64); N_COS * N_PHI];
-                for (w, solid_angle) in cap_grid(0.0, N_COS * FINE, N_PHI * FINE) {
-                    let pdf = mix.eval_cos_and_pdf(w).1;
-                    let cell = cell_of(w);
-                    expected[cell] += pdf * solid_angle;
-                    let (least, most) = range[cell];
-                    range[cell] = (least.min(pdf), most.max(pdf));
-                }
+                let (expected, range) =
+                    hemisphere_cells(|w| mix.eval_cos_and_pdf(w).1, N_COS, N_PHI, FINE);
                 let samples = 500_000;
                 let mut observed = vec![0u32; N_COS * N_PHI];
                 let mut sampler = Rng::new(4, 2);
@@ -378,7 +378,7 @@ mod tests {
                         "{name}: {value} vs {weight}"
                     );
                     if wi.z > 0.0 {
-                        observed[cell_of(wi)] += 1;
+                        observed[hemisphere_cell(wi, N_COS, N_PHI)] += 1;
                     }
                 }
                 let expected: Vec<f64> = expected.iter().map(|e| e * samples as f64).collect();
@@ -395,15 +395,7 @@ mod tests {
         // mixture's f·cosθi integrates to 1 over the sphere (a fine grid
         // of eval) and, f·cosθi being the density itself, every sample's
         // weight is 1.
-        let white = LayeredBrdf::new(
-            "white",
-            crate::brdf::MicrofacetModel::Blinn,
-            vec![],
-            crate::brdf::Base::Diffuse {
-                colour: Rgb::ONE,
-                oren_nayar_sigma_rad: 0.0,
-            },
-        );
+        let white = white_lambert();
         for (name, glitter, _) in glitters() {
             for (view, (wo, rotation)) in views().into_iter().enumerate() {
                 let mut rng = Rng::new(view as u64, 5);
