@@ -1,7 +1,7 @@
 //! What the tests of the aggregate lobes' sampling (`flake_lobe`,
-//! `glitter_facets`) share: grids of directions of equal solid angle, and
-//! the χ² tally of cells with the probability the pdf gives each and the
-//! samples that fell in it.
+//! `glitter_facets`, `glitter_aggregate`) share: grids of directions of
+//! equal solid angle, and the χ² tally of cells with the probability the
+//! pdf gives each and the samples that fell in it.
 
 use std::f64::consts::TAU;
 
