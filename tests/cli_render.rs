@@ -523,6 +523,54 @@ fn the_material_cache_never_changes_a_byte_cold_warm_off_or_damaged() {
 }
 
 #[test]
+fn the_glitter_facets_tables_never_change_a_byte_cold_warm_off_or_damaged() {
+    // Fine glitter at 24 px: every pixel's footprint holds hundreds of
+    // facets, so the render builds its facets' table (render::glitter_aggregate)
+    // and a cold render keeps it as a file of numbers.
+    let dir = scratch("glitter-cache");
+    let cache = dir.join("cache");
+    let gem = dir.join("fine-glitter.ron");
+    std::fs::write(&gem, include_str!("../bench/fine-glitter.ron")).unwrap();
+    let render = |name: &str, cache_setting: Option<&str>| {
+        let out_path = dir.join(name);
+        let mut command = Command::new(env!("CARGO_BIN_EXE_lapidary"));
+        command.args([
+            "render",
+            gem.to_str().unwrap(),
+            "-o",
+            out_path.to_str().unwrap(),
+        ]);
+        command.args(["--size", "24", "--spp", "4", "-q"]);
+        command.env("LAPIDARY_CACHE_DIR", &cache);
+        match cache_setting {
+            Some(setting) => command.env("LAPIDARY_CACHE", setting),
+            None => command.env_remove("LAPIDARY_CACHE"),
+        };
+        let out = command.output().unwrap();
+        assert!(out.status.success(), "{name}: {}", stderr(&out));
+        std::fs::read(out_path).unwrap()
+    };
+    let off = render("off.png", Some("off"));
+    let cold = render("cold.png", None);
+    let tables: Vec<String> = files_in(&cache)
+        .into_iter()
+        .filter(|name| name.starts_with("values-"))
+        .collect();
+    assert_eq!(
+        tables.len(),
+        1,
+        "one glitter material, one table: {tables:?}"
+    );
+    let warm = render("warm.png", None);
+    // Cut the table short: the renderer must notice and build it again.
+    let file = cache.join(&tables[0]);
+    let bytes = std::fs::read(&file).unwrap();
+    std::fs::write(&file, &bytes[..bytes.len() - 5]).unwrap();
+    let damaged = render("damaged.png", None);
+    assert!(off == cold && cold == warm && warm == damaged);
+}
+
+#[test]
 fn the_vector_code_path_writes_the_same_bytes_as_the_portable_one() {
     // `LAPIDARY_SIMD=off` runs the portable copy of the row loop; the
     // default runs the best copy the CPU has (the summary line names

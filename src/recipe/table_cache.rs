@@ -1,6 +1,10 @@
 //! Compensation tables computed once: [`TableCache`], an in-process
 //! memo and an optional folder on disk, owned by whoever compiles
 //! materials and passed in (the `lapidary` command makes one per run).
+//! It also keeps other tables of numbers by their owner's key
+//! ([`TableCache::values`]: the glitter facets' means of
+//! `render::glitter_aggregate`), as the `f64` bits they were built with,
+//! in a file `values-HASH.bin` of the same header and checks.
 //! The tables themselves are a pure function of a material's parameters
 //! ([`Compensation::compute_many`]); a gem, a scene or the gallery may name
 //! the same material (same parameters) several times, under one name or
@@ -28,7 +32,7 @@ use crate::brdf::{LayeredBrdf, Rgb};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Mutex, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// Version of the on-disk format (and of the way tables are computed, as
 /// far as the program's identity does not already cover it).
@@ -43,6 +47,9 @@ pub struct TableCache {
     /// bases, by the [`material_key`] of the white twin: materials that
     /// differ only in their base colour share them.
     single_albedo_pairs: Mutex<HashMap<String, AlbedoPair>>,
+    /// Other tables of numbers, by their owner's key (the glitter facets'
+    /// means of `render::glitter_aggregate`), kept as they are given.
+    values: Mutex<HashMap<String, Arc<[f64]>>>,
     /// Where tables are kept between runs, if anywhere.
     folder: Option<PathBuf>,
 }
@@ -65,6 +72,31 @@ impl TableCache {
     /// The folder on disk, if any.
     pub fn folder(&self) -> Option<&Path> {
         self.folder.as_deref()
+    }
+
+    /// The table of numbers stored under `key` ([`Self::store_values`]),
+    /// from memory or the folder: None if neither holds it (or the file is
+    /// from another program or damaged).
+    pub fn values(&self, key: &str) -> Option<Arc<[f64]>> {
+        if let Some(values) = lock(&self.values).get(key) {
+            return Some(values.clone());
+        }
+        let values: Arc<[f64]> = load_values(self.folder.as_deref()?, key)?.into();
+        lock(&self.values).insert(key.to_string(), values.clone());
+        Some(values)
+    }
+
+    /// Keeps `values` under `key`, in memory and in the folder (a file that
+    /// cannot be written is only a cache miss next time).
+    pub fn store_values(&self, key: &str, values: &[f64]) {
+        lock(&self.values).insert(key.to_string(), values.into());
+        if let Some(folder) = &self.folder {
+            let _ = write_atomically(
+                folder,
+                &values_file(folder, key),
+                &values_bytes(key, values),
+            );
+        }
     }
 
     /// The tables of `brdf` if this cache holds them in memory already
@@ -228,8 +260,6 @@ pub fn load(dir: &Path, key: &str) -> Option<Option<Compensation>> {
 /// Writes the tables of `key` (None: "no compensation needed") to `dir`,
 /// creating it, through a temporary file renamed into place.
 pub fn store(dir: &Path, key: &str, table: Option<&Compensation>) -> std::io::Result<()> {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    std::fs::create_dir_all(dir)?;
     let mut text = header(key);
     match table {
         None => text.push_str("none\n"),
@@ -244,14 +274,98 @@ pub fn store(dir: &Path, key: &str, table: Option<&Compensation>) -> std::io::Re
             }
         }
     }
-    let target = cache_file(dir, key);
+    write_atomically(dir, &cache_file(dir, key), text.as_bytes())
+}
+
+/// Writes `bytes` to `target` in `dir` (created if missing) through a
+/// temporary file renamed into place, so that a reader never sees half.
+fn write_atomically(dir: &Path, target: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    std::fs::create_dir_all(dir)?;
     let temporary = dir.join(format!(
-        ".compensation-{}-{}.tmp",
+        ".table-{}-{}.tmp",
         std::process::id(),
         COUNTER.fetch_add(1, Ordering::Relaxed)
     ));
-    std::fs::write(&temporary, text)?;
-    std::fs::rename(&temporary, &target).inspect_err(|_| {
+    std::fs::write(&temporary, bytes)?;
+    std::fs::rename(&temporary, target).inspect_err(|_| {
         let _ = std::fs::remove_file(&temporary);
     })
+}
+
+/// The file of the table of numbers `key` in `dir`.
+fn values_file(dir: &Path, key: &str) -> PathBuf {
+    dir.join(format!("values-{:016x}.bin", fnv1a(key)))
+}
+
+/// The header of a file of numbers for `key` written by this program.
+fn values_header(key: &str) -> String {
+    format!(
+        "lapidary table of numbers v{DISK_FORMAT_VERSION}\nkey {key}\nprogram {}\n",
+        program_identity()
+    )
+}
+
+/// A file of numbers: its header, then each number's bits, little-endian
+/// (the numbers exactly as built, so that a render from the file is the
+/// same bytes as one that built them).
+fn values_bytes(key: &str, values: &[f64]) -> Vec<u8> {
+    let mut bytes = values_header(key).into_bytes();
+    bytes.extend(values.iter().flat_map(|x| x.to_bits().to_le_bytes()));
+    bytes
+}
+
+/// The numbers of `key` from `dir`: None when there is no file, or it is
+/// from another format or program, for another key, cut short or holds a
+/// number that is not finite.
+fn load_values(dir: &Path, key: &str) -> Option<Vec<f64>> {
+    let bytes = std::fs::read(values_file(dir, key)).ok()?;
+    let body = bytes.strip_prefix(values_header(key).as_bytes())?;
+    if body.len() % 8 != 0 {
+        return None;
+    }
+    body.chunks_exact(8)
+        .map(|chunk| {
+            let x = f64::from_bits(u64::from_le_bytes(chunk.try_into().ok()?));
+            x.is_finite().then_some(x)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tables_of_numbers_come_back_bit_for_bit_and_damaged_files_are_misses() {
+        let folder = std::env::temp_dir().join(format!("lapidary-values-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&folder);
+        let numbers = [0.0, 1.5, f64::MIN_POSITIVE, 0.1 + 0.2, 1e300];
+        TableCache::with_folder(folder.clone()).store_values("a key", &numbers);
+        // A fresh cache (another run) reads the file.
+        let fresh = TableCache::with_folder(folder.clone());
+        assert_eq!(fresh.values("a key").as_deref(), Some(&numbers[..]));
+        assert_eq!(fresh.values("another key"), None);
+        // Cut short, or a number that is not finite: a miss.
+        let file = values_file(&folder, "a key");
+        let bytes = std::fs::read(&file).unwrap();
+        std::fs::write(&file, &bytes[..bytes.len() - 3]).unwrap();
+        assert_eq!(
+            TableCache::with_folder(folder.clone()).values("a key"),
+            None
+        );
+        let mut infinite = bytes.clone();
+        let last = infinite.len() - 8;
+        infinite[last..].copy_from_slice(&f64::INFINITY.to_bits().to_le_bytes());
+        std::fs::write(&file, &infinite).unwrap();
+        assert_eq!(
+            TableCache::with_folder(folder.clone()).values("a key"),
+            None
+        );
+        // In memory only: kept for this run, nothing written.
+        let memory = TableCache::in_memory();
+        memory.store_values("k", &numbers);
+        assert_eq!(memory.values("k").as_deref(), Some(&numbers[..]));
+        let _ = std::fs::remove_dir_all(&folder);
+    }
 }

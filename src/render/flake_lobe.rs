@@ -36,7 +36,8 @@ use rayon::prelude::*;
 
 use crate::brdf::{LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem, Inclusions};
-use crate::render::glitter_facets::GlitterFacets;
+use crate::recipe::TableCache;
+use crate::render::glitter_facets::{GlitterFacets, TableStore};
 use crate::sampling::{cosine_hemisphere, sin_cos_turns, Rng};
 
 /// Nodes of the albedo table, at cos θ = (k + ½)/N.
@@ -256,9 +257,20 @@ impl FlakeLobes {
     /// The lobes of every flake population, and the glitter facets, of
     /// every gem of a scene.
     pub fn of_gems(gems: &[Gem]) -> Self {
+        Self::of_gems_keeping_tables(gems, None)
+    }
+
+    /// [`Self::of_gems`], the glitter facets' tables (built when first
+    /// needed, `render::glitter_aggregate`) looked up in and kept by
+    /// `tables` when given: built once per machine instead of per scene.
+    pub fn of_gems_keeping_tables(gems: &[Gem], tables: Option<Arc<TableCache>>) -> Self {
+        let store = TableStore(tables);
         Self {
             populations: lobes_of_gems(gems),
-            facets: gems.iter().map(GlitterFacets::of_gem).collect(),
+            facets: gems
+                .iter()
+                .map(|gem| GlitterFacets::of_gem(gem, &store))
+                .collect(),
         }
     }
 

@@ -25,18 +25,22 @@
 //! 16 rows put the studio's mean 1 % high: the mean is convex in θo).
 //!
 //! A table takes about 0.35 s of one core. It is built the first time a
-//! pixel's footprint needs it (`GlitterFacets::aggregate`); paths after a
-//! glossy or diffuse event keep drawing facets, so stones whose facets
-//! are larger than their pixels (every built-in gem at its usual sizes)
-//! never build one.
+//! pixel's footprint needs it (`GlitterFacets::aggregate`) and, when the
+//! scene was handed a `TableCache` (`lapidary render` hands its own), kept
+//! there as numbers, bit for bit, for the next render; paths after a
+//! glossy or diffuse event keep drawing facets, so stones whose facets are
+//! larger than their pixels (every built-in gem at its usual sizes) never
+//! build one.
 
 use std::f64::consts::{FRAC_PI_2, TAU};
 
 use glam::{DQuat, DVec3};
 
+use crate::brdf::compensation::material_key;
 use crate::brdf::{LayeredBrdf, Rgb};
 use crate::render::glitter_facets::{GlitterFacets, FACETS_PER_VERTEX};
 use crate::sampling::{sin_cos_turns, Rng};
+use crate::texture::pattern::FacetBumpMap;
 
 /// Rows over θo, at the centres of equal steps of θo in [0, π/2].
 const THETA_O_ROWS: usize = 32;
@@ -127,6 +131,12 @@ impl Row {
         if excess > 1.0 {
             value.iter_mut().for_each(|v| *v /= excess);
         }
+        Self::from_value(value)
+    }
+
+    /// The row of these mean values per cell: its sampling density (by the
+    /// mean of the three channels) and their running total.
+    fn from_value(value: Vec<Rgb>) -> Self {
         let weight: Vec<f64> = value.iter().map(|v| (v.x + v.y + v.z) / 3.0).collect();
         let total: f64 = weight
             .iter()
@@ -200,6 +210,48 @@ impl AggregateTable {
         Self {
             rows: rows.into_iter().map(|(_, row)| row).collect(),
         }
+    }
+
+    /// The table as numbers: each row's cells' values, R, G, B in turn.
+    pub(crate) fn to_numbers(&self) -> Vec<f64> {
+        self.rows
+            .iter()
+            .flat_map(|row| row.value.iter().flat_map(|v| [v.x, v.y, v.z]))
+            .collect()
+    }
+
+    /// The table of [`Self::to_numbers`]'s numbers (the same table, bit for
+    /// bit); None for a list of the wrong length or with a value below 0.
+    pub(crate) fn from_numbers(numbers: &[f64]) -> Option<Self> {
+        if numbers.len() != THETA_O_ROWS * CELLS * 3
+            || numbers.iter().any(|x| x.is_nan() || *x < 0.0)
+        {
+            return None;
+        }
+        let rows = numbers
+            .chunks_exact(CELLS * 3)
+            .map(|row| {
+                Row::from_value(
+                    row.chunks_exact(3)
+                        .map(|v| Rgb::new(v[0], v[1], v[2]))
+                        .collect(),
+                )
+            })
+            .collect();
+        Some(Self { rows })
+    }
+
+    /// The key under which the table of `brdf` over facets tilted as
+    /// `facets` is kept (its material, its tilts, how it is built).
+    pub(crate) fn key(facets: &FacetBumpMap, brdf: &LayeredBrdf) -> String {
+        format!(
+            "glitter aggregate v1; rows {THETA_O_ROWS}, rings {THETA_I_RINGS}, sectors {PHI_SECTORS}, \
+             draws {FACET_DRAWS_PER_ROW} x {FACETS_PER_VERTEX}, samples {SAMPLES_PER_FACET}; \
+             tilt {:?} about {:?}; {}",
+            facets.tilt,
+            facets.around,
+            material_key(brdf, TABLE_STREAM)
+        )
     }
 
     /// The rows on either side of cos θo = `cos_o` and the second's weight
@@ -334,7 +386,11 @@ mod tests {
     /// stone's normal).
     fn lepidolite_facets() -> GlitterFacets {
         let source = builtin_gem_source("lavender-lepidolite").unwrap();
-        GlitterFacets::of_gem(&parse_gem("lavender-lepidolite", source).unwrap()).unwrap()
+        GlitterFacets::of_gem(
+            &parse_gem("lavender-lepidolite", source).unwrap(),
+            &Default::default(),
+        )
+        .unwrap()
     }
 
     /// Views from head on to grazing: at a row's centre and between rows.
@@ -346,6 +402,23 @@ mod tests {
                 DVec3::new(s, 0.0, c)
             })
             .collect()
+    }
+
+    #[test]
+    fn a_table_kept_as_numbers_is_the_same_table() {
+        // What the table cache keeps and gives back: the same table, bit
+        // for bit (so a render from the cache is the same bytes); a list
+        // of the wrong length or with a negative or NaN value is refused.
+        let (brdf, _) = load_material_without_table("green-latex").unwrap();
+        let table = AggregateTable::build(&lepidolite_facets(), &brdf);
+        let numbers = table.to_numbers();
+        assert_eq!(AggregateTable::from_numbers(&numbers), Some(table));
+        assert_eq!(AggregateTable::from_numbers(&numbers[1..]), None);
+        for bad in [-1e-9, f64::NAN] {
+            let mut damaged = numbers.clone();
+            damaged[7] = bad;
+            assert_eq!(AggregateTable::from_numbers(&damaged), None);
+        }
     }
 
     #[test]

@@ -25,12 +25,13 @@
 //! lobes meet the horizon: 21 % of the energy for the sunstone's copper
 //! platelets seen at 55° with their cleavage axis tilted away.)
 
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use glam::{DQuat, DVec3};
 
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem};
+use crate::recipe::TableCache;
 use crate::render::glitter_aggregate::{AggregateTable, TableAt};
 use crate::sampling::Rng;
 use crate::texture::pattern::{Around, FacetBumpMap};
@@ -54,12 +55,35 @@ pub(crate) struct GlitterFacets {
     /// the facets tilt about a fixed direction, whose mean depends on more
     /// than θo, θi and φi − φo.
     aggregates: Vec<OnceLock<AggregateTable>>,
+    /// Where built tables are kept and looked up first, if anywhere.
+    store: TableStore,
+}
+
+/// A [`TableCache`] for the facets' tables, or none: no part of the
+/// facets' identity (a scene prepared with one renders as one without).
+#[derive(Clone, Default)]
+pub(crate) struct TableStore(pub(crate) Option<Arc<TableCache>>);
+
+impl PartialEq for TableStore {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for TableStore {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(if self.0.is_some() {
+            "TableStore(cache)"
+        } else {
+            "TableStore(none)"
+        })
+    }
 }
 
 impl GlitterFacets {
     /// The facets of `gem`'s glitter map, when it has one on an opaque
     /// body (a translucent body does not show its surface pattern).
-    pub(crate) fn of_gem(gem: &Gem) -> Option<Self> {
+    pub(crate) fn of_gem(gem: &Gem, store: &TableStore) -> Option<Self> {
         let glitter = gem.pattern.glitter()?;
         if !matches!(gem.body, Body::Opaque) {
             return None;
@@ -78,17 +102,32 @@ impl GlitterFacets {
             } else {
                 Vec::new()
             },
+            store: store.clone(),
         })
     }
 
     /// The tabulated mean reflection of these facets in material number
-    /// `material` (`brdf`), built on the first call (about 0.3 s, on the
+    /// `material` (`brdf`), read from the store or built on the first call (about 0.3 s, on the
     /// calling thread: a build that spawned work could, while waiting, take
     /// up a render task that waits on this same table); `None` where the
     /// facets tilt about a fixed direction.
     pub(crate) fn aggregate(&self, material: u32, brdf: &LayeredBrdf) -> Option<&AggregateTable> {
         let table = self.aggregates.get(material as usize)?;
-        Some(table.get_or_init(|| AggregateTable::build(self, brdf)))
+        Some(table.get_or_init(|| {
+            let key = AggregateTable::key(&self.facets, brdf);
+            let Some(store) = &self.store.0 else {
+                return AggregateTable::build(self, brdf);
+            };
+            if let Some(table) = store
+                .values(&key)
+                .and_then(|n| AggregateTable::from_numbers(&n))
+            {
+                return table;
+            }
+            let table = AggregateTable::build(self, brdf);
+            store.store_values(&key, &table.to_numbers());
+            table
+        }))
     }
 
     /// [`FACETS_PER_VERTEX`] facet normals (world space) for a vertex
@@ -250,7 +289,7 @@ mod tests {
         let gem = parse_gem(name, builtin_gem_source(name).unwrap()).unwrap();
         let material = gem.pattern.glitter().unwrap().entries.items()[entry];
         (
-            GlitterFacets::of_gem(&gem).unwrap(),
+            GlitterFacets::of_gem(&gem, &Default::default()).unwrap(),
             gem.brdfs[material as usize].clone(),
         )
     }

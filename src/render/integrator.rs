@@ -7,10 +7,13 @@
 //! the varnish), so a path bounces between stones and the ground until it
 //! escapes to the environment, meets a light, or reaches `max_bounces`.
 
+use std::sync::Arc;
+
 use glam::DVec3;
 
 use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem, Medium};
+use crate::recipe::TableCache;
 use crate::render::dielectric::{cross_smooth_interface, split_smooth_interface, RoughInterface};
 use crate::render::environment::{Environment, EnvironmentMap, Texel};
 use crate::render::flake_lobe::{FlakeLobe, FlakeLobes};
@@ -1119,6 +1122,14 @@ impl RenderScene {
     /// without it, every flake and facet by its own normal.
     pub fn shade_flakes_by_footprint(&mut self) {
         self.flake_lobes = FlakeLobes::of_gems(&self.gems);
+    }
+
+    /// [`Self::shade_flakes_by_footprint`], with the glitter facets' tables
+    /// looked up in and kept by `tables` (in memory and on disk, as the
+    /// compensation tables): the same pictures, without building a table
+    /// again in the next render.
+    pub fn shade_flakes_by_footprint_keeping_tables(&mut self, tables: Arc<TableCache>) {
+        self.flake_lobes = FlakeLobes::of_gems_keeping_tables(&self.gems, Some(tables));
     }
 
     /// The aggregate lobe of flake population `population` of stone
