@@ -3,11 +3,35 @@
 mod common;
 
 use common::cli::{lapidary, lapidary_with_env, stderr};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn scratch(name: &str) -> PathBuf {
     common::cli::scratch("render", name)
+}
+
+/// `lapidary render ARGS -o dir/NAME -q` with the material cache in
+/// `cache` and `LAPIDARY_CACHE` set to `setting` (unset for None): the
+/// image's bytes.
+fn render_with_cache(
+    dir: &Path,
+    cache: &Path,
+    args: &[&str],
+    name: &str,
+    setting: Option<&str>,
+) -> Vec<u8> {
+    let out_path = dir.join(name);
+    let mut command = Command::new(env!("CARGO_BIN_EXE_lapidary"));
+    command.arg("render").args(args);
+    command.args(["-o", out_path.to_str().unwrap(), "-q"]);
+    command.env("LAPIDARY_CACHE_DIR", cache);
+    match setting {
+        Some(setting) => command.env("LAPIDARY_CACHE", setting),
+        None => command.env_remove("LAPIDARY_CACHE"),
+    };
+    let out = command.output().unwrap();
+    assert!(out.status.success(), "{name}: {}", stderr(&out));
+    std::fs::read(out_path).unwrap()
 }
 
 /// Files left in `dir` (to prove a failed render leaves nothing behind).
@@ -486,27 +510,8 @@ fn the_material_cache_never_changes_a_byte_cold_warm_off_or_damaged() {
     // their tables are real computations, not the closed form.
     let dir = scratch("cache");
     let cache = dir.join("cache");
-    let render = |name: &str, cache_setting: Option<&str>| {
-        let out_path = dir.join(name);
-        let mut command = Command::new(env!("CARGO_BIN_EXE_lapidary"));
-        command.args([
-            "render",
-            "-o",
-            out_path.to_str().unwrap(),
-            "--size",
-            "24",
-            "--spp",
-            "1",
-            "-q",
-        ]);
-        command.env("LAPIDARY_CACHE_DIR", &cache);
-        match cache_setting {
-            Some(setting) => command.env("LAPIDARY_CACHE", setting),
-            None => command.env_remove("LAPIDARY_CACHE"),
-        };
-        let out = command.output().unwrap();
-        assert!(out.status.success(), "{name}: {}", stderr(&out));
-        std::fs::read(out_path).unwrap()
+    let render = |name: &str, setting: Option<&str>| {
+        render_with_cache(&dir, &cache, &["--size", "24", "--spp", "1"], name, setting)
     };
     let off = render("off.png", Some("off"));
     assert!(!cache.exists(), "LAPIDARY_CACHE=off wrote a cache");
@@ -531,25 +536,9 @@ fn the_glitter_facets_tables_never_change_a_byte_cold_warm_off_or_damaged() {
     let cache = dir.join("cache");
     let gem = dir.join("fine-glitter.ron");
     std::fs::write(&gem, include_str!("../bench/fine-glitter.ron")).unwrap();
-    let render = |name: &str, cache_setting: Option<&str>| {
-        let out_path = dir.join(name);
-        let mut command = Command::new(env!("CARGO_BIN_EXE_lapidary"));
-        command.args([
-            "render",
-            gem.to_str().unwrap(),
-            "-o",
-            out_path.to_str().unwrap(),
-        ]);
-        command.args(["--size", "24", "--spp", "4", "-q"]);
-        command.env("LAPIDARY_CACHE_DIR", &cache);
-        match cache_setting {
-            Some(setting) => command.env("LAPIDARY_CACHE", setting),
-            None => command.env_remove("LAPIDARY_CACHE"),
-        };
-        let out = command.output().unwrap();
-        assert!(out.status.success(), "{name}: {}", stderr(&out));
-        std::fs::read(out_path).unwrap()
-    };
+    let args = [gem.to_str().unwrap(), "--size", "24", "--spp", "4"];
+    let render =
+        |name: &str, setting: Option<&str>| render_with_cache(&dir, &cache, &args, name, setting);
     let off = render("off.png", Some("off"));
     let cold = render("cold.png", None);
     let tables: Vec<String> = files_in(&cache)
