@@ -609,7 +609,7 @@ impl Renderer {
         traced.ambient_occlusion = args.ao;
         traced.connect_through_surfaces = self.record.connections;
         if self.record.flake_footprints {
-            traced.shade_flakes_by_footprint_keeping_tables(std::sync::Arc::new(cache));
+            traced.shade_flakes_by_footprint(Some(std::sync::Arc::new(cache)));
         }
         let stones = traced.world.stones().to_vec();
         self.traced = Some((traced, stones));

@@ -462,57 +462,63 @@ mod tests {
         // sampling the mixtures (2000 draws, 64 samples each: the weights
         // summed by region, a different estimator from the table's
         // facet-by-facet one), against the table's integrals over the same
-        // regions, whose edges are edges of its cells: within 3 % of the
-        // largest region (both estimates' noise is about 1 %). Then a
-        // white Lambert base, the lossless furnace: no row reflects more
-        // than arrives.
+        // regions, whose edges are edges of its cells, as a share of the
+        // largest region: within 3 % for a rough paint (measured up to
+        // 2.7 %) and 4 % for white Lambert (up to 3.2 %), scattered both
+        // ways (the table's own noise is 1–2 % a region, the mixtures'
+        // below 1 %). White Lambert is the lossless furnace: its drawn
+        // mixtures reflect exactly what does not leave below the stone's
+        // plane. Its rows also reflect at most 1 (the build scales a row
+        // whose noise puts it above) and more than 0.9.
         let (paint, _) = load_material_without_table("green-latex").unwrap();
+        let white = crate::render::glitter_facets::white_lambert();
         let facets = lepidolite_facets();
-        let table = AggregateTable::build(&facets, &paint);
         let region = |w: DVec3| {
             let quadrant = (w.y.atan2(w.x).rem_euclid(TAU) / (TAU / 4.0)) as usize;
             usize::from(w.z < std::f64::consts::FRAC_1_SQRT_2) * 4 + quadrant.min(3)
         };
-        for (view, wo) in views().into_iter().enumerate() {
-            let (mut drawn, mut tabulated) = ([Rgb::ZERO; 8], [Rgb::ZERO; 8]);
-            let mut rng = Rng::new(view as u64, 8);
-            let (draws, samples) = (2000, 64);
-            for _ in 0..draws {
-                let normals = facets.draw((DVec3::Z, DVec3::Z, DQuat::IDENTITY), wo, &mut rng);
-                let mix = FacetMix::new(&paint, &normals, wo);
-                for _ in 0..samples {
-                    if let Some((wi, weight, _)) = mix.sample(rng.next_3()) {
-                        if wi.z > 0.0 {
-                            drawn[region(wi)] += weight / (draws * samples) as f64;
+        for (name, brdf, tolerance) in [("paint", &paint, 0.03), ("white", &white, 0.04)] {
+            let table = AggregateTable::build(&facets, brdf);
+            for (view, wo) in views().into_iter().enumerate() {
+                let (mut drawn, mut tabulated) = ([Rgb::ZERO; 8], [Rgb::ZERO; 8]);
+                let mut rng = Rng::new(view as u64, 8);
+                let (draws, samples) = (2000, 64);
+                for _ in 0..draws {
+                    let normals = facets.draw((DVec3::Z, DVec3::Z, DQuat::IDENTITY), wo, &mut rng);
+                    let mix = FacetMix::new(brdf, &normals, wo);
+                    for _ in 0..samples {
+                        if let Some((wi, weight, _)) = mix.sample(rng.next_3()) {
+                            if wi.z > 0.0 {
+                                drawn[region(wi)] += weight / (draws * samples) as f64;
+                            }
                         }
                     }
                 }
-            }
-            let at = TableAt::new(&table, DVec3::Z, wo);
-            for (ring, sector) in
-                (0..THETA_I_RINGS).flat_map(|i| (0..PHI_SECTORS).map(move |j| (i, j)))
-            {
-                let (lo, hi) = theta_step(ring, THETA_I_RINGS);
-                let (theta, phi) = (
-                    0.5 * (lo + hi),
-                    (sector as f64 + 0.5) / PHI_SECTORS as f64 * TAU,
-                );
-                let w = DVec3::new(
-                    theta.sin() * phi.cos(),
-                    theta.sin() * phi.sin(),
-                    theta.cos(),
-                );
-                tabulated[region(w)] += at.eval_cos_and_pdf(w).0 * cell_sr(ring);
-            }
-            let largest = drawn.iter().map(|v| v.max_element()).fold(0.0, f64::max);
-            for (k, (d, t)) in drawn.iter().zip(&tabulated).enumerate() {
-                assert!(
-                    (*d - *t).abs().max_element() < 0.03 * largest,
-                    "view {view}, region {k}: drawn {d}, table {t}"
-                );
+                let at = TableAt::new(&table, DVec3::Z, wo);
+                for (ring, sector) in
+                    (0..THETA_I_RINGS).flat_map(|i| (0..PHI_SECTORS).map(move |j| (i, j)))
+                {
+                    let (lo, hi) = theta_step(ring, THETA_I_RINGS);
+                    let (theta, phi) = (
+                        0.5 * (lo + hi),
+                        (sector as f64 + 0.5) / PHI_SECTORS as f64 * TAU,
+                    );
+                    let w = DVec3::new(
+                        theta.sin() * phi.cos(),
+                        theta.sin() * phi.sin(),
+                        theta.cos(),
+                    );
+                    tabulated[region(w)] += at.eval_cos_and_pdf(w).0 * cell_sr(ring);
+                }
+                let largest = drawn.iter().map(|v| v.max_element()).fold(0.0, f64::max);
+                for (k, (d, t)) in drawn.iter().zip(&tabulated).enumerate() {
+                    assert!(
+                        (*d - *t).abs().max_element() < tolerance * largest,
+                        "{name}, view {view}, region {k}: drawn {d}, table {t}"
+                    );
+                }
             }
         }
-        let white = crate::render::glitter_facets::white_lambert();
         let table = AggregateTable::build(&facets, &white);
         for row in 0..THETA_O_ROWS {
             let (lo, hi) = theta_step(row, THETA_O_ROWS);

@@ -107,10 +107,9 @@ impl GlitterFacets {
     }
 
     /// The tabulated mean reflection of these facets in material number
-    /// `material` (`brdf`), read from the store or built on the first call (about 0.3 s, on the
-    /// calling thread: a build that spawned work could, while waiting, take
-    /// up a render task that waits on this same table); `None` where the
-    /// facets tilt about a fixed direction.
+    /// `material` (`brdf`), on the first call read from the store or built
+    /// (0.17 s on 2 threads, see [`AggregateTable::build`]) and kept there;
+    /// `None` where the facets tilt about a fixed direction.
     pub(crate) fn aggregate(&self, material: u32, brdf: &LayeredBrdf) -> Option<&AggregateTable> {
         let table = self.aggregates.get(material as usize)?;
         Some(table.get_or_init(|| {

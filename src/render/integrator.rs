@@ -1119,17 +1119,13 @@ impl RenderScene {
     /// footprint holds many is shaded by its population's aggregate lobe,
     /// a point of a glitter facet by facets drawn from its map's tilts (as
     /// `lapidary render` and `lapidary gallery` do unless `--exact-flakes`);
-    /// without it, every flake and facet by its own normal.
-    pub fn shade_flakes_by_footprint(&mut self) {
-        self.flake_lobes = FlakeLobes::of_gems(&self.gems);
-    }
-
-    /// [`Self::shade_flakes_by_footprint`], with the glitter facets' tables
-    /// looked up in and kept by `tables` (in memory and on disk, as the
+    /// without it, every flake and facet by its own normal. The glitter
+    /// facets' tables (`render::glitter_aggregate`) are looked up in and
+    /// kept by `tables` when given (in memory and on disk, as the
     /// compensation tables): the same pictures, without building a table
     /// again in the next render.
-    pub fn shade_flakes_by_footprint_keeping_tables(&mut self, tables: Arc<TableCache>) {
-        self.flake_lobes = FlakeLobes::of_gems_keeping_tables(&self.gems, Some(tables));
+    pub fn shade_flakes_by_footprint(&mut self, tables: Option<Arc<TableCache>>) {
+        self.flake_lobes = FlakeLobes::of_gems_keeping_tables(&self.gems, tables);
     }
 
     /// The aggregate lobe of flake population `population` of stone
