@@ -18,12 +18,15 @@
 //! turns into an even glow). From [`FLAKES_FOR_AGGREGATE`], where a
 //! pixel's spread from the mean is a few per cent, only their average
 //! shows (the aggregate lobe of [`crate::render::flake_lobe`]); in between,
-//! a random choice with a probability that rises with the log of the count
-//! blends the two, which keeps the expected value either way. (MoonRay's
-//! glitter blends its smooth lobe in over 100 to 900 flakes.) A path whose
-//! cone is unbounded (after a glossy or diffuse event) shades flakes by the
-//! lobe alone, and from its next such event on meets them as a medium
-//! (`render::flake_medium`).
+//! a share that rises with the log of the count blends the two, which keeps
+//! the expected value either way: a flake at depth takes the lobe by a
+//! random choice with that probability, a glitter facet both, as a mixture
+//! of its own BRDF and its facets' mean weighted by the share
+//! (`render::glitter_facets`; the same expected value with less noise).
+//! (MoonRay's glitter blends its smooth lobe in over 100 to 900 flakes.)
+//! A path whose cone is unbounded (after a glossy or diffuse event) shades
+//! flakes by the lobe alone, and from its next such event on meets them as
+//! a medium (`render::flake_medium`).
 
 /// Flakes per footprint up to which each flake shows as itself.
 pub(crate) const FLAKES_BEFORE_BLEND: f64 = 100.0;
@@ -84,8 +87,9 @@ impl RayCone {
     }
 }
 
-/// The probability that a flake met by a footprint of width `width_mm` is
-/// shaded by its population's aggregate lobe rather than by its own normal,
+/// The share of a flake met by a footprint of width `width_mm` that its
+/// population's aggregate lobe shades rather than its own normal (for a
+/// flake at depth, the probability of the lobe),
 /// for flakes of mean projected area `flake_area_mm2`: 0 up to
 /// [`FLAKES_BEFORE_BLEND`] flakes per footprint, 1 from
 /// [`FLAKES_FOR_AGGREGATE`], linear in the count's logarithm between.

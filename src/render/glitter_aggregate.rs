@@ -363,13 +363,11 @@ impl<'a> TableAt<'a> {
         self.table.eval(self.cos_o, local)
     }
 
-    /// A direction (world) from three uniform numbers: (ωi, f·cosθi over
-    /// its density, that density).
-    pub(crate) fn sample(&self, u: [f64; 3]) -> Option<(DVec3, Rgb, f64)> {
+    /// A direction (world) from three uniform numbers, with the density
+    /// [`Self::eval_cos_and_pdf`] gives.
+    pub(crate) fn sample_direction(&self, u: [f64; 3]) -> Option<DVec3> {
         let local = self.table.sample(self.cos_o, u)?;
-        let wi = self.towards_wo * local.x + self.across * local.y + self.normal * local.z;
-        let (value, pdf) = self.eval_cos_and_pdf(wi);
-        (pdf > 0.0).then(|| (wi, value / pdf, pdf))
+        Some(self.towards_wo * local.x + self.across * local.y + self.normal * local.z)
     }
 }
 
@@ -441,7 +439,7 @@ mod tests {
             let mut observed = vec![0u32; N_COS * N_PHI];
             let mut rng = Rng::new(view as u64, 3);
             for _ in 0..samples {
-                let Some((wi, weight, pdf)) = at.sample(rng.next_3()) else {
+                let Some((wi, weight, pdf)) = FacetMix::tabulated(at).sample(rng.next_3()) else {
                     continue;
                 };
                 let (value, eval_pdf) = at.eval_cos_and_pdf(wi);

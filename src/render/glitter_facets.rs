@@ -18,7 +18,9 @@
 //! is weighted by the whole mixture (its f·cosθi over its density), so
 //! multiple importance sampling sees one BSDF. Where the footprint is a
 //! pixel's and the facets tilt about the stone's normal, the vertex reads
-//! their mean from a table instead (`render::glitter_aggregate`). (A
+//! their mean from a table instead (`render::glitter_aggregate`). Where a
+//! footprint holds a few hundred facets, too few for their mean alone, the
+//! point's own facet is blended in ([`FacetMix::blend_own_facet`]). (A
 //! smooth lobe of mirrors
 //! of the material's albedo over the widened tilt density, as the flakes
 //! at depth have in `render::flake_lobe`, misses where the facets' own
@@ -167,7 +169,20 @@ pub(crate) struct Facet<'a> {
     brdf_at: BrdfAt<'a>,
 }
 
-impl Facet<'_> {
+impl<'a> Facet<'a> {
+    /// `brdf` in the frame of the unit `normal` (world, facing `wo`), seen
+    /// from the unit `wo` (world).
+    fn new(brdf: &'a LayeredBrdf, normal: DVec3, wo: DVec3) -> Self {
+        let (tangent, bitangent) = normal.any_orthonormal_pair();
+        let local_wo = DVec3::new(wo.dot(tangent), wo.dot(bitangent), wo.dot(normal));
+        Facet {
+            tangent,
+            bitangent,
+            normal,
+            brdf_at: brdf.at(local_wo),
+        }
+    }
+
     /// `v` (world) in the facet's frame.
     fn local(&self, v: DVec3) -> DVec3 {
         DVec3::new(
@@ -176,15 +191,52 @@ impl Facet<'_> {
             v.dot(self.normal),
         )
     }
+
+    /// The facet's f·cosθi (its own cosine) towards the unit `wi` (world)
+    /// and its BRDF's density for it.
+    fn eval_cos_and_pdf(&self, wi: DVec3) -> (Rgb, f64) {
+        let local = self.local(wi);
+        if local.z <= 0.0 {
+            return (Rgb::ZERO, 0.0);
+        }
+        let (f, pdf) = self.brdf_at.eval_and_pdf(local);
+        (f * local.z, pdf)
+    }
+
+    /// A direction (world) drawn by the facet's BRDF from three uniform
+    /// numbers.
+    fn sample_direction(&self, u: [f64; 3]) -> Option<DVec3> {
+        let wi = self.brdf_at.sample(u)?.wi;
+        Some(self.tangent * wi.x + self.bitangent * wi.y + self.normal * wi.z)
+    }
 }
 
-/// The facets at one vertex where its footprint holds many: drawn, a
-/// mixture of their BRDFs with equal weights, or their tabulated mean.
-/// It lives on the stack for one vertex, so the drawn variant's size is
-/// not boxed away (that would allocate at every such vertex).
+/// The facets at one vertex where its footprint holds many: their mean,
+/// drawn or tabulated, and where the footprint holds fewer than the mean
+/// alone stands for (`render::footprint`), the facet under the vertex's
+/// point blended in by its share.
+///
+/// The blend is a mixture of the two BRDFs, (1 − s)·mean + s·own, sampled
+/// as one (multiple importance sampling sees one BSDF): its expected value
+/// is that of shading the vertex by the mean with probability 1 − s and by
+/// its own facet otherwise, and its variance lower, as the own facet's
+/// glint enters every sample scaled by s instead of a share of them
+/// unscaled.
+#[derive(Clone, Copy)]
+pub(crate) struct FacetMix<'a> {
+    mean: FacetMean<'a>,
+    /// The facet under the point and its share s, in (0, 1).
+    own: Option<(Facet<'a>, f64)>,
+}
+
+/// The facets' mean at a vertex. It lives on the stack for one vertex, so
+/// the drawn variant's size is not boxed away (that would allocate at
+/// every such vertex).
 #[allow(clippy::large_enum_variant)]
-pub(crate) enum FacetMix<'a> {
-    /// [`FACETS_PER_VERTEX`] facets drawn for the vertex.
+#[derive(Clone, Copy)]
+enum FacetMean<'a> {
+    /// [`FACETS_PER_VERTEX`] facets drawn for the vertex: a mixture of
+    /// their BRDFs with equal weights.
     Drawn([Facet<'a>; FACETS_PER_VERTEX]),
     /// The facets' tabulated mean reflection (`render::glitter_aggregate`).
     Tabulated(TableAt<'a>),
@@ -199,17 +251,34 @@ impl<'a> FacetMix<'a> {
         normals: &[DVec3; FACETS_PER_VERTEX],
         wo: DVec3,
     ) -> Self {
-        Self::Drawn(std::array::from_fn(|k| {
-            let normal = normals[k];
-            let (tangent, bitangent) = normal.any_orthonormal_pair();
-            let local_wo = DVec3::new(wo.dot(tangent), wo.dot(bitangent), wo.dot(normal));
-            Facet {
-                tangent,
-                bitangent,
-                normal,
-                brdf_at: brdf.at(local_wo),
-            }
-        }))
+        Self {
+            mean: FacetMean::Drawn(std::array::from_fn(|k| Facet::new(brdf, normals[k], wo))),
+            own: None,
+        }
+    }
+
+    /// The facets' tabulated mean at a vertex.
+    pub(crate) fn tabulated(table: TableAt<'a>) -> Self {
+        Self {
+            mean: FacetMean::Tabulated(table),
+            own: None,
+        }
+    }
+
+    /// Blends the facet of `brdf` whose unit normal (world, facing `wo`) is
+    /// `normal` into this mean by its share `share`, where that is in
+    /// (0, 1) (0: the mean alone).
+    #[inline(never)]
+    pub(crate) fn blend_own_facet(
+        &mut self,
+        brdf: &'a LayeredBrdf,
+        normal: DVec3,
+        wo: DVec3,
+        share: f32,
+    ) {
+        if share > 0.0 {
+            self.own = Some((Facet::new(brdf, normal, wo), share.into()));
+        }
     }
 
     /// The mixture's f·cosθi (each facet's cosine its own) towards the
@@ -218,38 +287,62 @@ impl<'a> FacetMix<'a> {
     /// with drawn facets is rare, and the path tracer's loop stays small.
     #[inline(never)]
     pub(crate) fn eval_cos_and_pdf(&self, wi: DVec3) -> (Rgb, f64) {
-        let facets = match self {
-            Self::Drawn(facets) => facets,
-            Self::Tabulated(table) => return table.eval_cos_and_pdf(wi),
-        };
-        let (value, pdf) = facets.iter().fold((Rgb::ZERO, 0.0), |(value, pdf), facet| {
-            let local = facet.local(wi);
-            if local.z <= 0.0 {
-                return (value, pdf);
+        let (value, pdf) = match &self.mean {
+            FacetMean::Drawn(facets) => {
+                let (value, pdf) = facets.iter().fold((Rgb::ZERO, 0.0), |(value, pdf), facet| {
+                    let (v, p) = facet.eval_cos_and_pdf(wi);
+                    (value + v, pdf + p)
+                });
+                let share = 1.0 / FACETS_PER_VERTEX as f64;
+                (value * share, pdf * share)
             }
-            let (f, p) = facet.brdf_at.eval_and_pdf(local);
-            (value + f * local.z, pdf + p)
-        });
-        let share = 1.0 / FACETS_PER_VERTEX as f64;
-        (value * share, pdf * share)
+            FacetMean::Tabulated(table) => table.eval_cos_and_pdf(wi),
+        };
+        match &self.own {
+            None => (value, pdf),
+            Some((facet, share)) => {
+                let (own_value, own_pdf) = facet.eval_cos_and_pdf(wi);
+                let mean_share = 1.0 - share;
+                (
+                    value * mean_share + own_value * *share,
+                    pdf * mean_share + own_pdf * share,
+                )
+            }
+        }
     }
 
-    /// A direction (world) from three uniform numbers: a facet by the
-    /// first, then its BRDF's sample; (ωi, the mixture's f·cosθi over its
+    /// A direction (world) from three uniform numbers: a part of the blend
+    /// by the first (the own facet above 1 − s), then a drawn facet by it,
+    /// then that BRDF's sample; (ωi, the mixture's f·cosθi over its
     /// density, that density).
     #[inline(never)]
-    pub(crate) fn sample(&self, u: [f64; 3]) -> Option<(DVec3, Rgb, f64)> {
-        let facets = match self {
-            Self::Drawn(facets) => facets,
-            Self::Tabulated(table) => return table.sample(u),
+    pub(crate) fn sample(&self, [u0, u1, u2]: [f64; 3]) -> Option<(DVec3, Rgb, f64)> {
+        let mut u0 = u0;
+        if let Some((facet, share)) = &self.own {
+            let mean_share = 1.0 - share;
+            if u0 >= mean_share {
+                return self.weighed(facet.sample_direction([
+                    (u0 - mean_share) / share,
+                    u1,
+                    u2,
+                ])?);
+            }
+            u0 /= mean_share;
+        }
+        let wi = match &self.mean {
+            FacetMean::Drawn(facets) => {
+                let scaled = u0 * FACETS_PER_VERTEX as f64;
+                let k = (scaled as usize).min(FACETS_PER_VERTEX - 1);
+                facets[k].sample_direction([scaled - k as f64, u1, u2])?
+            }
+            FacetMean::Tabulated(table) => table.sample_direction([u0, u1, u2])?,
         };
-        let scaled = u[0] * FACETS_PER_VERTEX as f64;
-        let k = (scaled as usize).min(FACETS_PER_VERTEX - 1);
-        let facet = &facets[k];
-        let sample = facet.brdf_at.sample([scaled - k as f64, u[1], u[2]])?;
-        let wi = facet.tangent * sample.wi.x
-            + facet.bitangent * sample.wi.y
-            + facet.normal * sample.wi.z;
+        self.weighed(wi)
+    }
+
+    /// The sampled `wi` with the mixture's f·cosθi over its density, and
+    /// that density.
+    fn weighed(&self, wi: DVec3) -> Option<(DVec3, Rgb, f64)> {
         let (value, pdf) = self.eval_cos_and_pdf(wi);
         (pdf > 0.0).then(|| (wi, value / pdf, pdf))
     }
@@ -395,33 +488,39 @@ mod tests {
             for (view, (wo, rotation)) in views().into_iter().enumerate() {
                 let mut rng = Rng::new(view as u64, 9);
                 let normals = draw_at(&glitter, (wo, rotation), &mut rng);
-                let mix = FacetMix::new(&brdf, &normals, wo);
-                let (expected, range) =
-                    hemisphere_cells(|w| mix.eval_cos_and_pdf(w).1, N_COS, N_PHI, FINE);
-                let samples = 500_000;
-                let mut observed = vec![0u32; N_COS * N_PHI];
-                let mut sampler = Rng::new(4, 2);
-                for _ in 0..samples {
-                    let Some((wi, weight, pdf)) = mix.sample(sampler.next_3()) else {
-                        continue;
-                    };
-                    let (value, eval_pdf) = mix.eval_cos_and_pdf(wi);
-                    assert!(
-                        (eval_pdf - pdf).abs() <= 1e-9 * pdf,
-                        "{name}: {eval_pdf} vs {pdf}"
-                    );
-                    let relative = (value / pdf - weight).abs() / weight.max(Rgb::splat(1e-9));
-                    assert!(
-                        relative.max_element() <= 1e-9,
-                        "{name}: {value} vs {weight}"
-                    );
-                    if wi.z > 0.0 {
-                        observed[hemisphere_cell(wi, N_COS, N_PHI)] += 1;
+                let drawn = FacetMix::new(&brdf, &normals, wo);
+                // Blended with a facet of its own by 0.4, as where a
+                // footprint holds a few hundred facets.
+                let mut blended = drawn;
+                blended.blend_own_facet(&brdf, normals[3], wo, 0.4);
+                for (mix, part) in [(drawn, "drawn"), (blended, "blended")] {
+                    let (expected, range) =
+                        hemisphere_cells(|w| mix.eval_cos_and_pdf(w).1, N_COS, N_PHI, FINE);
+                    let samples = 500_000;
+                    let mut observed = vec![0u32; N_COS * N_PHI];
+                    let mut sampler = Rng::new(4, 2);
+                    for _ in 0..samples {
+                        let Some((wi, weight, pdf)) = mix.sample(sampler.next_3()) else {
+                            continue;
+                        };
+                        let (value, eval_pdf) = mix.eval_cos_and_pdf(wi);
+                        assert!(
+                            (eval_pdf - pdf).abs() <= 1e-9 * pdf,
+                            "{name}: {eval_pdf} vs {pdf}"
+                        );
+                        let relative = (value / pdf - weight).abs() / weight.max(Rgb::splat(1e-9));
+                        assert!(
+                            relative.max_element() <= 1e-9,
+                            "{name}: {value} vs {weight}"
+                        );
+                        if wi.z > 0.0 {
+                            observed[hemisphere_cell(wi, N_COS, N_PHI)] += 1;
+                        }
                     }
+                    let expected: Vec<f64> = expected.iter().map(|e| e * samples as f64).collect();
+                    let tally = Tally::new(&expected, &observed, &range);
+                    tally.assert_agrees(100, &format!("{name}, view {view}, {part}"));
                 }
-                let expected: Vec<f64> = expected.iter().map(|e| e * samples as f64).collect();
-                let tally = Tally::new(&expected, &observed, &range);
-                tally.assert_agrees(100, &format!("{name}, view {view}"));
             }
         }
     }
@@ -438,20 +537,24 @@ mod tests {
             for (view, (wo, rotation)) in views().into_iter().enumerate() {
                 let mut rng = Rng::new(view as u64, 5);
                 let normals = draw_at(&glitter, (wo, rotation), &mut rng);
-                let mix = FacetMix::new(&white, &normals, wo);
-                let integral = cap_grid(-1.0, 400, 800).fold(Rgb::ZERO, |sum, (wi, cell)| {
-                    sum + mix.eval_cos_and_pdf(wi).0 * cell
-                });
-                assert!(
-                    (integral - Rgb::ONE).abs().max_element() < 2e-3,
-                    "{name}, view {view}: {integral}"
-                );
-                for _ in 0..10_000 {
-                    if let Some((_, weight, _)) = mix.sample(rng.next_3()) {
-                        assert!(
-                            (weight - Rgb::ONE).abs().max_element() < 1e-9,
-                            "{name}, view {view}: {weight}"
-                        );
+                let drawn = FacetMix::new(&white, &normals, wo);
+                let mut blended = drawn;
+                blended.blend_own_facet(&white, normals[5], wo, 0.6);
+                for mix in [drawn, blended] {
+                    let integral = cap_grid(-1.0, 400, 800).fold(Rgb::ZERO, |sum, (wi, cell)| {
+                        sum + mix.eval_cos_and_pdf(wi).0 * cell
+                    });
+                    assert!(
+                        (integral - Rgb::ONE).abs().max_element() < 2e-3,
+                        "{name}, view {view}: {integral}"
+                    );
+                    for _ in 0..10_000 {
+                        if let Some((_, weight, _)) = mix.sample(rng.next_3()) {
+                            assert!(
+                                (weight - Rgb::ONE).abs().max_element() < 1e-9,
+                                "{name}, view {view}: {weight}"
+                            );
+                        }
                     }
                 }
             }
