@@ -38,7 +38,7 @@ use glam::{DQuat, DVec3};
 
 use crate::brdf::compensation::material_key;
 use crate::brdf::{LayeredBrdf, Rgb};
-use crate::render::glitter_facets::{GlitterFacets, FACETS_PER_VERTEX};
+use crate::render::glitter_facets::{Facet, GlitterFacets, FACETS_PER_VERTEX};
 use crate::sampling::{sin_cos_turns, Rng};
 use crate::texture::pattern::FacetBumpMap;
 
@@ -97,17 +97,14 @@ impl Row {
         for _ in 0..FACET_DRAWS_PER_ROW {
             let normals = facets.draw((DVec3::Z, DVec3::Z, DQuat::IDENTITY), wo, rng);
             for normal in normals {
-                let (tangent, bitangent) = normal.any_orthonormal_pair();
-                let local_wo = DVec3::new(wo.dot(tangent), wo.dot(bitangent), wo.dot(normal));
-                let brdf_at = brdf.at(local_wo);
+                let facet = Facet::new(brdf, normal, wo);
                 for _ in 0..SAMPLES_PER_FACET {
-                    let Some(sample) = brdf_at.sample(rng.next_3()) else {
+                    let Some((wi, weight)) = facet.sample(rng.next_3()) else {
                         continue;
                     };
-                    let wi = tangent * sample.wi.x + bitangent * sample.wi.y + normal * sample.wi.z;
                     // Light from below the stone's surface reaches no facet.
                     if wi.z > 0.0 {
-                        sums[cell_of(wi)] += sample.weight();
+                        sums[cell_of(wi)] += weight;
                     }
                 }
             }
@@ -353,7 +350,7 @@ impl<'a> TableAt<'a> {
     }
 
     /// The table's f·cosθi towards the unit `wi` (world) and the density
-    /// with which [`Self::sample`] draws it.
+    /// with which [`Self::sample_direction`] draws it.
     pub(crate) fn eval_cos_and_pdf(&self, wi: DVec3) -> (Rgb, f64) {
         let local = DVec3::new(
             wi.dot(self.towards_wo),

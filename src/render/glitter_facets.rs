@@ -172,7 +172,7 @@ pub(crate) struct Facet<'a> {
 impl<'a> Facet<'a> {
     /// `brdf` in the frame of the unit `normal` (world, facing `wo`), seen
     /// from the unit `wo` (world).
-    fn new(brdf: &'a LayeredBrdf, normal: DVec3, wo: DVec3) -> Self {
+    pub(crate) fn new(brdf: &'a LayeredBrdf, normal: DVec3, wo: DVec3) -> Self {
         let (tangent, bitangent) = normal.any_orthonormal_pair();
         let local_wo = DVec3::new(wo.dot(tangent), wo.dot(bitangent), wo.dot(normal));
         Facet {
@@ -204,10 +204,19 @@ impl<'a> Facet<'a> {
     }
 
     /// A direction (world) drawn by the facet's BRDF from three uniform
-    /// numbers.
+    /// numbers, and its weight f·cosθi over the density.
+    pub(crate) fn sample(&self, u: [f64; 3]) -> Option<(DVec3, Rgb)> {
+        let sample = self.brdf_at.sample(u)?;
+        let wi = sample.wi;
+        Some((
+            self.tangent * wi.x + self.bitangent * wi.y + self.normal * wi.z,
+            sample.weight(),
+        ))
+    }
+
+    /// [`Self::sample`]'s direction alone.
     fn sample_direction(&self, u: [f64; 3]) -> Option<DVec3> {
-        let wi = self.brdf_at.sample(u)?.wi;
-        Some(self.tangent * wi.x + self.bitangent * wi.y + self.normal * wi.z)
+        self.sample(u).map(|(wi, _)| wi)
     }
 }
 
