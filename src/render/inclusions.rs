@@ -77,21 +77,24 @@ impl Inclusions {
     #[cfg(test)]
     pub(super) fn centre_and_radius(&self, cell: IVec3) -> (u64, DVec3, f64) {
         let h = cell_hash(cell, self.seed);
-        let (centre, radius) = self.centre_and_radius_of(cell.as_dvec3(), h);
-        (h, centre, radius)
+        let (centre, radius) = self.centre_and_radius_of(cell.as_dvec3().to_array(), h);
+        (h, DVec3::from_array(centre), radius)
     }
 
     /// The centre and radius of the flake of the cell whose lowest corner
     /// is `cell` (in cells) and whose hash is `h`: the radius and the three
     /// coordinates from the hash's four 16-bit fields (a 2⁻¹⁶ of a cell is
-    /// nanometres).
+    /// nanometres). Written axis by axis: in the walk's loop, three-lane
+    /// vectors cost shuffles that scalars do not.
     #[inline(always)]
-    fn centre_and_radius_of(&self, cell: DVec3, h: u64) -> (DVec3, f64) {
+    fn centre_and_radius_of(&self, cell: [f64; 3], h: u64) -> ([f64; 3], f64) {
         let radius = self.radius_mm * (1.0 + self.size_spread * (2.0 * field_16(h, 0) - 1.0));
         // The centre at least `radius` from every face, uniform between:
         // the flake, a disc of that radius at most, stays in its cell.
-        let jitter = DVec3::new(field_16(h, 1), field_16(h, 2), field_16(h, 3));
-        let centre = cell * self.cell_mm + radius + jitter * (self.cell_mm - 2.0 * radius);
+        let span = self.cell_mm - 2.0 * radius;
+        let centre = std::array::from_fn(|axis| {
+            cell[axis] * self.cell_mm + radius + field_16(h, axis as u32 + 1) * span
+        });
         (centre, radius)
     }
 
@@ -197,18 +200,20 @@ impl Inclusions {
         if !(origin.is_finite() && direction.is_finite() && t_max > 0.0) {
             return None;
         }
-        // Amanatides & Woo. Which axis comes next is a coin toss, so the
-        // step is taken on all three axes at once, each by its own select
-        // (no branch, and no array indexed by the axis, whose stores and
-        // reloads would chain one cell to the next through memory).
+        // Amanatides & Woo, axis by axis in scalars: three-lane vectors
+        // cost shuffles in this loop, and a step's branch on the axis
+        // (mispredicted about as often as it is a coin toss) measured no
+        // slower than stepping all three axes by masks, in fewer
+        // instructions. No array indexed by the axis: its stores and
+        // reloads would chain one cell to the next through memory.
         let scaled = origin / self.cell_mm;
-        let mut cell = floor(scaled);
+        let cell = floor(scaled);
         let step = DVec3::select(direction.cmpge(DVec3::ZERO), DVec3::ONE, -DVec3::ONE);
         // t (mm) at which the ray crosses the next cell face on each axis,
         // and between two faces (infinite along an axis it does not move on).
         let boundary = cell + DVec3::select(step.cmpgt(DVec3::ZERO), DVec3::ONE, DVec3::ZERO);
         let moves = direction.cmpne(DVec3::ZERO);
-        let mut t_next = DVec3::select(
+        let t_next = DVec3::select(
             moves,
             (boundary - scaled) * self.cell_mm / direction,
             DVec3::INFINITY,
@@ -220,52 +225,71 @@ impl Inclusions {
         });
         let mut sum = cell_sum(cell.as_ivec3(), self.seed);
         let frame = self.alignment_frame();
+        let [mut tx, mut ty, mut tz] = t_next.to_array();
+        let [dtx, dty, dtz] = t_delta.to_array();
+        let [mut cx, mut cy, mut cz] = cell.to_array();
+        let [sx, sy, sz] = step.to_array();
+        let [ox, oy, oz] = origin.to_array();
+        let [dx, dy, dz] = direction.to_array();
         let mut t_enter = 0.0;
         for _ in 0..MAX_CELLS_WALKED {
             if t_enter >= t_max {
                 return None;
             }
-            if let Some(hit) = self.crossing(cell, mix64(sum), frame, origin, direction, t_max) {
-                return Some(hit);
+            let h = mix64(sum);
+            // The flake lies in the sphere of its radius about its centre:
+            // most cells end at this test.
+            let (centre, radius) = self.centre_and_radius_of([cx, cy, cz], h);
+            let (qx, qy, qz) = (centre[0] - ox, centre[1] - oy, centre[2] - oz);
+            let closest = qx * dx + qy * dy + qz * dz;
+            if qx * qx + qy * qy + qz * qz - closest * closest <= radius * radius {
+                let centre = DVec3::from_array(centre);
+                if let Some(hit) = self.crossing(h, centre, radius, frame, origin, direction, t_max)
+                {
+                    return Some(hit);
+                }
             }
             // The nearest face: x on ties with y or z, then y on ties with z.
-            let x_next = t_next.x <= t_next.y && t_next.x <= t_next.z;
-            let y_next = !x_next && t_next.y <= t_next.z;
-            let z_next = !x_next && !y_next;
-            let next = glam::BVec3::new(x_next, y_next, z_next);
-            t_enter = t_next.min_element();
-            t_next += DVec3::select(next, t_delta, DVec3::ZERO);
-            cell += DVec3::select(next, step, DVec3::ZERO);
-            sum = sum
-                .wrapping_add(stride[0] & u64::from(x_next).wrapping_neg())
-                .wrapping_add(stride[1] & u64::from(y_next).wrapping_neg())
-                .wrapping_add(stride[2] & u64::from(z_next).wrapping_neg());
+            if tx <= ty && tx <= tz {
+                t_enter = tx;
+                tx += dtx;
+                cx += sx;
+                sum = sum.wrapping_add(stride[0]);
+            } else if ty <= tz {
+                t_enter = ty;
+                ty += dty;
+                cy += sy;
+                sum = sum.wrapping_add(stride[1]);
+            } else {
+                t_enter = tz;
+                tz += dtz;
+                cz += sz;
+                sum = sum.wrapping_add(stride[2]);
+            }
         }
         None
     }
 
-    /// The ray's crossing of the flake of the cell with lowest corner
-    /// `cell` (hash `h`), for 0 < t < `t_max`; `frame` as for
-    /// [`Self::flake_normal`].
+    /// The ray's crossing of the flake of hash `h`, centre `centre` and
+    /// radius `radius`, for 0 < t < `t_max`, once the ray has met the
+    /// sphere of that radius about the centre (which holds the flake);
+    /// `frame` as for [`Self::flake_normal`].
     #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     fn crossing(
         &self,
-        cell: DVec3,
         h: u64,
+        centre: DVec3,
+        radius: f64,
         frame: (DVec3, DVec3),
         origin: DVec3,
         direction: DVec3,
         t_max: f64,
     ) -> Option<FlakeHit> {
-        let (centre, radius) = self.centre_and_radius_of(cell, h);
-        // The flake lies in the sphere of its radius about its centre.
-        let to_centre = centre - origin;
-        let closest = to_centre.dot(direction);
-        if to_centre.length_squared() - closest * closest > radius * radius
-            || !self.keeps(h, centre)
-        {
+        if !self.keeps(h, centre) {
             return None;
         }
+        let to_centre = centre - origin;
         let orientation = unit_triple_21bit(derive_stream(h, 0));
         let normal = self.flake_normal(orientation, frame);
         let along = direction.dot(normal);
