@@ -16,7 +16,8 @@
 //! deterministic), so either may stay.
 //!
 //! On disk: one small text file per material, named by a hash of the key
-//! and holding the format version, the key itself (checked on reading, so
+//! and of the program's identity (builds that share a folder keep their
+//! own files), and holding the format version, the key itself (checked on reading, so
 //! a hash collision is a miss), the identity of the program that wrote it
 //! (its size and modification time: any rebuild, which may change how
 //! tables are computed, invalidates every file), and E_single and E_stack
@@ -24,6 +25,8 @@
 //! [`Compensation::from_albedos`] rebuilds the table bit for bit. Files are
 //! written to a temporary name and renamed, so a reader never sees half a
 //! file; a file that cannot be read or parsed is ignored and rewritten.
+//! The folder keeps at most [`MAX_FOLDER_BYTES`] of tables: a write
+//! removes the files read or written least recently beyond it.
 
 use crate::brdf::compensation::{
     material_key, needs_no_table, AlbedoPair, Compensation, TABLE_NODES,
@@ -213,9 +216,69 @@ fn fnv1a(text: &str) -> u64 {
     })
 }
 
-/// The file of `key` in `dir`.
+/// The hash that names the files of `key` written by the program of
+/// `identity`: two builds that share a folder (one installed, one being
+/// developed; two versions on a farm) keep their own files side by side
+/// instead of rewriting each other's on every run.
+fn file_hash(identity: &str, key: &str) -> u64 {
+    fnv1a(&format!("{identity}\n{key}"))
+}
+
+/// The file of `key` in `dir`, for this program.
 pub fn cache_file(dir: &Path, key: &str) -> PathBuf {
-    dir.join(format!("compensation-{:016x}.txt", fnv1a(key)))
+    dir.join(format!(
+        "{COMPENSATION_PREFIX}{:016x}.txt",
+        file_hash(program_identity(), key)
+    ))
+}
+
+/// How file names of compensation tables and of tables of numbers begin.
+const COMPENSATION_PREFIX: &str = "compensation-";
+/// See [`COMPENSATION_PREFIX`].
+const VALUES_PREFIX: &str = "values-";
+
+/// The most bytes of table files a folder keeps: beyond it, each write
+/// removes the files used least recently (a build's tables are about
+/// 2 MB a material, so this holds dozens of builds' worth).
+const MAX_FOLDER_BYTES: u64 = 256 << 20;
+
+/// Removes the table files of `dir` used least recently (by modification
+/// time, which a read renews) until the rest take at most `limit` bytes.
+/// Files it cannot read or remove are left (a cache only costs time).
+fn prune(dir: &Path, limit: u64) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let mut files: Vec<(std::time::SystemTime, u64, PathBuf)> = entries
+        .flatten()
+        .filter(|entry| {
+            let name = entry.file_name();
+            let name = name.to_string_lossy();
+            name.starts_with(COMPENSATION_PREFIX) || name.starts_with(VALUES_PREFIX)
+        })
+        .filter_map(|entry| {
+            let metadata = entry.metadata().ok()?;
+            Some((metadata.modified().ok()?, metadata.len(), entry.path()))
+        })
+        .collect();
+    let mut total: u64 = files.iter().map(|(_, size, _)| size).sum();
+    files.sort();
+    for (_, size, path) in files {
+        if total <= limit {
+            break;
+        }
+        if std::fs::remove_file(&path).is_ok() {
+            total -= size;
+        }
+    }
+}
+
+/// Marks `path` as just used (its modification time), so that
+/// [`prune`] keeps it longest.
+fn mark_used(path: &Path) {
+    if let Ok(file) = std::fs::File::options().append(true).open(path) {
+        let _ = file.set_modified(std::time::SystemTime::now());
+    }
 }
 
 /// The first three lines of a file for `key` written by this program.
@@ -230,8 +293,10 @@ fn header(key: &str) -> String {
 /// is from another format or program, or for another key, or malformed.
 /// `Some(None)`: stored as "no compensation needed".
 pub fn load(dir: &Path, key: &str) -> Option<Option<Compensation>> {
-    let text = std::fs::read_to_string(cache_file(dir, key)).ok()?;
+    let path = cache_file(dir, key);
+    let text = std::fs::read_to_string(&path).ok()?;
     let body = text.strip_prefix(&header(key))?;
+    mark_used(&path);
     if body.trim_end() == "none" {
         return Some(None);
     }
@@ -290,12 +355,17 @@ fn write_atomically(dir: &Path, target: &Path, bytes: &[u8]) -> std::io::Result<
     std::fs::write(&temporary, bytes)?;
     std::fs::rename(&temporary, target).inspect_err(|_| {
         let _ = std::fs::remove_file(&temporary);
-    })
+    })?;
+    prune(dir, MAX_FOLDER_BYTES);
+    Ok(())
 }
 
-/// The file of the table of numbers `key` in `dir`.
+/// The file of the table of numbers `key` in `dir`, for this program.
 fn values_file(dir: &Path, key: &str) -> PathBuf {
-    dir.join(format!("values-{:016x}.bin", fnv1a(key)))
+    dir.join(format!(
+        "{VALUES_PREFIX}{:016x}.bin",
+        file_hash(program_identity(), key)
+    ))
 }
 
 /// The header of a file of numbers for `key` written by this program.
@@ -319,8 +389,10 @@ fn values_bytes(key: &str, values: &[f64]) -> Vec<u8> {
 /// from another format or program, for another key, cut short or holds a
 /// number that is not finite.
 fn load_values(dir: &Path, key: &str) -> Option<Vec<f64>> {
-    let bytes = std::fs::read(values_file(dir, key)).ok()?;
+    let path = values_file(dir, key);
+    let bytes = std::fs::read(&path).ok()?;
     let body = bytes.strip_prefix(values_header(key).as_bytes())?;
+    mark_used(&path);
     if body.len() % 8 != 0 {
         return None;
     }
@@ -366,6 +438,45 @@ mod tests {
         let memory = TableCache::in_memory();
         memory.store_values("k", &numbers);
         assert_eq!(memory.values("k").as_deref(), Some(&numbers[..]));
+        let _ = std::fs::remove_dir_all(&folder);
+    }
+
+    #[test]
+    fn builds_name_their_files_apart_and_the_folder_keeps_the_files_used_last() {
+        // Another program's file of the same key has another name.
+        assert_ne!(
+            file_hash("100 bytes, modified 1 ns", "k"),
+            file_hash("100 bytes, modified 2 ns", "k")
+        );
+        assert_ne!(file_hash("p", "k"), file_hash("p", "k2"));
+        let folder = std::env::temp_dir().join(format!("lapidary-prune-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&folder);
+        std::fs::create_dir_all(&folder).unwrap();
+        let epoch = std::time::UNIX_EPOCH;
+        let write = |name: &str, size: usize, age_s: u64| {
+            let path = folder.join(name);
+            std::fs::write(&path, vec![0u8; size]).unwrap();
+            let file = std::fs::File::options().append(true).open(&path).unwrap();
+            file.set_modified(epoch + std::time::Duration::from_secs(1_000_000 - age_s))
+                .unwrap();
+        };
+        write("values-old.bin", 400, 300);
+        write("compensation-middle.txt", 400, 200);
+        write("values-new.bin", 400, 100);
+        write("someone-else.txt", 4000, 400);
+        // Reading a file marks it used: the oldest becomes the newest.
+        mark_used(&folder.join("values-old.bin"));
+        prune(&folder, 900);
+        let mut left: Vec<String> = std::fs::read_dir(&folder)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(
+            left,
+            ["someone-else.txt", "values-new.bin", "values-old.bin"],
+            "the least recently used table goes first; other files stay"
+        );
         let _ = std::fs::remove_dir_all(&folder);
     }
 }
