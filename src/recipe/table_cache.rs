@@ -25,7 +25,7 @@
 //! [`Compensation::from_albedos`] rebuilds the table bit for bit. Files are
 //! written to a temporary name and renamed, so a reader never sees half a
 //! file; a file that cannot be read or parsed is ignored and rewritten.
-//! The folder keeps at most [`MAX_FOLDER_BYTES`] of tables: a write
+//! The folder keeps at most 256 MiB of tables (`MAX_FOLDER_BYTES`): a write
 //! removes the files read or written least recently beyond it.
 
 use crate::brdf::compensation::{
