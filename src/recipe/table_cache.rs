@@ -17,10 +17,11 @@
 //!
 //! On disk: one small text file per material, named by a hash of the key
 //! and of the program's identity (builds that share a folder keep their
-//! own files), and holding the format version, the key itself (checked on reading, so
-//! a hash collision is a miss), the identity of the program that wrote it
-//! (its size and modification time: any rebuild, which may change how
-//! tables are computed, invalidates every file), and E_single and E_stack
+//! own files), and holding the format version, the key itself (checked on
+//! reading, so a hash collision is a miss), the identity of the program
+//! that wrote it (its size and modification time: any rebuild, which may
+//! change how tables are computed, reads none of the files of the builds
+//! before it), and E_single and E_stack
 //! per node as the hexadecimal bits of each `f64`, from which
 //! [`Compensation::from_albedos`] rebuilds the table bit for bit. Files are
 //! written to a temporary name and renamed, so a reader never sees half a
