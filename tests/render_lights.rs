@@ -13,7 +13,7 @@ use lapidary::recipe::gem::{compile_gem, Gem, GemSource, Tables};
 use lapidary::recipe::parse_material;
 use lapidary::recipe::TableCache;
 use lapidary::render::camera::PinholeCamera;
-use lapidary::render::environment::Environment;
+use lapidary::render::environment::{Environment, EnvironmentMap};
 use lapidary::render::film::{render, FilmSettings};
 use lapidary::render::flake_lobe::FlakeLobes;
 use lapidary::render::integrator::RenderScene;
@@ -41,6 +41,16 @@ fn compile_text(path: &str, text: &str) -> Result<Gem, lapidary::recipe::RecipeE
 /// Radiance of the floor point at the origin seen from an oblique camera
 /// (the mean over a 3 × 3 block of pixels around the film centre).
 fn floor_radiance(lights: Vec<Light>, stones: Vec<StoneInstance>, spp: u32) -> f64 {
+    floor_radiance_in(Environment::constant(Rgb::ZERO), lights, stones, spp)
+}
+
+/// [`floor_radiance`] under `environment`.
+fn floor_radiance_in(
+    environment: Environment,
+    lights: Vec<Light>,
+    stones: Vec<StoneInstance>,
+    spp: u32,
+) -> f64 {
     let gems = if stones.is_empty() {
         vec![]
     } else {
@@ -53,7 +63,7 @@ fn floor_radiance(lights: Vec<Light>, stones: Vec<StoneInstance>, spp: u32) -> f
         gems,
         ground_brdf: Some(white_lambert()),
         lights,
-        environment: Environment::constant(Rgb::ZERO),
+        environment,
         max_bounces: 0,
         ambient_occlusion: None,
         connect_through_surfaces: true,
@@ -153,6 +163,79 @@ fn a_sun_gives_its_irradiance_times_the_cosine() {
     let direction = DVec3::new(30f64.to_radians().cos(), 0.0, 0.5);
     let sun = Light::sun(direction, 0.53, Rgb::splat(2.0));
     assert_close(floor_radiance(vec![sun], vec![], 64), 1.0 / PI, 0.01, "sun");
+}
+
+#[test]
+fn with_more_lights_than_a_vertex_samples_their_irradiances_still_add() {
+    // Four lights, of which each vertex samples three (chosen by strata),
+    // weighted against BRDF sampling with their densities times 3/4: the
+    // floor's radiance is still the sum of the four closed forms above.
+    let (a, h, l) = (3.0_f64, 6.0_f64, 4.0_f64);
+    let x = a / h;
+    let s = (1.0 + x * x).sqrt();
+    let soft_box = PI * l * 4.0 * (2.0 * x / s * (x / s).atan()) / (2.0 * PI);
+    // A sphere wholly above the horizon: E = π L (r/d)² cos θ, here at
+    // d = 10 with cos θ = 0.6.
+    let sphere = PI * 20.0 * 0.04 * 0.6;
+    let expected = (3.2 + sphere + soft_box + 1.0) / PI;
+    let lights = vec![
+        Light::Point {
+            position: DVec3::new(3.0, 0.0, 4.0),
+            intensity: Rgb::splat(100.0),
+        },
+        Light::Sphere {
+            centre: DVec3::new(-8.0, 0.0, 6.0),
+            radius: 2.0,
+            radiance: Rgb::splat(20.0),
+        },
+        Light::Rect {
+            centre: DVec3::new(0.0, 0.0, h),
+            normal: -DVec3::Z,
+            u_axis: DVec3::X,
+            v_axis: DVec3::Y,
+            width: 2.0 * a,
+            height: 2.0 * a,
+            radiance: Rgb::splat(l),
+        },
+        Light::sun(
+            DVec3::new(30f64.to_radians().cos(), 0.0, 0.5),
+            0.53,
+            Rgb::splat(2.0),
+        ),
+    ];
+    assert_close(
+        floor_radiance(lights.clone(), vec![], 1024),
+        expected,
+        0.01,
+        "four lights",
+    );
+    // Two point lights, the sun and a sky map (sampled like a light): a
+    // sky of radiance 0.5 over the upper hemisphere (the 8 × 4 map's top
+    // two rows) gives the floor π · 0.5 (the sun hides none of it that
+    // matters: 10⁻⁵ of it).
+    let (width, height) = (8, 4);
+    let texels = (0..width * height)
+        .map(|i| {
+            if i < 2 * width {
+                Rgb::splat(0.5)
+            } else {
+                Rgb::ZERO
+            }
+        })
+        .collect();
+    let sky = Environment::Map(EnvironmentMap::new(width, height, texels, 0.0).unwrap());
+    // I = 50 at (−3, 2, 5): E = I cos θ / d² = 50 · 5 / 38^1.5.
+    let second_point = Light::Point {
+        position: DVec3::new(-3.0, 2.0, 5.0),
+        intensity: Rgb::splat(50.0),
+    };
+    let second = 250.0 / 38f64.powf(1.5);
+    assert_close(
+        floor_radiance_in(sky, vec![lights[0], second_point, lights[3]], vec![], 1024),
+        (3.2 + second + 1.0) / PI + 0.5,
+        0.01,
+        "two point lights, the sun and a sky map",
+    );
 }
 
 #[test]

@@ -21,7 +21,7 @@ use crate::render::flake_medium::{FlakeView, OwnCell};
 use crate::render::footprint::{aggregate_probability, RayCone};
 use crate::render::glitter_aggregate::TableAt;
 use crate::render::glitter_facets::{FacetMix, GlitterFacets};
-use crate::render::lights::Light;
+use crate::render::lights::{Light, LightSample};
 use crate::render::manifold::MAX_REFLECTIONS;
 use crate::render::medium::{
     beer_lambert, henyey_greenstein, sample_free_flight, sample_henyey_greenstein, SpectralPath,
@@ -76,6 +76,11 @@ pub struct RenderScene {
     /// own normal.
     pub flake_lobes: FlakeLobes,
 }
+
+/// The most light samples a vertex's next-event estimation draws (see
+/// [`RenderScene::for_each_light_sample`]): every emitter of a scene with
+/// a light and an environment map, as many as that of a scene with more.
+const MAX_LIGHT_SAMPLES: usize = 3;
 
 /// Scattering events a path may take inside translucent bodies (which are
 /// not bounces): a stone whose light scatters further is dark anyway.
@@ -743,7 +748,9 @@ impl RenderScene {
                         self.sampled_chain_weight(&vertex, light, origin, direction, t)
                     }
                     (Some((p, brdf_pdf)), None) => {
-                        power_heuristic(brdf_pdf, light.pdf(p, direction, t))
+                        let light_pdf =
+                            light.pdf(p, direction, t) * self.light_samples_per_emitter();
+                        power_heuristic(brdf_pdf, light_pdf)
                     }
                     (None, None) => 1.0,
                 };
@@ -763,6 +770,7 @@ impl RenderScene {
                         let (sky, light_pdf) = self
                             .environment
                             .radiance_and_pdf_in(direction, escape_texel);
+                        let light_pdf = light_pdf * self.light_samples_per_emitter();
                         (sky, power_heuristic(brdf_pdf, light_pdf))
                     }
                     _ => (self.environment.radiance_in(direction, escape_texel), 1.0),
@@ -873,7 +881,9 @@ impl RenderScene {
                 continue;
             }
             let wo_world = -direction;
-            self.prefetch_environment_sample(stream, self.lights.len());
+            if self.sampled_emitters() <= MAX_LIGHT_SAMPLES {
+                self.prefetch_environment_sample(stream, self.lights.len());
+            }
             let Some(shading) = self.shade(&hit, wo_world, cone.width_at(hit.t), stream) else {
                 break;
             };
@@ -922,12 +932,8 @@ impl RenderScene {
                 mix.blend_own_facet(shading.brdf, shading.frame.n, wo_world, at.own_share);
             }
 
-            // Next-event estimation: every light, then the environment.
-            for light in &self.lights {
-                let u = stream.next_2d();
-                let Some(sample) = light.sample(point, u) else {
-                    continue;
-                };
+            // Next-event estimation: the lights and the environment.
+            self.for_each_light_sample(point, stream, |sample| {
                 let contribution = self.direct(
                     &shading,
                     (&brdf_at, mix.as_ref()),
@@ -941,26 +947,7 @@ impl RenderScene {
                     counts,
                 );
                 radiance += throughput * contribution;
-            }
-            if let Some(sample) = self
-                .samples_environment()
-                .then(|| self.environment.sample(stream.next_2d()))
-                .flatten()
-            {
-                let contribution = self.direct(
-                    &shading,
-                    (&brdf_at, mix.as_ref()),
-                    &hit,
-                    point,
-                    sample.direction,
-                    f64::INFINITY,
-                    sample.radiance,
-                    sample.pdf,
-                    false,
-                    counts,
-                );
-                radiance += throughput * contribution;
-            }
+            });
 
             // Continue the path by sampling the BRDF: (ωi in world space,
             // f·cosθi/pdf, pdf).
@@ -1126,19 +1113,9 @@ impl RenderScene {
             }
             sum += incoming * (f * light_sample_scale(wi.z, pdf, bsdf_pdf, is_delta));
         };
-        for light in &self.lights {
-            let u = stream.next_2d();
-            if let Some(s) = light.sample(point, u) {
-                one(s.direction, s.distance, s.radiance, s.pdf, s.is_delta);
-            }
-        }
-        if let Some(s) = self
-            .samples_environment()
-            .then(|| self.environment.sample(stream.next_2d()))
-            .flatten()
-        {
-            one(s.direction, f64::INFINITY, s.radiance, s.pdf, false);
-        }
+        self.for_each_light_sample(point, stream, |s| {
+            one(s.direction, s.distance, s.radiance, s.pdf, s.is_delta);
+        });
         sum
     }
 
@@ -1171,6 +1148,90 @@ impl RenderScene {
         })
     }
 
+    /// The emitters next-event estimation samples: the lights, and the
+    /// environment when [`RenderScene::samples_environment`].
+    fn sampled_emitters(&self) -> usize {
+        self.lights.len() + usize::from(self.samples_environment())
+    }
+
+    /// How many samples of each emitter a vertex's next-event estimation
+    /// draws on average ([`RenderScene::for_each_light_sample`]): 1 while
+    /// there are at most [`MAX_LIGHT_SAMPLES`] emitters, else
+    /// [`MAX_LIGHT_SAMPLES`] shared among them. An emitter's light-sampling
+    /// density in the power heuristic is its own density times this.
+    #[inline(always)]
+    fn light_samples_per_emitter(&self) -> f64 {
+        let emitters = self.sampled_emitters();
+        if emitters <= MAX_LIGHT_SAMPLES {
+            1.0
+        } else {
+            MAX_LIGHT_SAMPLES as f64 / emitters as f64
+        }
+    }
+
+    /// Next-event estimation's light samples at `point`, each passed to
+    /// `take` with its density already multiplied by
+    /// [`RenderScene::light_samples_per_emitter`]: one sample of every
+    /// light, then of the environment, while there are at most
+    /// [`MAX_LIGHT_SAMPLES`] emitters; else [`MAX_LIGHT_SAMPLES`] samples,
+    /// each of an emitter chosen uniformly in its stratum of the emitters
+    /// (one number shared by the strata), so that a vertex's work stays
+    /// bounded however many lights a scene has. Each of a vertex's samples
+    /// then counts 1 / (its emitter's density × the expected samples of
+    /// that emitter): unbiased, and the weights with BRDF sampling still
+    /// sum to 1.
+    #[inline(always)]
+    fn for_each_light_sample(
+        &self,
+        point: DVec3,
+        stream: &mut SampleStream,
+        mut take: impl FnMut(LightSample),
+    ) {
+        let environment_sample = |u: [f64; 2], share: f64| {
+            self.environment.sample(u).map(|s| LightSample {
+                direction: s.direction,
+                distance: f64::INFINITY,
+                radiance: s.radiance,
+                pdf: s.pdf * share,
+                is_delta: false,
+            })
+        };
+        let emitters = self.sampled_emitters();
+        if emitters <= MAX_LIGHT_SAMPLES {
+            for light in &self.lights {
+                let u = stream.next_2d();
+                if let Some(sample) = light.sample(point, u) {
+                    take(sample);
+                }
+            }
+            if let Some(sample) = self
+                .samples_environment()
+                .then(|| environment_sample(stream.next_2d(), 1.0))
+                .flatten()
+            {
+                take(sample);
+            }
+            return;
+        }
+        let share = MAX_LIGHT_SAMPLES as f64 / emitters as f64;
+        let offset = stream.next_1d();
+        for stratum in 0..MAX_LIGHT_SAMPLES {
+            let position = (stratum as f64 + offset) / MAX_LIGHT_SAMPLES as f64;
+            let chosen = ((position * emitters as f64) as usize).min(emitters - 1);
+            let u = stream.next_2d();
+            let sample = match self.lights.get(chosen) {
+                Some(light) => light.sample(point, u).map(|s| LightSample {
+                    pdf: s.pdf * share,
+                    ..s
+                }),
+                None => environment_sample(u, share),
+            };
+            if let Some(sample) = sample {
+                take(sample);
+            }
+        }
+    }
+
     /// Whether next-event estimation samples the environment. A constant
     /// environment is left to BRDF sampling alone: for uniform incident
     /// radiance the BRDF's own importance (cosine-weighted for the diffuse
@@ -1189,7 +1250,7 @@ impl RenderScene {
     ///
     /// [`PixelSampler::refill`]: crate::render::sampler::PixelSampler::refill
     pub(crate) fn first_vertex_pairs(&self) -> u32 {
-        let pairs = 2 + self.lights.len() + usize::from(self.samples_environment());
+        let pairs = 2 + self.sampled_emitters().min(MAX_LIGHT_SAMPLES);
         pairs.min(SOBOL_PAIRS as usize) as u32
     }
 
