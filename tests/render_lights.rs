@@ -213,17 +213,6 @@ fn with_more_lights_than_a_vertex_samples_their_irradiances_still_add() {
     // sky of radiance 0.5 over the upper hemisphere (the 8 × 4 map's top
     // two rows) gives the floor π · 0.5 (the sun hides none of it that
     // matters: 10⁻⁵ of it).
-    let (width, height) = (8, 4);
-    let texels = (0..width * height)
-        .map(|i| {
-            if i < 2 * width {
-                Rgb::splat(0.5)
-            } else {
-                Rgb::ZERO
-            }
-        })
-        .collect();
-    let sky = Environment::Map(EnvironmentMap::new(width, height, texels, 0.0).unwrap());
     // I = 50 at (−3, 2, 5): E = I cos θ / d² = 50 · 5 / 38^1.5.
     let second_point = Light::Point {
         position: DVec3::new(-3.0, 2.0, 5.0),
@@ -231,10 +220,76 @@ fn with_more_lights_than_a_vertex_samples_their_irradiances_still_add() {
     };
     let second = 250.0 / 38f64.powf(1.5);
     assert_close(
-        floor_radiance_in(sky, vec![lights[0], second_point, lights[3]], vec![], 1024),
+        floor_radiance_in(
+            upper_sky(0.5),
+            vec![lights[0], second_point, lights[3]],
+            vec![],
+            1024,
+        ),
         (3.2 + second + 1.0) / PI + 0.5,
         0.01,
         "two point lights, the sun and a sky map",
+    );
+}
+
+/// An 8 × 4 sky map of `radiance` over the upper hemisphere (its top two
+/// rows), black below.
+fn upper_sky(radiance: f64) -> Environment {
+    let (width, height) = (8, 4);
+    let texels = (0..width * height)
+        .map(|i| {
+            if i < 2 * width {
+                Rgb::splat(radiance)
+            } else {
+                Rgb::ZERO
+            }
+        })
+        .collect();
+    Environment::Map(EnvironmentMap::new(width, height, texels, 0.0).unwrap())
+}
+
+#[test]
+fn a_light_hides_the_sky_behind_it_from_light_samples_too() {
+    // A soft box overhead in front of a sky of radiance 2: the floor sees
+    // the box (π L 4F) and the sky less the box's form factor 4F; light
+    // samples of the sky that pass through the box must count as blocked,
+    // as BRDF samples stop at it (else the hidden sky counts by its light
+    // samples' MIS weight). Alone, and with a point light and a sphere
+    // (four emitters, three sampled a vertex), whose (r/d)² cos θ = 0.024
+    // of the sky it also hides.
+    let (a, h, l) = (3.0_f64, 6.0_f64, 1.0_f64);
+    let x = a / h;
+    let s = (1.0 + x * x).sqrt();
+    let form_factor = 4.0 * x / s * (x / s).atan() / PI;
+    let soft_box = Light::Rect {
+        centre: DVec3::new(0.0, 0.0, h),
+        normal: -DVec3::Z,
+        u_axis: DVec3::X,
+        v_axis: DVec3::Y,
+        width: 2.0 * a,
+        height: 2.0 * a,
+        radiance: Rgb::splat(l),
+    };
+    assert_close(
+        floor_radiance_in(upper_sky(2.0), vec![soft_box], vec![], 1024),
+        l * form_factor + 2.0 * (1.0 - form_factor),
+        0.01,
+        "a soft box in front of the sky",
+    );
+    let point = Light::Point {
+        position: DVec3::new(3.0, 0.0, 4.0),
+        intensity: Rgb::splat(100.0),
+    };
+    let sphere = Light::Sphere {
+        centre: DVec3::new(-8.0, 0.0, 6.0),
+        radius: 2.0,
+        radiance: Rgb::splat(20.0),
+    };
+    assert_close(
+        floor_radiance_in(upper_sky(2.0), vec![point, sphere, soft_box], vec![], 1024),
+        3.2 / PI + 20.0 * 0.024 + l * form_factor + 2.0 * (1.0 - form_factor - 0.024),
+        0.01,
+        "a soft box and a sphere in front of the sky, and a point light",
     );
 }
 

@@ -933,17 +933,13 @@ impl RenderScene {
             }
 
             // Next-event estimation: the lights and the environment.
-            self.for_each_light_sample(point, stream, |sample| {
+            self.for_each_light_sample(point, stream, |sample, emitter| {
                 let contribution = self.direct(
                     &shading,
                     (&brdf_at, mix.as_ref()),
                     &hit,
                     point,
-                    sample.direction,
-                    sample.distance,
-                    sample.radiance,
-                    sample.pdf,
-                    sample.is_delta,
+                    (&sample, emitter),
                     counts,
                 );
                 radiance += throughput * contribution;
@@ -1095,7 +1091,14 @@ impl RenderScene {
         counts: &mut RayCounts,
     ) -> Rgb {
         let mut sum = Rgb::ZERO;
-        let mut one = |direction: DVec3, distance: f64, incoming: Rgb, pdf: f64, is_delta: bool| {
+        let mut one = |sample: LightSample, emitter: Option<usize>| {
+            let LightSample {
+                direction,
+                distance,
+                radiance: incoming,
+                pdf,
+                is_delta,
+            } = sample;
             let wi = frame.to_local(direction);
             if pdf <= 0.0 || wi.z <= 0.0 || incoming.max_element() <= 0.0 {
                 return;
@@ -1105,17 +1108,15 @@ impl RenderScene {
                 return;
             }
             counts.shadow += 1;
-            if self
-                .world
-                .occluded_leaving(point, direction, shadow_reach(distance), stone)
+            let reach = shadow_reach(distance);
+            if self.world.occluded_leaving(point, direction, reach, stone)
+                || self.another_light_blocks(point, direction, reach, emitter)
             {
                 return;
             }
             sum += incoming * (f * light_sample_scale(wi.z, pdf, bsdf_pdf, is_delta));
         };
-        self.for_each_light_sample(point, stream, |s| {
-            one(s.direction, s.distance, s.radiance, s.pdf, s.is_delta);
-        });
+        self.for_each_light_sample(point, stream, &mut one);
         sum
     }
 
@@ -1185,7 +1186,7 @@ impl RenderScene {
         &self,
         point: DVec3,
         stream: &mut SampleStream,
-        mut take: impl FnMut(LightSample),
+        mut take: impl FnMut(LightSample, Option<usize>),
     ) {
         let environment_sample = |u: [f64; 2], share: f64| {
             self.environment.sample(u).map(|s| LightSample {
@@ -1198,10 +1199,10 @@ impl RenderScene {
         };
         let emitters = self.sampled_emitters();
         if emitters <= MAX_LIGHT_SAMPLES {
-            for light in &self.lights {
+            for (index, light) in self.lights.iter().enumerate() {
                 let u = stream.next_2d();
                 if let Some(sample) = light.sample(point, u) {
-                    take(sample);
+                    take(sample, Some(index));
                 }
             }
             if let Some(sample) = self
@@ -1209,7 +1210,7 @@ impl RenderScene {
                 .then(|| environment_sample(stream.next_2d(), 1.0))
                 .flatten()
             {
-                take(sample);
+                take(sample, None);
             }
             return;
         }
@@ -1227,9 +1228,33 @@ impl RenderScene {
                 None => environment_sample(u, share),
             };
             if let Some(sample) = sample {
-                take(sample);
+                take(sample, (chosen < self.lights.len()).then_some(chosen));
             }
         }
+    }
+
+    /// Whether a light other than the sampled one (`sampled`, an index of
+    /// [`RenderScene::lights`]; None for the environment) lies on a shadow
+    /// ray within `reach`. A light's surface stops the rays that BRDF
+    /// sampling follows ([`RenderScene::nearest_light`]), so it must stop
+    /// light samples too: else the light behind it would count by its
+    /// samples' MIS weight where BRDF sampling never sees it. The sun,
+    /// which BRDF-sampled rays pass on to the sky, blocks nothing, nor
+    /// does a point light.
+    #[inline(always)]
+    pub(crate) fn another_light_blocks(
+        &self,
+        point: DVec3,
+        direction: DVec3,
+        reach: f64,
+        sampled: Option<usize>,
+    ) -> bool {
+        self.lights.iter().enumerate().any(|(index, light)| {
+            Some(index) != sampled
+                && light
+                    .hit(point, direction, reach)
+                    .is_some_and(|(t, _)| t.is_finite())
+        })
     }
 
     /// Whether next-event estimation samples the environment. A constant
@@ -1317,13 +1342,16 @@ impl RenderScene {
         (brdf_at, mix): (&BrdfAt<'_>, Option<&FacetMix<'_>>),
         hit: &SurfaceHit,
         point: DVec3,
-        direction: DVec3,
-        distance: f64,
-        incoming: Rgb,
-        pdf: f64,
-        is_delta: bool,
+        (sample, emitter): (&LightSample, Option<usize>),
         counts: &mut RayCounts,
     ) -> Rgb {
+        let LightSample {
+            direction,
+            distance,
+            radiance: incoming,
+            pdf,
+            is_delta,
+        } = *sample;
         let cos_stone = direction.dot(hit.normal);
         if pdf <= 0.0 || cos_stone <= 0.0 {
             return Rgb::ZERO;
@@ -1349,9 +1377,11 @@ impl RenderScene {
             return Rgb::ZERO;
         }
         counts.shadow += 1;
+        let reach = shadow_reach(distance);
         if self
             .world
-            .occluded_leaving(point, direction, shadow_reach(distance), hit.stone_index())
+            .occluded_leaving(point, direction, reach, hit.stone_index())
+            || self.another_light_blocks(point, direction, reach, emitter)
         {
             return Rgb::ZERO;
         }

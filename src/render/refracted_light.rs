@@ -267,12 +267,17 @@ impl RenderScene {
             }
             *shadow_rays += 1;
             let start = path.exit.point + path.exit.normal * RAY_OFFSET;
-            if self.world.occluded_leaving(
-                start,
-                path.outside_direction,
-                shadow_reach(path.outside_length),
-                Some(stone),
-            ) {
+            let reach = shadow_reach(path.outside_length);
+            if self
+                .world
+                .occluded_leaving(start, path.outside_direction, reach, Some(stone))
+                || self.another_light_blocks(
+                    start,
+                    path.outside_direction,
+                    reach,
+                    (chosen < self.lights.len()).then_some(chosen),
+                )
+            {
                 return None;
             }
             let jacobian = path.inside_solid_angle_per_target_measure;
