@@ -256,6 +256,17 @@ SOFTBOX_STONES = (
 )
 #: The soft box: centre, the point it faces, width (horizontal), height, radiance.
 SOFTBOX_RECT = ((-25.0, -30.0, 35.0), (0.0, 0.0, 0.0), 24.0, 16.0, 25.0)
+#: bench/suite/env-lights.ron's lights besides env-softbox's: rectangles
+#: (centre, aim, width, height, radiance) and spheres (centre, radius, radiance).
+ENV_LIGHTS_EXTRA_RECTS = (
+    ((30.0, -20.0, 30.0), (0.0, 0.0, 0.0), 20.0, 12.0, (12.0, 12.0, 14.0)),
+    ((0.0, 35.0, 25.0), (0.0, 0.0, 0.0), 30.0, 10.0, (8.0, 8.0, 8.0)),
+)
+ENV_LIGHTS_EXTRA_SPHERES = (
+    ((-4.0, -14.0, 21.0), 1.5, (300.0, 300.0, 300.0)),
+    ((15.0, 10.0, 18.0), 1.0, (200.0, 180.0, 160.0)),
+    ((-18.0, 12.0, 12.0), 2.0, (60.0, 60.0, 80.0)),
+)
 #: bench/suite/glossy-ground.ron: a rough IOR 1.5 coat (10° average slope)
 #: over a Lambertian base.
 GLOSSY_GROUND_RGB = (0.35, 0.32, 0.3)
@@ -366,13 +377,14 @@ def suite_ground(mi, bsdf):
 
 
 def suite_scene_dict(mi, dr, name, size, spp, max_depth, env_path=None):
-    """One of the suite's scenes (`env-softbox`, `goldstone-clear`,
-    `orientation`) as a Mitsuba `load_dict` dictionary; `env_path` is the
-    generated map of env-softbox and orientation."""
+    """One of the suite's scenes (`env-softbox`, `env-lights`,
+    `goldstone-clear`, `orientation`) as a Mitsuba `load_dict` dictionary;
+    `env_path` is the generated map of env-softbox, env-lights and
+    orientation."""
     scene = {"type": "scene",
              "integrator": {"type": "volpath" if name == "goldstone-clear" else "path",
                             "max_depth": max_depth}}
-    if name == "env-softbox":
+    if name in ("env-softbox", "env-lights"):
         target, distance, elevation, azimuth, fov = SOFTBOX_CAMERA
         scene["sensor"] = sensor_dict(mi, orbit_origin(target, distance, elevation, azimuth),
                                       target, fov, size, spp)
@@ -388,16 +400,24 @@ def suite_scene_dict(mi, dr, name, size, spp, max_depth, env_path=None):
             "diffuse_reflectance": {"type": "rgb", "value": list(GLOSSY_GROUND_RGB)},
             "nonlinear": True,
         })
-        centre, aim, width, height, radiance = SOFTBOX_RECT
-        # The rectangle is [-1, 1]² with normal +z, emitting on that side;
+        # Each rectangle is [-1, 1]² with normal +z, emitting on that side;
         # look_at turns +z to the aim and keeps +x horizontal (width).
-        scene["softbox"] = {
-            "type": "rectangle",
-            "to_world": mi.ScalarTransform4f().look_at(origin=list(centre), target=list(aim),
-                                                       up=[0, 0, 1])
-            @ mi.ScalarTransform4f().scale([width / 2, height / 2, 1.0]),
-            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": radiance}},
-        }
+        rects = [SOFTBOX_RECT]
+        if name == "env-lights":
+            rects += list(ENV_LIGHTS_EXTRA_RECTS)
+            for k, (centre, radius, rgb) in enumerate(ENV_LIGHTS_EXTRA_SPHERES):
+                scene[f"sphere{k}"] = {"type": "sphere", "center": list(centre), "radius": radius,
+                                       "emitter": {"type": "area",
+                                                   "radiance": {"type": "rgb", "value": list(rgb)}}}
+        for k, (centre, aim, width, height, radiance) in enumerate(rects):
+            rgb = [radiance] * 3 if isinstance(radiance, float) else list(radiance)
+            scene["softbox" if k == 0 else f"softbox{k}"] = {
+                "type": "rectangle",
+                "to_world": mi.ScalarTransform4f().look_at(origin=list(centre), target=list(aim),
+                                                           up=[0, 0, 1])
+                @ mi.ScalarTransform4f().scale([width / 2, height / 2, 1.0]),
+                "emitter": {"type": "area", "radiance": {"type": "rgb", "value": rgb}},
+            }
         scene["environment"] = envmap_dict(mi, env_path)
     elif name == "goldstone-clear":
         target, distance, elevation, azimuth, fov = GOLDSTONE_CAMERA
@@ -661,10 +681,11 @@ def main(argv):
                    help="the sphere light's radius, its radiance scaled to keep its power")
     r.add_argument("--no-environment", action="store_true",
                    help="leave the constant environment out")
-    r.add_argument("--suite-scene", choices=("env-softbox", "goldstone-clear", "orientation"),
+    r.add_argument("--suite-scene",
+                   choices=("env-softbox", "env-lights", "goldstone-clear", "orientation"),
                    help="render this scene of bench/suite/ instead of the peer scene")
-    r.add_argument("--env", help="the generated environment map of --suite-scene env-softbox "
-                                 "or orientation (bench/out/suite/…)")
+    r.add_argument("--env", help="the generated environment map of --suite-scene env-softbox, "
+                                 "env-lights or orientation (bench/out/suite/…)")
     p = sub.add_parser("to-png", help="downsample + sRGB-encode an image")
     p.add_argument("src")
     p.add_argument("dst")
