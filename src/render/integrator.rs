@@ -1249,12 +1249,10 @@ impl RenderScene {
         reach: f64,
         sampled: Option<usize>,
     ) -> bool {
-        self.lights.iter().enumerate().any(|(index, light)| {
-            Some(index) != sampled
-                && light
-                    .hit(point, direction, reach)
-                    .is_some_and(|(t, _)| t.is_finite())
-        })
+        self.lights
+            .iter()
+            .enumerate()
+            .any(|(index, light)| Some(index) != sampled && light.blocks(point, direction, reach))
     }
 
     /// Whether next-event estimation samples the environment. A constant

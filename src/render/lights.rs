@@ -165,6 +165,40 @@ impl LightSpec {
             .map(|t| (t, radiance))
     }
 
+    /// Whether [`Light::hit`] finds the light's surface before `t_max`
+    /// (a sphere, or a soft box's front; never a point light or the sun):
+    /// the same test, inline and without the emission, for the shadow
+    /// rays of other emitters' samples that the light may block.
+    #[inline(always)]
+    pub(crate) fn blocks(&self, origin: DVec3, direction: DVec3, t_max: f64) -> bool {
+        match *self {
+            Light::Sphere { centre, radius, .. } => {
+                sphere_entry(origin, direction, centre, radius).is_some_and(|t| t < t_max)
+            }
+            Light::Rect {
+                centre,
+                normal,
+                u_axis,
+                v_axis,
+                width,
+                height,
+                ..
+            } => {
+                let denom = direction.dot(normal);
+                if denom >= 0.0 {
+                    return false;
+                }
+                let t = (centre - origin).dot(normal) / denom;
+                if t <= 0.0 || t >= t_max {
+                    return false;
+                }
+                let local = origin + direction * t - centre;
+                local.dot(u_axis).abs() <= 0.5 * width && local.dot(v_axis).abs() <= 0.5 * height
+            }
+            Light::Point { .. } | Light::Sun { .. } => false,
+        }
+    }
+
     /// [`Light::hit`] for every kind but the sphere.
     #[inline(never)]
     fn hit_other(&self, origin: DVec3, direction: DVec3, t_max: f64) -> Option<(f64, Rgb)> {
