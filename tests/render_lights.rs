@@ -129,17 +129,16 @@ fn a_sphere_light_gives_pi_l_sin2() {
     );
 }
 
-#[test]
-fn a_square_soft_box_gives_its_form_factor() {
-    // A square of half-side a at height h facing down, centred above the
-    // point: four corner rectangles, each with form factor
-    // F = (1/2π)[X/√(1+X²)·atan(Y/√(1+X²)) + Y/√(1+Y²)·atan(X/√(1+Y²))],
-    // X = Y = a/h; E = π L · 4F.
-    let (a, h, l) = (3.0_f64, 6.0_f64, 4.0_f64);
+/// A square soft box of half-side 3 at height 6 facing down, centred above
+/// the floor point, of radiance `radiance`, and its form factor 4F from
+/// the point: four corner rectangles, each with
+/// F = (1/2π)[X/√(1+X²)·atan(Y/√(1+X²)) + Y/√(1+Y²)·atan(X/√(1+Y²))],
+/// X = Y = a/h. It gives the floor irradiance π L · 4F.
+fn overhead_soft_box(radiance: f64) -> (Light, f64) {
+    let (a, h) = (3.0_f64, 6.0_f64);
     let x = a / h;
     let s = (1.0 + x * x).sqrt();
-    let f_corner = (2.0 * x / s * (x / s).atan()) / (2.0 * PI);
-    let expected = PI * l * 4.0 * f_corner / PI;
+    let form_factor = 4.0 * (2.0 * x / s * (x / s).atan()) / (2.0 * PI);
     let light = Light::Rect {
         centre: DVec3::new(0.0, 0.0, h),
         normal: -DVec3::Z,
@@ -147,8 +146,16 @@ fn a_square_soft_box_gives_its_form_factor() {
         v_axis: DVec3::Y,
         width: 2.0 * a,
         height: 2.0 * a,
-        radiance: Rgb::splat(l),
+        radiance: Rgb::splat(radiance),
     };
+    (light, form_factor)
+}
+
+#[test]
+fn a_square_soft_box_gives_its_form_factor() {
+    // E = π L · 4F (see `overhead_soft_box`).
+    let (light, form_factor) = overhead_soft_box(4.0);
+    let expected = 4.0 * form_factor;
     assert_close(
         floor_radiance(vec![light], vec![], 256),
         expected,
@@ -170,10 +177,8 @@ fn with_more_lights_than_a_vertex_samples_their_irradiances_still_add() {
     // Four lights, of which each vertex samples three (chosen by strata),
     // weighted against BRDF sampling with their densities times 3/4: the
     // floor's radiance is still the sum of the four closed forms above.
-    let (a, h, l) = (3.0_f64, 6.0_f64, 4.0_f64);
-    let x = a / h;
-    let s = (1.0 + x * x).sqrt();
-    let soft_box = PI * l * 4.0 * (2.0 * x / s * (x / s).atan()) / (2.0 * PI);
+    let (soft_box_light, form_factor) = overhead_soft_box(4.0);
+    let soft_box = PI * 4.0 * form_factor;
     // A sphere wholly above the horizon: E = π L (r/d)² cos θ, here at
     // d = 10 with cos θ = 0.6.
     let sphere = PI * 20.0 * 0.04 * 0.6;
@@ -188,15 +193,7 @@ fn with_more_lights_than_a_vertex_samples_their_irradiances_still_add() {
             radius: 2.0,
             radiance: Rgb::splat(20.0),
         },
-        Light::Rect {
-            centre: DVec3::new(0.0, 0.0, h),
-            normal: -DVec3::Z,
-            u_axis: DVec3::X,
-            v_axis: DVec3::Y,
-            width: 2.0 * a,
-            height: 2.0 * a,
-            radiance: Rgb::splat(l),
-        },
+        soft_box_light,
         Light::sun(
             DVec3::new(30f64.to_radians().cos(), 0.0, 0.5),
             0.53,
@@ -257,19 +254,8 @@ fn a_light_hides_the_sky_behind_it_from_light_samples_too() {
     // samples' MIS weight). Alone, and with a point light and a sphere
     // (four emitters, three sampled a vertex), whose (r/d)² cos θ = 0.024
     // of the sky it also hides.
-    let (a, h, l) = (3.0_f64, 6.0_f64, 1.0_f64);
-    let x = a / h;
-    let s = (1.0 + x * x).sqrt();
-    let form_factor = 4.0 * x / s * (x / s).atan() / PI;
-    let soft_box = Light::Rect {
-        centre: DVec3::new(0.0, 0.0, h),
-        normal: -DVec3::Z,
-        u_axis: DVec3::X,
-        v_axis: DVec3::Y,
-        width: 2.0 * a,
-        height: 2.0 * a,
-        radiance: Rgb::splat(l),
-    };
+    let l = 1.0;
+    let (soft_box, form_factor) = overhead_soft_box(l);
     assert_close(
         floor_radiance_in(upper_sky(2.0), vec![soft_box], vec![], 1024),
         l * form_factor + 2.0 * (1.0 - form_factor),

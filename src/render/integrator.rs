@@ -1092,13 +1092,7 @@ impl RenderScene {
     ) -> Rgb {
         let mut sum = Rgb::ZERO;
         let mut one = |sample: LightSample, emitter: Option<usize>| {
-            let LightSample {
-                direction,
-                distance,
-                radiance: incoming,
-                pdf,
-                is_delta,
-            } = sample;
+            let (direction, incoming, pdf) = (sample.direction, sample.radiance, sample.pdf);
             let wi = frame.to_local(direction);
             if pdf <= 0.0 || wi.z <= 0.0 || incoming.max_element() <= 0.0 {
                 return;
@@ -1108,13 +1102,13 @@ impl RenderScene {
                 return;
             }
             counts.shadow += 1;
-            let reach = shadow_reach(distance);
+            let reach = shadow_reach(sample.distance);
             if self.world.occluded_leaving(point, direction, reach, stone)
                 || self.another_light_blocks(point, direction, reach, emitter)
             {
                 return;
             }
-            sum += incoming * (f * light_sample_scale(wi.z, pdf, bsdf_pdf, is_delta));
+            sum += incoming * (f * light_sample_scale(wi.z, pdf, bsdf_pdf, sample.is_delta));
         };
         self.for_each_light_sample(point, stream, &mut one);
         sum

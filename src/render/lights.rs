@@ -175,28 +175,40 @@ impl LightSpec {
             Light::Sphere { centre, radius, .. } => {
                 sphere_entry(origin, direction, centre, radius).is_some_and(|t| t < t_max)
             }
-            Light::Rect {
-                centre,
-                normal,
-                u_axis,
-                v_axis,
-                width,
-                height,
-                ..
-            } => {
-                let denom = direction.dot(normal);
-                if denom >= 0.0 {
-                    return false;
-                }
-                let t = (centre - origin).dot(normal) / denom;
-                if t <= 0.0 || t >= t_max {
-                    return false;
-                }
-                let local = origin + direction * t - centre;
-                local.dot(u_axis).abs() <= 0.5 * width && local.dot(v_axis).abs() <= 0.5 * height
-            }
+            Light::Rect { .. } => self.rect_crossing(origin, direction, t_max).is_some(),
             Light::Point { .. } | Light::Sun { .. } => false,
         }
+    }
+
+    /// Where the ray from `origin` along unit `direction` crosses a soft
+    /// box's front before `t_max` (None for its back, a miss, and every
+    /// other kind of light): [`Light::hit`]'s and [`Light::blocks`]' test.
+    #[inline(always)]
+    fn rect_crossing(&self, origin: DVec3, direction: DVec3, t_max: f64) -> Option<f64> {
+        let Light::Rect {
+            centre,
+            normal,
+            u_axis,
+            v_axis,
+            width,
+            height,
+            ..
+        } = *self
+        else {
+            return None;
+        };
+        let denom = direction.dot(normal);
+        if denom >= 0.0 {
+            return None; // the back of the box, or parallel
+        }
+        let t = (centre - origin).dot(normal) / denom;
+        if t <= 0.0 || t >= t_max {
+            return None;
+        }
+        let local = origin + direction * t - centre;
+        let inside =
+            local.dot(u_axis).abs() <= 0.5 * width && local.dot(v_axis).abs() <= 0.5 * height;
+        inside.then_some(t)
     }
 
     /// [`Light::hit`] for every kind but the sphere.
@@ -205,28 +217,9 @@ impl LightSpec {
         match *self {
             Light::Point { .. } => None,
             Light::Sphere { .. } => self.sphere_hit(origin, direction, t_max),
-            Light::Rect {
-                centre,
-                normal,
-                u_axis,
-                v_axis,
-                width,
-                height,
-                radiance,
-            } => {
-                let denom = direction.dot(normal);
-                if denom >= 0.0 {
-                    return None; // the back of the box, or parallel
-                }
-                let t = (centre - origin).dot(normal) / denom;
-                if t <= 0.0 || t >= t_max {
-                    return None;
-                }
-                let local = origin + direction * t - centre;
-                let inside = local.dot(u_axis).abs() <= 0.5 * width
-                    && local.dot(v_axis).abs() <= 0.5 * height;
-                inside.then_some((t, radiance))
-            }
+            Light::Rect { radiance, .. } => self
+                .rect_crossing(origin, direction, t_max)
+                .map(|t| (t, radiance)),
             Light::Sun {
                 direction: sun,
                 angular_diameter_deg,
