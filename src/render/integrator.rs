@@ -1143,9 +1143,10 @@ impl RenderScene {
         })
     }
 
-    /// The emitters next-event estimation samples: the lights, and the
-    /// environment when [`RenderScene::samples_environment`].
-    fn sampled_emitters(&self) -> usize {
+    /// The emitters next-event estimation samples (and a translucent
+    /// body's connections choose from): the lights, then the environment
+    /// when [`RenderScene::samples_environment`].
+    pub(crate) fn sampled_emitters(&self) -> usize {
         self.lights.len() + usize::from(self.samples_environment())
     }
 

@@ -172,9 +172,7 @@ impl LightSpec {
     #[inline(always)]
     pub(crate) fn blocks(&self, origin: DVec3, direction: DVec3, t_max: f64) -> bool {
         match *self {
-            Light::Sphere { centre, radius, .. } => {
-                sphere_entry(origin, direction, centre, radius).is_some_and(|t| t < t_max)
-            }
+            Light::Sphere { .. } => self.sphere_hit(origin, direction, t_max).is_some(),
             Light::Rect { .. } => self.rect_crossing(origin, direction, t_max).is_some(),
             Light::Point { .. } | Light::Sun { .. } => false,
         }

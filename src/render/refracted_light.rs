@@ -177,7 +177,7 @@ impl RenderScene {
         // One emitter per vertex, chosen uniformly among the lights and a
         // light-sampled environment: a connection costs a Newton solve, and
         // paths inside a cloudy stone have many vertices.
-        let count = self.connected_emitters();
+        let count = self.sampled_emitters();
         if count == 0 {
             return Rgb::ZERO;
         }
@@ -359,7 +359,7 @@ impl RenderScene {
                 let connection_pdf = sampled * survival
                     / (path.inside_solid_angle_per_target_measure
                         * cos_light
-                        * self.connected_emitters() as f64);
+                        * self.sampled_emitters() as f64);
                 power_heuristic(vertex.pdf * path.fresnel, connection_pdf)
             })
     }
@@ -438,12 +438,6 @@ impl RenderScene {
         Some(extinction + crossings)
     }
 
-    /// How many emitters a connection chooses its one from: every light,
-    /// and the environment when it is light-sampled.
-    fn connected_emitters(&self) -> usize {
-        self.lights.len() + usize::from(self.samples_environment())
-    }
-
     /// [`RenderScene::sampled_chain_weight`] for a path that left its body
     /// and escaped along `direction` to a light-sampled environment.
     pub(crate) fn environment_sampled_chain_weight(
@@ -454,8 +448,7 @@ impl RenderScene {
         self.same_connection(vertex, Target::Direction(direction))
             .map_or(1.0, |(path, survival)| {
                 let connection_pdf = self.environment.pdf(direction) * survival
-                    / (path.inside_solid_angle_per_target_measure
-                        * self.connected_emitters() as f64);
+                    / (path.inside_solid_angle_per_target_measure * self.sampled_emitters() as f64);
                 power_heuristic(vertex.pdf * path.fresnel, connection_pdf)
             })
     }
