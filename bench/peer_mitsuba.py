@@ -272,6 +272,18 @@ ENV_LIGHTS_EXTRA_SPHERES = (
 GLOSSY_GROUND_RGB = (0.35, 0.32, 0.3)
 GLOSSY_GROUND_IOR = 1.5
 GLOSSY_GROUND_SLOPE_DEG = 10.0
+
+
+def beckmann_alpha_of_blinn(slope_deg):
+    """Mitsuba's Beckmann α for lapidary's Blinn lobe of average slope m:
+    β = −ln 2 / ln cos m (src/brdf/microfacet.rs), then Walter et al. 2007's
+    equivalence α = √(2 / (β + 2)). Both lobes fall to half their peak
+    near θh = m (α = tan m, lapidary's own Beckmann convention, falls to
+    half at 8.3° for m = 10°: a narrower lobe, which put the sun's glossy
+    reflection on sun-map's ground 15–22 % off)."""
+    beta = -math.log(2.0) / math.log(math.cos(math.radians(slope_deg)))
+    return math.sqrt(2.0 / (beta + 2.0))
+
 #: Side of the suite's square ground in Mitsuba (lapidary's is infinite);
 #: the frames see less than 250 mm of it.
 SUITE_GROUND_SIDE = 400.0
@@ -377,14 +389,15 @@ def suite_ground(mi, bsdf):
 
 
 def suite_scene_dict(mi, dr, name, size, spp, max_depth, env_path=None):
-    """One of the suite's scenes (`env-softbox`, `env-lights`,
+    """One of the suite's scenes (`env-softbox`, `env-lights`, `sun-map`,
     `goldstone-clear`, `orientation`) as a Mitsuba `load_dict` dictionary;
-    `env_path` is the generated map of env-softbox, env-lights and
-    orientation."""
+    `env_path` is the generated map of env-softbox, env-lights, sun-map and
+    orientation. `sun-map` is env-softbox without its soft box, lit by the
+    map alone."""
     scene = {"type": "scene",
              "integrator": {"type": "volpath" if name == "goldstone-clear" else "path",
                             "max_depth": max_depth}}
-    if name in ("env-softbox", "env-lights"):
+    if name in ("env-softbox", "env-lights", "sun-map"):
         target, distance, elevation, azimuth, fov = SOFTBOX_CAMERA
         scene["sensor"] = sensor_dict(mi, orbit_origin(target, distance, elevation, azimuth),
                                       target, fov, size, spp)
@@ -394,7 +407,7 @@ def suite_scene_dict(mi, dr, name, size, spp, max_depth, env_path=None):
         scene["ground"] = suite_ground(mi, {
             "type": "roughplastic",
             "distribution": "beckmann",
-            "alpha": math.tan(math.radians(GLOSSY_GROUND_SLOPE_DEG)),
+            "alpha": beckmann_alpha_of_blinn(GLOSSY_GROUND_SLOPE_DEG),
             "int_ior": GLOSSY_GROUND_IOR,
             "ext_ior": 1.0,
             "diffuse_reflectance": {"type": "rgb", "value": list(GLOSSY_GROUND_RGB)},
@@ -402,7 +415,7 @@ def suite_scene_dict(mi, dr, name, size, spp, max_depth, env_path=None):
         })
         # Each rectangle is [-1, 1]² with normal +z, emitting on that side;
         # look_at turns +z to the aim and keeps +x horizontal (width).
-        rects = [SOFTBOX_RECT]
+        rects = [] if name == "sun-map" else [SOFTBOX_RECT]
         if name == "env-lights":
             rects += list(ENV_LIGHTS_EXTRA_RECTS)
             for k, (centre, radius, rgb) in enumerate(ENV_LIGHTS_EXTRA_SPHERES):
@@ -682,10 +695,11 @@ def main(argv):
     r.add_argument("--no-environment", action="store_true",
                    help="leave the constant environment out")
     r.add_argument("--suite-scene",
-                   choices=("env-softbox", "env-lights", "goldstone-clear", "orientation"),
+                   choices=("env-softbox", "env-lights", "sun-map", "goldstone-clear",
+                            "orientation"),
                    help="render this scene of bench/suite/ instead of the peer scene")
     r.add_argument("--env", help="the generated environment map of --suite-scene env-softbox, "
-                                 "env-lights or orientation (bench/out/suite/…)")
+                                 "env-lights, sun-map or orientation (bench/out/suite/…)")
     p = sub.add_parser("to-png", help="downsample + sRGB-encode an image")
     p.add_argument("src")
     p.add_argument("dst")
