@@ -7,6 +7,9 @@
 //! Renders that could start use `--size 8 --spp 1`, and the recipes turn the
 //! multiple-scattering compensation off, so the whole file runs in seconds.
 
+mod common;
+
+use common::cli::Scratch;
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -101,12 +104,9 @@ fn lapidary<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> Output {
         .expect("binary runs")
 }
 
-/// A fresh empty directory for one case.
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("lapidary-bad-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh empty directory for one case, removed when the test passes.
+fn scratch(name: &str) -> Scratch {
+    common::cli::scratch("bad", name)
 }
 
 fn files_in(dir: &Path) -> Vec<String> {
@@ -238,7 +238,7 @@ fn bad_gem(case: &str, from: &str, to: &str, marker: &str, needles: &[&str]) {
 /// A scratch folder `name` holding [`GOOD_GEM`], [`GOOD_MATERIAL`] and
 /// [`GOOD_SCENE`] as `gem.ron`, `material.ron` and `scene.ron`: the folder
 /// and the three paths.
-fn good_files(name: &str) -> (PathBuf, PathBuf, PathBuf, PathBuf) {
+fn good_files(name: &str) -> (Scratch, PathBuf, PathBuf, PathBuf) {
     let dir = scratch(name);
     let paths = ["gem.ron", "material.ron", "scene.ron"].map(|file| dir.join(file));
     for (path, text) in paths.iter().zip([GOOD_GEM, GOOD_MATERIAL, GOOD_SCENE]) {
@@ -671,7 +671,7 @@ fn a_file_of_another_kind() {
     // A scene given where a gem belongs, a material where a scene belongs,
     // a gem where a material belongs: each says what it is, what was
     // expected and how that kind of file is used.
-    let (_, gem, material, scene) = good_files("other-kind");
+    let (_dir, gem, material, scene) = good_files("other-kind");
     let at = |path: &Path| format!("{}:1:", path.display());
     let render_gem = [
         OsString::from("render"),

@@ -2,6 +2,8 @@
 //! bad material files (exit 1, `file:line:col`, the field and its range,
 //! never a panic, never an output file).
 
+mod common;
+
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
@@ -24,11 +26,8 @@ fn stdout_of_success(args: &[&str]) -> String {
     String::from_utf8(out.stdout).unwrap()
 }
 
-fn scratch_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("lapidary-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch_dir(name: &str) -> common::cli::Scratch {
+    common::cli::scratch("cli", name)
 }
 
 #[test]

@@ -9,14 +9,14 @@
 mod common;
 
 use common::cli::{lapidary, stderr};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Output;
 
 use image::RgbImage;
 use lapidary::gallery::figures::{FIGURE_3_2_THICKNESSES, FRAME_COLOUR};
 use lapidary::recipe::library::builtin_gem_names;
 
-fn scratch(name: &str) -> PathBuf {
+fn scratch(name: &str) -> common::cli::Scratch {
     common::cli::scratch("gallery", name)
 }
 
@@ -216,7 +216,8 @@ fn figure_3_2_grows_more_saturated_then_darker_and_redder_with_thickness() {
 
 #[test]
 fn an_unknown_only_name_exits_1_naming_it_with_a_suggestion() {
-    let dir = scratch("unknown").join("out");
+    let parent = scratch("unknown");
+    let dir = parent.join("out");
     let out = gallery(&dir, &["--only", "figure-3-2", "green-aventurin"]);
     assert_eq!(out.status.code(), Some(1));
     let err = stderr(&out);

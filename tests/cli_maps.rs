@@ -1,5 +1,7 @@
 //! `lapidary maps`: the figure 4.6 sheet of a gem, and its bad input.
 
+mod common;
+
 use std::process::{Command, Output};
 
 fn lapidary(args: &[&str]) -> Output {
@@ -9,11 +11,8 @@ fn lapidary(args: &[&str]) -> Output {
         .expect("binary runs")
 }
 
-fn scratch(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("lapidary-maps-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> common::cli::Scratch {
+    common::cli::scratch("maps", name)
 }
 
 #[test]

@@ -6,7 +6,7 @@ use common::cli::{lapidary, lapidary_with_env, stderr};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn scratch(name: &str) -> PathBuf {
+fn scratch(name: &str) -> common::cli::Scratch {
     common::cli::scratch("render", name)
 }
 

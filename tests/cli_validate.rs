@@ -5,10 +5,10 @@
 mod common;
 
 use common::cli::lapidary;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
-fn scratch(name: &str) -> PathBuf {
+fn scratch(name: &str) -> common::cli::Scratch {
     common::cli::scratch("validate", name)
 }
 

@@ -9,7 +9,7 @@ mod common;
 use common::cli::{lapidary, stderr};
 use std::path::{Path, PathBuf};
 
-fn scratch(name: &str) -> PathBuf {
+fn scratch(name: &str) -> common::cli::Scratch {
     common::cli::scratch("farm", name)
 }
 

@@ -5,7 +5,6 @@
 mod common;
 
 use std::f64::consts::{PI, TAU};
-use std::path::PathBuf;
 
 use glam::DVec3;
 use lapidary::brdf::Rgb;
@@ -545,27 +544,6 @@ fn in_memory_map_errors_name_the_problem() {
 
 /// A fresh directory under the system temp dir, unique to this process and
 /// test (removed at the end of the test).
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!(
-            "lapidary-env-{tag}-{}-{:x}",
-            std::process::id(),
-            lapidary::sampling::mix64(tag.len() as u64 ^ std::process::id() as u64)
-        ));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        TempDir(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 /// Texel values of the 4 × 2 test image: exact in RGBE (one shared
 /// exponent, 8-bit mantissas) and in f32.
 fn test_texel(col: usize, row: usize) -> [f32; 3] {
@@ -615,15 +593,15 @@ fn write_hdr(path: &std::path::Path, w: usize, h: usize, f: impl Fn(usize, usize
 
 #[test]
 fn loads_hdr_and_exr_files() {
-    let dir = TempDir::new("load");
-    let hdr = dir.0.join("tiny.hdr");
+    let dir = common::cli::scratch("env", "load");
+    let hdr = dir.join("tiny.hdr");
     write_hdr(&hdr, 4, 2, test_texel);
     let env = Environment::from_file(&hdr, 0.0, 1.0).unwrap();
     check_loaded(&env, 0.0, 1.0);
     let env = Environment::from_file(&hdr, 45.0, 3.0).unwrap();
     check_loaded(&env, 45.0, 3.0);
 
-    let exr_path = dir.0.join("tiny.exr");
+    let exr_path = dir.join("tiny.exr");
     exr::prelude::write_rgba_file(&exr_path, 4, 2, |x, y| {
         let [r, g, b] = test_texel(x, y);
         (r, g, b, 1.0f32)
@@ -632,7 +610,7 @@ fn loads_hdr_and_exr_files() {
     let env = Environment::from_file(&exr_path, -30.0, 0.5).unwrap();
     check_loaded(&env, -30.0, 0.5);
     // Upper-case extensions are the same formats.
-    let upper = dir.0.join("TINY.EXR");
+    let upper = dir.join("TINY.EXR");
     std::fs::copy(&exr_path, &upper).unwrap();
     assert!(Environment::from_file(&upper, 0.0, 1.0).is_ok());
 }
@@ -650,18 +628,18 @@ fn error_text(path: &std::path::Path) -> String {
 
 #[test]
 fn bad_files_give_errors_naming_the_file() {
-    let dir = TempDir::new("bad");
-    let missing = dir.0.join("missing.hdr");
+    let dir = common::cli::scratch("env", "bad");
+    let missing = dir.join("missing.hdr");
     assert!(error_text(&missing).contains("not found"));
 
     for name in ["corrupt.hdr", "corrupt.exr"] {
-        let path = dir.0.join(name);
+        let path = dir.join(name);
         std::fs::write(&path, b"this is not an image at all\n\0\x01\x02").unwrap();
         let err = error_text(&path);
         assert!(err.contains("corrupt"), "{err}");
     }
     // A valid header promising more scanlines than the file holds.
-    let truncated = dir.0.join("truncated.hdr");
+    let truncated = dir.join("truncated.hdr");
     std::fs::write(
         &truncated,
         b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 4\n\x80\x80",
@@ -669,7 +647,7 @@ fn bad_files_give_errors_naming_the_file() {
     .unwrap();
     assert!(error_text(&truncated).contains("corrupt"));
 
-    let png = dir.0.join("sky.png");
+    let png = dir.join("sky.png");
     std::fs::write(&png, b"\x89PNG").unwrap();
     let err = error_text(&png);
     assert!(
@@ -678,7 +656,7 @@ fn bad_files_give_errors_naming_the_file() {
     );
 
     // A header claiming 20000 × 10000 texels: refused before decoding.
-    let huge = dir.0.join("huge.hdr");
+    let huge = dir.join("huge.hdr");
     std::fs::write(
         &huge,
         b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 10000 +X 20000\n",
@@ -689,7 +667,7 @@ fn bad_files_give_errors_naming_the_file() {
 
     // NaN and negative texels (EXR stores raw floats; RGBE cannot).
     for (name, bad) in [("nan.exr", f32::NAN), ("negative.exr", -1.0)] {
-        let path = dir.0.join(name);
+        let path = dir.join(name);
         exr::prelude::write_rgba_file(&path, 4, 2, move |x, y| {
             let g = if (x, y) == (3, 1) { bad } else { 1.0 };
             (1.0f32, g, 1.0f32, 1.0f32)
@@ -700,7 +678,7 @@ fn bad_files_give_errors_naming_the_file() {
     }
 
     // A directory with an allowed extension is not a file.
-    let subdir = dir.0.join("folder.hdr");
+    let subdir = dir.join("folder.hdr");
     std::fs::create_dir(&subdir).unwrap();
     assert!(error_text(&subdir).contains("directory"));
 }
@@ -855,8 +833,8 @@ fn stored_texels_are_within_the_format_bound_of_the_source() {
         .collect();
     let rgb = |t: [f32; 3]| Rgb::new(t[0] as f64, t[1] as f64, t[2] as f64);
     let map = EnvironmentMap::new(w, h, source.iter().map(|&t| rgb(t)).collect(), 0.0).unwrap();
-    let dir = TempDir::new("bound");
-    let path = dir.0.join("random.exr");
+    let dir = common::cli::scratch("env", "bound");
+    let path = dir.join("random.exr");
     exr::prelude::write_rgb_file(&path, w, h, |x, y| {
         let [r, g, b] = source[y * w + x];
         (r, g, b)
@@ -889,8 +867,8 @@ fn too_bright_texels_are_refused_with_the_limit() {
     texels[2] = Rgb::splat(MAX_TEXEL_RADIANCE);
     assert!(EnvironmentMap::new(4, 2, texels, 0.0).is_ok());
     // In a file, the first such texel in reading order, named with the file.
-    let dir = TempDir::new("bright");
-    let path = dir.0.join("sun.exr");
+    let dir = common::cli::scratch("env", "bright");
+    let path = dir.join("sun.exr");
     exr::prelude::write_rgb_file(&path, 4, 2, |x, y| {
         let v = if y == 1 && x >= 2 { 1e10f32 } else { 1.0 };
         (v, v, v)
@@ -907,8 +885,8 @@ fn too_bright_texels_are_refused_with_the_limit() {
 fn hdr_scanlines_read_as_the_image_crate_reads_them() {
     // Wide enough for run-length encoded scanlines, with runs (flat areas)
     // and literals (noise), compared with `image`'s own whole-image decode.
-    let dir = TempDir::new("rle");
-    let path = dir.0.join("rle.hdr");
+    let dir = common::cli::scratch("env", "rle");
+    let path = dir.join("rle.hdr");
     let (w, h) = (97, 13);
     let value = |col: usize, row: usize| -> [f32; 3] {
         if col < 40 {
@@ -936,7 +914,7 @@ fn hdr_scanlines_read_as_the_image_crate_reads_them() {
     }
     // The same file cut short in the middle of its scanlines.
     let bytes = std::fs::read(&path).unwrap();
-    let cut = dir.0.join("cut.hdr");
+    let cut = dir.join("cut.hdr");
     std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
     assert!(error_text(&cut).contains("corrupt"));
 }
