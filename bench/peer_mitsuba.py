@@ -21,6 +21,8 @@ Usage:
 import argparse
 import math
 import sys
+import re
+from pathlib import Path
 
 # --- The scene of issue 6 (scene units, z up) --------------------------------
 
@@ -236,6 +238,53 @@ def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True, clear=False, scatte
     }
     if not environment:
         del scene["environment"]
+    return scene
+
+
+def tray_stones_of(path):
+    """The stones of a tray scene written by bench/scaling (bench/out/
+    tray-N.ron): the common cap's semi-axes and each stone's (x, y) and
+    turn about z in degrees."""
+    text = Path(path).read_text()
+    shape = re.search(r"length: ([-\d.]+), width: ([-\d.]+), dome_height: ([-\d.]+)", text)
+    if not shape:
+        raise ValueError(f"{path}: no Cabochon(length, width, dome_height) found")
+    length, width, dome = map(float, shape.groups())
+    placements = [(float(x), float(y), float(turn)) for x, y, turn in re.findall(
+        r"position: \(([-\d.]+), ([-\d.]+), 0\.0\),\s*rotation_deg: \(0\.0, 0\.0, ([-\d.]+)\)",
+        text)]
+    if not placements:
+        raise ValueError(f"{path}: no stone positions found")
+    return (length / 2, width / 2, dome), placements
+
+
+#: The tray's caps in Mitsuba: rings and segments of each cap's mesh (992
+#: triangles; a stone is about 10 px across at 512²): its image agrees
+#: with 48 × 96's within 0.1 %.
+TRAY_CAP_RINGS, TRAY_CAP_SEGMENTS = 16, 32
+
+
+def tray_scene_dict(mi, dr, size, spp, max_depth, tray_path):
+    """The peer scene with its stone replaced by the tray of `tray_path`,
+    every cap placed into one merged mesh with the peer stone's BSDF.
+    (Mitsuba 3's `instance`s of one `shapegroup` render the same image,
+    but 25–40× slower in `llvm_ad_rgb`: a user would merge.)"""
+    import numpy as np
+
+    scene = scene_dict(mi, dr, size, spp, max_depth)
+    semi_axes, placements = tray_stones_of(tray_path)
+    pos, nrm, faces = ellipsoid_cap_mesh(TRAY_CAP_RINGS, TRAY_CAP_SEGMENTS, semi_axes)
+    all_pos, all_nrm, all_faces = [], [], []
+    for k, (x, y, turn) in enumerate(placements):
+        c, s = math.cos(math.radians(turn)), math.sin(math.radians(turn))
+        turned = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        all_pos.append(pos @ turned.T + np.array([x, y, 0.0]))
+        all_nrm.append(nrm @ turned.T)
+        all_faces.append(faces + k * len(pos))
+    props = mi.Properties()
+    props["bsdf"] = mi.load_dict(peer_stone_bsdf())
+    scene["stone"] = mesh_of(mi, dr, np.vstack(all_pos), np.vstack(all_nrm),
+                             np.vstack(all_faces).astype(np.uint32), props)
     return scene
 
 
@@ -576,6 +625,11 @@ def render(args):
 
     mi.set_variant("llvm_ad_rgb")
     dr.set_thread_count(args.threads)
+    if args.tray:
+        scene = mi.load_dict(tray_scene_dict(mi, dr, args.size, args.spp, args.max_depth,
+                                             args.tray))
+        mi.util.write_bitmap(args.out, mi.render(scene, spp=args.spp, seed=args.seed))
+        return
     if args.suite_scene:
         scene = mi.load_dict(suite_scene_dict(mi, dr, args.suite_scene, args.size, args.spp,
                                               args.max_depth, args.env))
@@ -698,6 +752,8 @@ def main(argv):
                    choices=("env-softbox", "env-lights", "sun-map", "goldstone-clear",
                             "orientation"),
                    help="render this scene of bench/suite/ instead of the peer scene")
+    r.add_argument("--tray", help="the peer scene with the stones of this tray scene of "
+                                  "bench/scaling (bench/out/tray-N.ron), as one mesh")
     r.add_argument("--env", help="the generated environment map of --suite-scene env-softbox, "
                                  "env-lights, sun-map or orientation (bench/out/suite/…)")
     p = sub.add_parser("to-png", help="downsample + sRGB-encode an image")
