@@ -15,6 +15,8 @@ Mitsuba renders through bench/peer_mitsuba.py (`llvm_ad_rgb`, max_depth =
 
     bench/.venv/bin/python bench/noise_vs_mitsuba.py --scene peer --seeds 16
     bench/.venv/bin/python bench/noise_vs_mitsuba.py --scene env-softbox
+    (also env-lights, sun-map, goldstone-clear, tray-1000: the suite's
+    cases that Mitsuba renders too)
 """
 import argparse
 import os
@@ -31,12 +33,22 @@ ROOT = os.path.dirname(BENCH)
 PYTHON = sys.executable
 BINARY = os.environ.get("LAPIDARY_BINARY", os.path.join(ROOT, "target", "dist", "lapidary"))
 SKY_MAP = os.path.join(BENCH, "out", "suite", "sky-2048x1024.exr")
+SUN_MAP = os.path.join(BENCH, "out", "suite", "sun-4096x2048.exr")
+TRAY = os.path.join(BENCH, "out", "tray-1000.ron")
 
-# (lapidary's scene file, peer_mitsuba.py's arguments for the same scene).
+# (lapidary's scene file, peer_mitsuba.py's arguments for the same scene):
+# every suite case with a Mitsuba twin (bench/suite/run).
 SCENES = {
     "peer": (os.path.join(BENCH, "peer-scene.ron"), []),
     "env-softbox": (os.path.join(BENCH, "suite", "env-softbox.ron"),
                     ["--suite-scene", "env-softbox", "--env", SKY_MAP]),
+    "env-lights": (os.path.join(BENCH, "suite", "env-lights.ron"),
+                   ["--suite-scene", "env-lights", "--env", SKY_MAP]),
+    "sun-map": (os.path.join(BENCH, "suite", "sun-map.ron"),
+                ["--suite-scene", "sun-map", "--env", SUN_MAP]),
+    "goldstone-clear": (os.path.join(BENCH, "suite", "goldstone-clear.ron"),
+                        ["--suite-scene", "goldstone-clear"]),
+    "tray-1000": (TRAY, ["--tray", TRAY]),
 }
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
@@ -63,9 +75,11 @@ def main():
         parser.error("--seeds must be at least 2 (the standard error needs two renders)")
     mi.set_variant("scalar_rgb")
     scene, mitsuba_scene = SCENES[args.scene]
-    if args.scene == "env-softbox" and not os.path.exists(SKY_MAP):
+    if not (os.path.exists(SKY_MAP) and os.path.exists(SUN_MAP)):
         subprocess.run([PYTHON, os.path.join(BENCH, "peer_mitsuba.py"), "suite-maps",
                         os.path.dirname(SKY_MAP)], check=True)
+    if args.scene == "tray-1000" and not os.path.exists(TRAY):
+        sys.exit(f"{TRAY}: missing; `bench/suite/run --only tray-1000` writes it")
 
     def lapidary(spp, seed, out):
         subprocess.run([BINARY, "render", "-q", "--scene", scene, "--size", str(args.size),
