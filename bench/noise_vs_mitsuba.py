@@ -10,7 +10,9 @@ stones' other pixels and all, as the square root of the mean over seeds
 of each render's mean squared error, and the ratio lapidary / Mitsuba
 with its standard error (from the spread of the renders' MSEs), and the
 ratio of trimmed RMSEs (without the largest 0.1 % of the (render, pixel)
-squared errors: the caustics that make the plain one heavy-tailed). The
+squared errors: the caustics that make the plain one heavy-tailed;
+meaningful region by region, as over "all" the largest are mostly one
+region's). The
 regions are lapidary's `material_id` masks (the two images are aligned).
 Mitsuba renders through bench/peer_mitsuba.py (`llvm_ad_rgb`, max_depth =
 --bounces + 2). Run with bench/.venv/bin/python:
