@@ -14,6 +14,10 @@ squared errors: the caustics that make the plain one heavy-tailed;
 meaningful region by region, as over "all" the largest are mostly one
 region's). The
 regions are lapidary's `material_id` masks (the two images are aligned).
+Mitsuba's film takes lapidary's pixel filter (a tent of radius one
+pixel) unless --mitsuba-filter box: with the box the suite's timings
+use, small bright features (a light's image in a coat) fall on fewer
+pixels, each noisier.
 Mitsuba renders through bench/peer_mitsuba.py (`llvm_ad_rgb`, max_depth =
 --bounces + 2). Run with bench/.venv/bin/python:
 
@@ -85,6 +89,9 @@ def main():
     parser.add_argument("--seeds", type=int, default=16)
     parser.add_argument("--reference-spp", type=int, default=4096)
     parser.add_argument("--bounces", type=int, default=4)
+    parser.add_argument("--mitsuba-filter", choices=("tent", "box"), default="tent",
+                        help="Mitsuba's pixel filter: tent (radius 1, lapidary's own: the same "
+                             "expected pixels, the default) or box (the suite's timings')")
     args = parser.parse_args()
     if args.seeds < 2:
         parser.error("--seeds must be at least 2 (the standard error needs two renders)")
@@ -105,7 +112,8 @@ def main():
         subprocess.run([PYTHON, os.path.join(BENCH, "peer_mitsuba.py"), "render",
                         "--size", str(args.size), "--spp", str(spp), "--seed", str(seed),
                         "--max-depth", str(args.bounces + 2), "--threads", "2",
-                        *mitsuba_scene, out], check=True, capture_output=True)
+                        "--filter", args.mitsuba_filter, *mitsuba_scene, out],
+                       check=True, capture_output=True)
 
     renderers = (("lapidary", lapidary), ("Mitsuba", mitsuba))
     with tempfile.TemporaryDirectory() as folder:
@@ -142,7 +150,8 @@ def main():
                     errors[name][region].append(square.mean())
                     squares[name][region].append(square)
     print(f"{args.scene}, {args.size}², {args.spp} spp, {args.bounces} bounces, "
-          f"{args.seeds} seeds, references {args.reference_spp} spp")
+          f"{args.seeds} seeds, references {args.reference_spp} spp, "
+          f"Mitsuba's filter {args.mitsuba_filter}")
     print()
     print("| region | pixels | lapidary RMSE | Mitsuba RMSE | lapidary / Mitsuba | "
           f"trimmed: without the largest {TRIMMED:.1%} |")

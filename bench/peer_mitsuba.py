@@ -626,29 +626,20 @@ def render(args):
     mi.set_variant("llvm_ad_rgb")
     dr.set_thread_count(args.threads)
     if args.tray:
-        scene = mi.load_dict(tray_scene_dict(mi, dr, args.size, args.spp, args.max_depth,
-                                             args.tray))
-        mi.util.write_bitmap(args.out, mi.render(scene, spp=args.spp, seed=args.seed))
-        return
-    if args.suite_scene:
-        scene = mi.load_dict(suite_scene_dict(mi, dr, args.suite_scene, args.size, args.spp,
-                                              args.max_depth, args.env))
-        mi.util.write_bitmap(args.out, mi.render(scene, spp=args.spp, seed=args.seed))
-        return
-    scene = mi.load_dict(
-        scene_dict(
-            mi, dr, args.size, args.spp, args.max_depth, not args.linear, args.clear, args.scattering,
-            args.light_radius, not args.no_environment,
+        scene = tray_scene_dict(mi, dr, args.size, args.spp, args.max_depth, args.tray)
+    elif args.suite_scene:
+        scene = suite_scene_dict(mi, dr, args.suite_scene, args.size, args.spp, args.max_depth,
+                                 args.env)
+    else:
+        scene = scene_dict(
+            mi, dr, args.size, args.spp, args.max_depth, not args.linear, args.clear,
+            args.scattering, args.light_radius, not args.no_environment,
         )
-    )
-    if args.no_ground:
-        scene = mi.load_dict(
-            {k: v for k, v in scene_dict(
-                mi, dr, args.size, args.spp, args.max_depth, not args.linear, args.clear,
-                args.scattering, args.light_radius, not args.no_environment,
-            ).items() if k != "ground"}
-        )
-    image = mi.render(scene, spp=args.spp, seed=args.seed)
+        if args.no_ground:
+            del scene["ground"]
+    # lapidary's film: a tent of radius one pixel (src/render/film.rs).
+    scene["sensor"]["film"]["rfilter"] = {"type": args.filter}
+    image = mi.render(mi.load_dict(scene), spp=args.spp, seed=args.seed)
     mi.util.write_bitmap(args.out, image)
 
 
@@ -752,6 +743,9 @@ def main(argv):
                    choices=("env-softbox", "env-lights", "sun-map", "goldstone-clear",
                             "orientation"),
                    help="render this scene of bench/suite/ instead of the peer scene")
+    r.add_argument("--filter", choices=("box", "tent"), default="box",
+                   help="the film's reconstruction filter: box (the default, for timings and "
+                        "patch means) or tent, radius 1, lapidary's own (for noise)")
     r.add_argument("--tray", help="the peer scene with the stones of this tray scene of "
                                   "bench/scaling (bench/out/tray-N.ron), as one mesh")
     r.add_argument("--env", help="the generated environment map of --suite-scene env-softbox, "
