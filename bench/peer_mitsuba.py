@@ -20,8 +20,8 @@ Usage:
 
 import argparse
 import math
-import sys
 import re
+import sys
 from pathlib import Path
 
 # --- The scene of issue 6 (scene units, z up) --------------------------------
@@ -637,7 +637,8 @@ def render(args):
         )
         if args.no_ground:
             del scene["ground"]
-    # lapidary's film: a tent of radius one pixel (src/render/film.rs).
+    # The film's filter: a box, or lapidary's own tent of radius one pixel
+    # (src/render/film.rs), whose expected image is lapidary's.
     scene["sensor"]["film"]["rfilter"] = {"type": args.filter}
     image = mi.render(mi.load_dict(scene), spp=args.spp, seed=args.seed)
     mi.util.write_bitmap(args.out, image)
