@@ -127,15 +127,7 @@ def stone_mesh(mi, dr, nonlinear=True):
     """
     pos, nrm, faces = ellipsoid_cap_mesh()
     props = mi.Properties()
-    props["bsdf"] = mi.load_dict(
-        {
-            "type": "plastic",
-            "diffuse_reflectance": {"type": "rgb", "value": list(STONE_BASE_RGB)},
-            "int_ior": STONE_COAT_IOR,
-            "ext_ior": 1.0,
-            "nonlinear": nonlinear,
-        }
-    )
+    props["bsdf"] = mi.load_dict(peer_stone_bsdf(nonlinear))
     return mesh_of(mi, dr, pos, nrm, faces, props)
 
 
@@ -422,11 +414,12 @@ def placed_cap(mi, dr, name, semi_axes, position, turn_deg, bsdf):
     return mesh_of(mi, dr, pos, nrm, faces, props, name=name)
 
 
-def peer_stone_bsdf():
-    """bench/peer-stone.ron as Mitsuba's `plastic` (see stone_mesh)."""
+def peer_stone_bsdf(nonlinear=True):
+    """bench/peer-stone.ron as Mitsuba's `plastic` (`nonlinear`: see
+    stone_mesh)."""
     return {"type": "plastic",
             "diffuse_reflectance": {"type": "rgb", "value": list(STONE_BASE_RGB)},
-            "int_ior": STONE_COAT_IOR, "ext_ior": 1.0, "nonlinear": True}
+            "int_ior": STONE_COAT_IOR, "ext_ior": 1.0, "nonlinear": nonlinear}
 
 
 def suite_ground(mi, bsdf):
