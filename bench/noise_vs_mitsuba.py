@@ -14,10 +14,11 @@ squared errors: the caustics that make the plain one heavy-tailed;
 meaningful region by region, as over "all" the largest are mostly one
 region's). The
 regions are lapidary's `material_id` masks (the two images are aligned).
-Mitsuba's film takes lapidary's pixel filter (a tent of radius one
-pixel) unless --mitsuba-filter box: with the box the suite's timings
-use, small bright features (a light's image in a coat) fall on fewer
-pixels, each noisier.
+Mitsuba's film is a box, each sample in one pixel as in lapidary's
+filter importance sampling (a lapidary build with a box film reads the
+same against it: bench/results/2026-12-05-equal-error-vs-mitsuba.md);
+--mitsuba-filter tent gives it lapidary's tent, which Mitsuba splats
+into neighbouring pixels, so that they share samples.
 Mitsuba renders through bench/peer_mitsuba.py (`llvm_ad_rgb`, max_depth =
 --bounces + 2). Run with bench/.venv/bin/python:
 
@@ -89,9 +90,11 @@ def main():
     parser.add_argument("--seeds", type=int, default=16)
     parser.add_argument("--reference-spp", type=int, default=4096)
     parser.add_argument("--bounces", type=int, default=4)
-    parser.add_argument("--mitsuba-filter", choices=("tent", "box"), default="tent",
-                        help="Mitsuba's pixel filter: tent (radius 1, lapidary's own: the same "
-                             "expected pixels, the default) or box (the suite's timings')")
+    parser.add_argument("--mitsuba-filter", choices=("box", "tent"), default="box",
+                        help="Mitsuba's pixel filter: box (the default: each sample in one "
+                             "pixel, as lapidary's filter importance sampling) or tent "
+                             "(lapidary's 1-pixel tent, which Mitsuba splats into "
+                             "neighbouring pixels: they share samples)")
     args = parser.parse_args()
     if args.seeds < 2:
         parser.error("--seeds must be at least 2 (the standard error needs two renders)")
