@@ -235,6 +235,7 @@ impl<'a> CoatAt<'a> {
 
 #[cfg(test)]
 mod tests {
+    use crate::brdf::stack::MIN_TOP_LOBE_WEIGHT;
     use crate::brdf::{Base, Interface, LayeredBrdf, Microfacet, MicrofacetModel, Rgb};
     use crate::sampling::Rng;
     use glam::DVec3;
@@ -308,7 +309,10 @@ mod tests {
                 } else {
                     direction(&mut rng)
                 };
-                let (value, pdf) = brdf.coat_at(wo).unwrap().eval_and_pdf(wi);
+                let (value, pdf) = brdf
+                    .coat_at(wo, MIN_TOP_LOBE_WEIGHT)
+                    .unwrap()
+                    .eval_and_pdf(wi);
                 let (value_ref, pdf_ref) = (brdf.eval(wi, wo), brdf.pdf(wi, wo));
                 for (a, b) in value.to_array().into_iter().zip(value_ref.to_array()) {
                     assert!(
@@ -336,7 +340,9 @@ mod tests {
         let mut rng = Rng::new(31, 32);
         for (eta, kept) in [(1.2, 1.0), (1.5, 1.0), (2.4, 1.0), (0.8, 0.64)] {
             let brdf = coat(MicrofacetModel::Blinn, 0.01, eta, false);
-            let at = brdf.coat_at(DVec3::new(0.1, 0.0, 1.0).normalize()).unwrap();
+            let at = brdf
+                .coat_at(DVec3::new(0.1, 0.0, 1.0).normalize(), MIN_TOP_LOBE_WEIGHT)
+                .unwrap();
             let p_top = at.weights.0;
             let n = 20_000;
             let accepted = (0..n)
@@ -367,7 +373,7 @@ mod tests {
             for _ in 0..2000 {
                 let wo = direction(&mut rng);
                 let u = rng.next_3();
-                let fast = brdf.coat_at(wo).unwrap().sample(u);
+                let fast = brdf.coat_at(wo, MIN_TOP_LOBE_WEIGHT).unwrap().sample(u);
                 let reference = brdf.sample_single_crossing(wo, u);
                 match (fast, reference) {
                     (None, None) => {}

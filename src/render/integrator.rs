@@ -893,8 +893,14 @@ impl RenderScene {
             }
             let point = hit.point + hit.normal * RAY_OFFSET;
             // What depends on wo alone, computed once for the light samples
-            // and the BRDF sample of this vertex.
-            let brdf_at = shading.brdf.at(wo);
+            // and the BRDF sample of this vertex. Past a glossy or diffuse
+            // event (an unbounded footprint) a coat's own lobe is sampled
+            // more: what it shows there is a caustic on that earlier vertex.
+            let brdf_at = if cone.is_unbounded() {
+                shading.brdf.at_after_bounce(wo)
+            } else {
+                shading.brdf.at(wo)
+            };
             let mut mix = shading.facets.and_then(|at| match hit.surface {
                 Surface::Stone { .. }
                     if let Some(table) = (at.tabulated != NOT_TABULATED)
