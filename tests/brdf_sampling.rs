@@ -5,9 +5,9 @@
 
 mod common;
 
-use common::chi2::{chi2_directions, sidak};
+use common::chi2::{chi2_directions, sidak, Chi2Outcome};
 use glam::DVec3;
-use lapidary::brdf::{Microfacet, MicrofacetModel};
+use lapidary::brdf::{LayeredBrdf, Microfacet, MicrofacetModel};
 use lapidary::recipe::library::builtin_material_names;
 use lapidary::recipe::load_material;
 use lapidary::sampling::direction_from_degrees;
@@ -61,20 +61,13 @@ fn cosine_sampling_of_diffuse_bases_matches_its_pdf() {
     assert!(outcome.passes(significance()), "{outcome}");
 }
 
-#[test]
-fn layered_stack_sampling_matches_its_pdf_for_every_library_material() {
+/// Runs `test(brdf, wo)`, a χ² test of one sampler against its density,
+/// for every library material at two view angles, and asserts each passes.
+fn for_every_library_material(test: impl Fn(&LayeredBrdf, DVec3) -> Chi2Outcome) {
     for name in builtin_material_names() {
         let brdf = load_material(name).unwrap();
         for theta in [20.0, 65.0] {
-            let wo: DVec3 = direction_from_degrees(theta, 0.0);
-            let outcome = chi2_directions(
-                |u| brdf.sample(wo, u).map(|s| s.wi),
-                |wi| brdf.pdf(wi, wo),
-                200_000,
-                16,
-                32,
-                11,
-            );
+            let outcome = test(&brdf, direction_from_degrees(theta, 0.0));
             assert!(
                 outcome.passes(significance()),
                 "{name} θo={theta}: {outcome}"
@@ -83,29 +76,35 @@ fn layered_stack_sampling_matches_its_pdf_for_every_library_material() {
     }
 }
 
+#[test]
+fn layered_stack_sampling_matches_its_pdf_for_every_library_material() {
+    for_every_library_material(|brdf, wo| {
+        chi2_directions(
+            |u| brdf.sample(wo, u).map(|s| s.wi),
+            |wi| brdf.pdf(wi, wo),
+            200_000,
+            16,
+            32,
+            11,
+        )
+    });
+}
+
 /// After a bounce a coat's own lobe is sampled at least 75 % of the time
 /// (`LayeredBrdf::at_after_bounce`): the prepared sampler still draws what
 /// its density says, for every library material (the closed-form coat and
 /// the general stack alike).
 #[test]
 fn sampling_after_a_bounce_matches_its_pdf_for_every_library_material() {
-    for name in builtin_material_names() {
-        let brdf = load_material(name).unwrap();
-        for theta in [20.0, 65.0] {
-            let wo: DVec3 = direction_from_degrees(theta, 0.0);
-            let at = brdf.at_after_bounce(wo);
-            let outcome = chi2_directions(
-                |u| at.sample(u).map(|s| s.wi),
-                |wi| at.eval_and_pdf(wi).1,
-                100_000,
-                16,
-                32,
-                13,
-            );
-            assert!(
-                outcome.passes(significance()),
-                "{name} θo={theta}: {outcome}"
-            );
-        }
-    }
+    for_every_library_material(|brdf, wo| {
+        let at = brdf.at_after_bounce(wo);
+        chi2_directions(
+            |u| at.sample(u).map(|s| s.wi),
+            |wi| at.eval_and_pdf(wi).1,
+            100_000,
+            16,
+            32,
+            13,
+        )
+    });
 }
