@@ -137,8 +137,7 @@ def main():
             "stones without highlights": stone & ~highlight,
             "all": np.ones(stone.shape, bool),
         }
-        errors = {name: {region: [] for region in regions} for name, _ in renderers}
-        # Every (render, pixel) squared error per region, for the trimmed RMSE.
+        # Every (render, pixel) squared error per region, render by render.
         squares = {name: {region: [] for region in regions} for name, _ in renderers}
         times = {name: [] for name, _ in renderers}
         for seed in range(1, args.seeds + 1):
@@ -149,9 +148,8 @@ def main():
                 times[name].append(time.perf_counter() - started)
                 rgb, _ = load(path)
                 for region, mask in regions.items():
-                    square = ((rgb - references[name])[mask] ** 2).mean(axis=-1)
-                    errors[name][region].append(square.mean())
-                    squares[name][region].append(square)
+                    squares[name][region].append(
+                        ((rgb - references[name])[mask] ** 2).mean(axis=-1))
     print(f"{args.scene}, {args.size}², {args.spp} spp, {args.bounces} bounces, "
           f"{args.seeds} seeds, references {args.reference_spp} spp, "
           f"Mitsuba's filter {args.mitsuba_filter}")
@@ -162,7 +160,9 @@ def main():
     for region, mask in regions.items():
         if not mask.any():
             continue
-        ours, theirs = (np.array(errors[name][region]) for name, _ in renderers)
+        # Each render's MSE over the region.
+        ours, theirs = (np.array([square.mean() for square in squares[name][region]])
+                        for name, _ in renderers)
         ratio = np.sqrt(ours.mean() / theirs.mean())
         # The ratio of root mean MSEs: half the relative standard errors of
         # the two means, added in quadrature.

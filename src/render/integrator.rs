@@ -1229,9 +1229,17 @@ impl RenderScene {
                 None => environment_sample(u, share),
             };
             if let Some(sample) = sample {
-                take(sample, (chosen < self.lights.len()).then_some(chosen));
+                take(sample, self.light_of_emitter(chosen));
             }
         }
+    }
+
+    /// The index in [`RenderScene::lights`] of emitter number `emitter`
+    /// (as [`RenderScene::sampled_emitters`] counts them: the lights, then
+    /// the environment); None for the environment.
+    #[inline(always)]
+    pub(crate) fn light_of_emitter(&self, emitter: usize) -> Option<usize> {
+        (emitter < self.lights.len()).then_some(emitter)
     }
 
     /// Whether a light other than the sampled one (`sampled`, an index of

@@ -275,7 +275,7 @@ impl RenderScene {
                     start,
                     path.outside_direction,
                     reach,
-                    (chosen < self.lights.len()).then_some(chosen),
+                    self.light_of_emitter(chosen),
                 )
             {
                 return None;
