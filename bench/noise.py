@@ -8,7 +8,10 @@ the stones' (material_id ≥ 2) and all, as the square root of the mean over
 seeds of each render's mean squared error; and the median render time.
 Two binaries run alternately, and their ratios (B / A) close the table.
 Each against its own reference, so that a change of the expected image
-(e.g. of a compensation table) does not count as noise. Run with
+(e.g. of a compensation table) does not count as noise. A last line gives
+the ratios of trimmed RMSEs, without the largest 0.1 % of each binary's
+(render, pixel) squared errors: under a small bright source the plain RMSE
+is decided by a few caustic pixels of a few renders. Run with
 bench/.venv/bin/python (it reads EXRs with Mitsuba's Bitmap):
 
     bench/.venv/bin/python bench/noise.py --scene bench/suite/env-softbox.ron \\
@@ -20,6 +23,7 @@ import statistics
 import tempfile
 
 from connections import load, render as render_with
+from noise_vs_mitsuba import TRIMMED, trimmed_mean
 import numpy as np
 
 
@@ -69,7 +73,7 @@ def main():
                 rgb, _ = load(path)
                 error = ((rgb - references[k]) ** 2).mean(axis=-1)
                 for name, mask in masks.items():
-                    squared[k][name].append(error[mask].mean())
+                    squared[k][name].append(error[mask])
                 means[k].append(rgb[masks["all"]].mean())
     print(f"{args.scene or 'studio'} {args.recipe or ''} {args.size}², {args.spp} spp, "
           f"{args.seeds} seeds, references {args.reference_spp} spp")
@@ -78,7 +82,8 @@ def main():
     print("|---|" + "---:|" * (len(REGIONS) + 2))
     rmse = []
     for k, binary in enumerate(args.binary):
-        row = {name: np.sqrt(np.mean(values)) for name, values in squared[k].items()}
+        row = {name: np.sqrt(np.mean([v.mean() for v in values]))
+               for name, values in squared[k].items()}
         rmse.append(row)
         bias = np.mean(means[k]) / references[k][masks["all"]].mean()
         print(f"| {binary} | " + " | ".join(f"{row[name]:.5f}" for name in REGIONS)
@@ -89,6 +94,10 @@ def main():
         print("| B / A | " + " | ".join(f"{r:.3f}" for r in ratios) + f" | {time_ratio:.3f} | |")
         # Equal error needs samples in proportion to the error's square.
         print(f"time at equal error (all pixels), B / A: {time_ratio * ratios[-1] ** 2:.3f}")
+        trimmed = [np.sqrt(trimmed_mean(np.concatenate(squared[1][name]))
+                           / trimmed_mean(np.concatenate(squared[0][name]))) for name in REGIONS]
+        print(f"| B / A, trimmed of the largest {TRIMMED:.1%} | "
+              + " | ".join(f"{r:.3f}" for r in trimmed) + " | | |")
 
 
 if __name__ == "__main__":

@@ -160,10 +160,17 @@ fn sample_returns_radiance_and_pdf_of_its_direction() {
     ];
     for env in &envs {
         let mut rng = Rng::new(11, 2);
-        for _ in 0..5_000 {
-            let s = env
-                .sample([rng.next_f64(), rng.next_f64()])
-                .expect("a lit environment always samples");
+        for i in 0..10_000 {
+            let u = [rng.next_f64(), rng.next_f64()];
+            // Every other sample from a part, with the part's density.
+            let part = i / 2 % env.parts();
+            if i % 2 == 1 {
+                let s = env.sample_part(part, u).expect("a lit part always samples");
+                assert_eq!(s.radiance, env.radiance(s.direction));
+                assert_eq!(s.pdf, env.part_pdf(s.direction));
+                continue;
+            }
+            let s = env.sample(u).expect("a lit environment always samples");
             assert!((s.direction.length() - 1.0).abs() < 1e-12);
             // The sample's radiance and density come from the texel it was
             // drawn in; the direction converted back must find the same
@@ -176,12 +183,14 @@ fn sample_returns_radiance_and_pdf_of_its_direction() {
     }
 }
 
-/// χ² of a map's samples against its pdf: bins regular in (θ, φ), each
-/// texel of the `w × h` map split `sub × sub`, edges turned with the map.
-/// The density is constant per solid angle on a texel, so a bin's
-/// probability is exactly pdf(midpoint) × Δφ × (cosθ₀ − cosθ₁). Also
-/// checks that the bins' probabilities sum to 1 and that no sample lands
-/// where the pdf is 0. Returns the p-value.
+/// χ² of a map's samples (of part `part`, or of the whole map for None)
+/// against their pdf: bins regular in (θ, φ), each texel of the `w × h`
+/// map split `sub × sub`, edges turned with the map. The density is
+/// constant per solid angle on a texel, so a bin's probability is exactly
+/// pdf(midpoint) × Δφ × (cosθ₀ − cosθ₁) (for a part, where `in_part` holds
+/// at the midpoint, else 0). Also checks that the bins' probabilities sum
+/// to 1 and that no sample lands where the pdf is 0. Returns the p-value.
+#[allow(clippy::too_many_arguments)]
 fn map_chi_square(
     env: &Environment,
     (w, h): (usize, usize),
@@ -189,6 +198,8 @@ fn map_chi_square(
     sub: usize,
     n: usize,
     seed: u64,
+    part: Option<usize>,
+    in_part: impl Fn(DVec3) -> bool,
 ) -> f64 {
     let (bw, bh) = (sub * w, sub * h);
     let (d_phi, d_theta) = (TAU / bw as f64, PI / bh as f64);
@@ -204,7 +215,12 @@ fn map_chi_square(
                 theta.sin() * phi.sin(),
                 theta.cos(),
             );
-            expected[by * bw + bx] = env.pdf(d) * d_phi * (t0.cos() - t1.cos());
+            let pdf = match part {
+                Some(_) if !in_part(d) => 0.0,
+                Some(_) => env.part_pdf(d),
+                None => env.pdf(d),
+            };
+            expected[by * bw + bx] = pdf * d_phi * (t0.cos() - t1.cos());
         }
     }
     let total: f64 = expected.iter().sum();
@@ -213,7 +229,12 @@ fn map_chi_square(
     let mut counts = vec![0u64; bw * bh];
     let mut rng = Rng::new(seed, 3);
     for _ in 0..n {
-        let s = env.sample([rng.next_f64(), rng.next_f64()]).unwrap();
+        let u = [rng.next_f64(), rng.next_f64()];
+        let s = match part {
+            Some(part) => env.sample_part(part, u),
+            None => env.sample(u),
+        }
+        .unwrap();
         let theta = s.direction.z.clamp(-1.0, 1.0).acos();
         let phi = (s.direction.y.atan2(s.direction.x) - rot).rem_euclid(TAU);
         let by = ((theta / d_theta) as usize).min(bh - 1);
@@ -248,7 +269,18 @@ fn map_chi_square(
 fn map_sampling_matches_its_pdf_chi_square() {
     let map = small_map(30.0);
     let env = Environment::Map(map.clone());
-    let p = map_chi_square(&env, (map.width(), map.height()), 30.0, 2, 300_000, 5);
+    assert_eq!(map.parts(), 1);
+    let everywhere = |_| true;
+    let p = map_chi_square(
+        &env,
+        (map.width(), map.height()),
+        30.0,
+        2,
+        300_000,
+        5,
+        None,
+        everywhere,
+    );
     assert!(p > 1e-4, "p = {p}");
 }
 
@@ -282,14 +314,22 @@ fn sun_map_sampling_matches_its_pdf_chi_square() {
     let env = Environment::Map(map.clone());
     // The sun has ~97 % of the power: its texel must be split finely and
     // the sky still get ≥ 5 samples per bin.
-    let p = map_chi_square(&env, (map.width(), map.height()), -20.0, 2, 3_000_000, 6);
+    let size = (map.width(), map.height());
+    let p = map_chi_square(&env, size, -20.0, 2, 3_000_000, 6, None, |_| true);
     assert!(p > 1e-4, "p = {p}");
+    // It is also a part of its own, the rest of the map the other.
+    assert_eq!(map.parts(), 2);
+    let sun = |d: DVec3| luminance(env.radiance(d)) > 1e3;
+    let p = map_chi_square(&env, size, -20.0, 2, 300_000, 7, Some(0), |d| !sun(d));
+    assert!(p > 1e-4, "the sky: p = {p}");
+    let p = map_chi_square(&env, size, -20.0, 8, 100_000, 8, Some(1), sun);
+    assert!(p > 1e-4, "the sun: p = {p}");
 }
 
 #[test]
 fn map_pdf_integrates_to_one_texel_by_texel() {
     // The density is constant on each texel: Σ pdf × texel solid angle is
-    // the exact integral.
+    // the exact integral, 1 for the whole map and for each part.
     let envs = [
         (Environment::Map(sun_map(15.0)), 15.0),
         (Environment::Map(small_map(30.0)), 30.0),
@@ -300,7 +340,7 @@ fn map_pdf_integrates_to_one_texel_by_texel() {
             unreachable!()
         };
         let (w, h) = (map.width(), map.height());
-        let mut integral = 0.0;
+        let (mut integral, mut parts_integral) = (0.0, 0.0);
         for row in 0..h {
             let solid_angle = texel_solid_angle(row, h, w);
             for col in 0..w {
@@ -309,11 +349,17 @@ fn map_pdf_integrates_to_one_texel_by_texel() {
                     360.0 * (col as f64 + 0.5) / w as f64 + rotation_deg,
                 );
                 integral += env.pdf(centre) * solid_angle;
+                parts_integral += env.part_pdf(centre) * solid_angle;
             }
         }
         assert!(
             (integral - 1.0).abs() < 1e-12,
             "{w}×{h}: ∫ p dω = {integral}"
+        );
+        let parts = env.parts() as f64;
+        assert!(
+            (parts_integral - parts).abs() < 1e-12,
+            "{w}×{h}: Σ ∫ p_part dω = {parts_integral}, {parts} parts"
         );
     }
 }
@@ -377,14 +423,26 @@ fn exact_integrals(map: &EnvironmentMap) -> (f64, f64) {
 }
 
 /// Importance-sampled estimates (mean, standard error) of ∫ L dω and of
-/// ∫ L max(cosθ, 0) dω.
-fn estimates(env: &Environment, n: usize, seed: u64) -> [(f64, f64); 2] {
+/// ∫ L max(cosθ, 0) dω: each estimate one sample of the whole map
+/// (`by_parts` false) or the sum of one sample of each part.
+fn estimates(env: &Environment, n: usize, seed: u64, by_parts: bool) -> [(f64, f64); 2] {
     let mut rng = Rng::new(seed, 0);
     let mut sums = [[0.0f64; 2]; 2];
     for _ in 0..n {
-        let s = env.sample([rng.next_f64(), rng.next_f64()]).unwrap();
-        let f = luminance(s.radiance) / s.pdf;
-        let g = f * s.direction.z.max(0.0);
+        let (mut f, mut g) = (0.0, 0.0);
+        let draws = if by_parts { env.parts() } else { 1 };
+        for part in 0..draws {
+            let u = [rng.next_f64(), rng.next_f64()];
+            let s = if by_parts {
+                env.sample_part(part, u)
+            } else {
+                env.sample(u)
+            };
+            let s = s.unwrap();
+            let x = luminance(s.radiance) / s.pdf;
+            f += x;
+            g += x * s.direction.z.max(0.0);
+        }
         for (acc, x) in sums.iter_mut().zip([f, g]) {
             acc[0] += x;
             acc[1] += x * x;
@@ -397,16 +455,111 @@ fn estimates(env: &Environment, n: usize, seed: u64) -> [(f64, f64); 2] {
     })
 }
 
+/// Both estimates, of the whole map and by its parts, match the texel sums.
 fn assert_estimates_match(env: &Environment, map: &EnvironmentMap, n: usize) {
     let (total, irradiance) = exact_integrals(map);
-    let [(t_est, t_se), (e_est, e_se)] = estimates(env, n, 17);
+    for by_parts in [false, true] {
+        let [(t_est, t_se), (e_est, e_se)] = estimates(env, n, 17, by_parts);
+        assert!(
+            (t_est - total).abs() <= 4.0 * t_se + 1e-9 * total,
+            "∫L dω (by parts: {by_parts}): estimate {t_est} ± {t_se}, exact {total}"
+        );
+        assert!(
+            (e_est - irradiance).abs() <= 4.0 * e_se + 1e-9 * irradiance,
+            "irradiance (by parts: {by_parts}): estimate {e_est} ± {e_se}, exact {irradiance}"
+        );
+    }
+}
+
+#[test]
+fn sun_map_monte_carlo_of_both_parts_matches_texel_sums() {
+    let map = sun_map(40.0);
+    assert_eq!(map.parts(), 2);
+    assert_estimates_match(&Environment::Map(map.clone()), &map, 100_000);
+}
+
+/// `sun_map`'s sky with its sun `sun_over_sky` times the sky's brightest,
+/// `sky_scale` times the sky (0: black).
+fn sky_with_sun(sun_over_sky: f64, sky_scale: f64) -> EnvironmentMap {
+    let (w, h) = (64, 32);
+    let sky = |row: usize| Rgb::new(0.4, 0.6, 1.0) * (1.0 - row as f64 / h as f64) * sky_scale;
+    let mut texels: Vec<Rgb> = (0..w * h).map(|i| sky(i / w)).collect();
+    texels[7 * w + 41] = Rgb::splat(sun_over_sky);
+    EnvironmentMap::new(w, h, texels, 0.0).unwrap()
+}
+
+#[test]
+fn only_a_compact_source_with_most_of_the_power_and_a_lit_rest_is_sampled_apart() {
+    // The sun texel carries ≈ 97 % of the power.
+    assert_eq!(sky_with_sun(2.0e4, 1.0).parts(), 2);
+    // ≈ 25 %: the sky keeps most samples in one part.
+    assert_eq!(sky_with_sun(200.0, 1.0).parts(), 1);
+    // A sun in a black sky: nothing to sample apart from it.
+    assert_eq!(sky_with_sun(2.0e4, 0.0).parts(), 1);
+    // 32 bright texels of 2048 (1 in 64): not compact.
+    let (w, h) = (64, 32);
+    let mut texels = vec![Rgb::splat(0.1); w * h];
+    for col in 0..32 {
+        texels[5 * w + col] = Rgb::splat(1.0e4);
+    }
+    assert_eq!(EnvironmentMap::new(w, h, texels, 0.0).unwrap().parts(), 1);
+    // The studio's soft boxes (≈ 20 × its mean) and a smooth map stay one.
+    assert_eq!(Environment::studio(1.0, 0.0).parts(), 1);
+    assert_eq!(small_map(0.0).parts(), 1);
+}
+
+/// Skylight where the sun does not shine is why the parts exist: the
+/// irradiance of a surface facing straight down (the sun is above the
+/// horizon) estimated from the sky part has a small fraction of the
+/// variance that one luminance table for the whole map would give it (that
+/// table draws the ground below the horizon with probability q, its share
+/// of the map's power, so its relative variance is at least 1/q − 1).
+#[test]
+fn a_surface_the_sun_misses_gets_its_skylight_from_the_sky_part() {
+    let map = sun_map(0.0);
+    let env = Environment::Map(map.clone());
+    let (w, h) = (map.width(), map.height());
+    // Exact: the ground rows' luminance times their cosine weight.
+    let row_sum = |row: usize| {
+        (0..w)
+            .map(|col| luminance(map.texel(col, row)))
+            .sum::<f64>()
+    };
+    let exact: f64 = (h / 2..h)
+        .map(|row| {
+            let (t0, t1) = (PI * row as f64 / h as f64, PI * (row + 1) as f64 / h as f64);
+            row_sum(row) * TAU / w as f64 * 0.5 * (t0.sin().powi(2) - t1.sin().powi(2))
+        })
+        .sum();
+    let power = |rows: std::ops::Range<usize>| -> f64 {
+        rows.map(|row| row_sum(row) * texel_solid_angle(row, h, w))
+            .sum()
+    };
+    let ground_share = power(h / 2..h) / power(0..h);
+
+    let mut rng = Rng::new(23, 0);
+    let n = 20_000;
+    let (mut sum, mut sum2) = (0.0, 0.0);
+    for _ in 0..n {
+        let s = env
+            .sample_part(0, [rng.next_f64(), rng.next_f64()])
+            .unwrap();
+        let x = luminance(s.radiance) / s.pdf * (-s.direction.z).max(0.0);
+        sum += x;
+        sum2 += x * x;
+    }
+    let mean = sum / n as f64;
+    let variance = sum2 / n as f64 - mean * mean;
+    let standard_error = (variance / n as f64).sqrt();
     assert!(
-        (t_est - total).abs() <= 4.0 * t_se + 1e-9 * total,
-        "∫L dω: estimate {t_est} ± {t_se}, exact {total}"
+        (mean - exact).abs() < 4.0 * standard_error,
+        "{mean} ± {standard_error} against {exact}"
     );
+    let one_table_at_least = 1.0 / ground_share - 1.0;
+    let relative_variance = variance / (mean * mean);
     assert!(
-        (e_est - irradiance).abs() <= 4.0 * e_se + 1e-9 * irradiance,
-        "irradiance: estimate {e_est} ± {e_se}, exact {irradiance}"
+        relative_variance < 0.2 * one_table_at_least,
+        "relative variance {relative_variance}, one table's at least {one_table_at_least}"
     );
 }
 
@@ -504,7 +657,10 @@ fn rotation_turns_the_map_counter_clockwise_from_above() {
 #[test]
 fn black_map_samples_nothing() {
     let env = Environment::Map(EnvironmentMap::new(4, 2, vec![Rgb::ZERO; 8], 0.0).unwrap());
+    assert_eq!(env.parts(), 1);
     assert!(env.sample([0.3, 0.7]).is_none());
+    assert!(env.sample_part(0, [0.3, 0.7]).is_none());
+    assert!(env.sample_part(1, [0.3, 0.7]).is_none());
     assert_eq!(env.pdf(DVec3::Z), 0.0);
     assert_eq!(env.radiance(dir_deg(45.0, 45.0)), Rgb::ZERO);
 }

@@ -51,6 +51,17 @@ fn floor_radiance_in(
     stones: Vec<StoneInstance>,
     spp: u32,
 ) -> f64 {
+    floor_radiance_bouncing(environment, lights, stones, spp, 0)
+}
+
+/// [`floor_radiance_in`] with paths of up to `max_bounces` bounces.
+fn floor_radiance_bouncing(
+    environment: Environment,
+    lights: Vec<Light>,
+    stones: Vec<StoneInstance>,
+    spp: u32,
+    max_bounces: u32,
+) -> f64 {
     let gems = if stones.is_empty() {
         vec![]
     } else {
@@ -64,7 +75,7 @@ fn floor_radiance_in(
         ground_brdf: Some(white_lambert()),
         lights,
         environment,
-        max_bounces: 0,
+        max_bounces,
         ambient_occlusion: None,
         connect_through_surfaces: true,
         flake_lobes: FlakeLobes::default(),
@@ -299,4 +310,74 @@ fn a_stone_between_the_light_and_the_floor_casts_a_shadow() {
     assert_close(lit, expected, 1e-3, "unshadowed floor");
     let shadowed = floor_radiance(vec![light], vec![stone], 1);
     assert_eq!(shadowed, 0.0, "shadowed floor");
+}
+
+/// A 64 × 32 map: a sky of radiance 0.5 over the upper hemisphere, black
+/// below, and a one-texel sun of 2000 at row 5 (θ ≈ 30°) holding 76 % of
+/// the power, so that it is sampled as a part of its own; and the
+/// irradiance it gives an upward floor, texel by texel (the sky 16 % of
+/// it).
+fn sky_and_sun() -> (Environment, f64) {
+    let (width, height) = (64, 32);
+    let radiance = |i: usize| match (i / width, i % width) {
+        (5, 10) => 2.0e3,
+        (row, _) if row < height / 2 => 0.5,
+        _ => 0.0,
+    };
+    let texels = (0..width * height)
+        .map(|i| Rgb::splat(radiance(i)))
+        .collect();
+    let map = EnvironmentMap::new(width, height, texels, 0.0).unwrap();
+    assert_eq!(map.parts(), 2);
+    // Each texel: L Δφ (sin²θ₁ − sin²θ₀) / 2 (its cosine-weighted solid angle).
+    let irradiance = (0..width * height / 2)
+        .map(|i| {
+            let row = (i / width) as f64;
+            let (t0, t1) = (PI * row / height as f64, PI * (row + 1.0) / height as f64);
+            radiance(i) * (2.0 * PI / width as f64) * 0.5 * (t1.sin().powi(2) - t0.sin().powi(2))
+        })
+        .sum();
+    (Environment::Map(map), irradiance)
+}
+
+#[test]
+fn a_sun_sampled_apart_from_its_sky_gives_the_map_s_irradiance() {
+    // The camera's vertex takes one sample of the sun and one of the sky,
+    // each weighted against BRDF sampling by its own part's density.
+    let (environment, irradiance) = sky_and_sun();
+    assert_close(
+        floor_radiance_in(environment, vec![], vec![], 1024),
+        irradiance / PI,
+        0.01,
+        "a sun and a sky sampled apart",
+    );
+}
+
+#[test]
+fn sampling_a_sun_apart_at_the_camera_s_vertices_keeps_the_image_s_expectation() {
+    // With bounces off a grey stone beside the point: the camera's
+    // vertices sample the map's two parts apart, the later ones the whole
+    // map. Two black point lights make four emitters with the parts, more
+    // than a vertex samples apart, so every vertex then samples the whole
+    // map: the same expected image by other estimators.
+    let (environment, _) = sky_and_sun();
+    let stone = StoneInstance {
+        cabochon: Cabochon::new(CabochonParams::default()).unwrap(),
+        rotation: DQuat::IDENTITY,
+        position: DVec3::new(0.0, 7.0, 0.0),
+        gem: 0,
+    };
+    let black = |x: f64| Light::Point {
+        position: DVec3::new(x, 0.0, 5.0),
+        intensity: Rgb::ZERO,
+    };
+    let apart = floor_radiance_bouncing(environment.clone(), vec![], vec![stone.clone()], 2048, 3);
+    let whole = floor_radiance_bouncing(
+        environment,
+        vec![black(3.0), black(-3.0)],
+        vec![stone],
+        2048,
+        3,
+    );
+    assert_close(apart, whole, 0.01, "parts apart against the whole map");
 }

@@ -25,7 +25,9 @@
 //!   solid angle is constant on each texel and ∝ its luminance (pbrt-v4
 //!   §12.5.2 samples the same texels uniformly in (u, v) instead, a
 //!   density ∝ 1/sinθ inside each). Texels far dimmer than their row's
-//!   mean may get density 0 and are left to BRDF sampling.
+//!   mean may get density 0 and are left to BRDF sampling. A map whose
+//!   power is mostly in a few very bright texels (a sun) samples those
+//!   apart, as a second part with its own sample (see [`EnvironmentMap`]).
 //! * [`Environment::Constant`] is sampled uniformly over the sphere,
 //!   `p(ω) = 1/4π`.
 //! * `intensity` multiplies the radiance (applied when a texel is read).
@@ -345,24 +347,47 @@ impl Environment {
     /// black everywhere.
     pub fn sample(&self, u: [f64; 2]) -> Option<EnvironmentSample> {
         match self {
+            Environment::Constant(_) => self.sample_part(0, u),
+            Environment::Map(map) => map.sample(u),
+        }
+    }
+
+    /// Draws a direction of part `part` (below [`Environment::parts`])
+    /// with density proportional to luminance within the part; radiance
+    /// and density ([`Environment::part_pdf`]) are the direction's. A
+    /// constant has one part, sampled as [`Environment::sample`] samples
+    /// it. `None` for a part that is black everywhere, or no part.
+    pub fn sample_part(&self, part: usize, u: [f64; 2]) -> Option<EnvironmentSample> {
+        match self {
             Environment::Constant(c) => {
                 // Uniform sphere (pbrt-v4 eq. A.15): z = 1 − 2u₀, φ = 2πu₁.
                 let z = 1.0 - 2.0 * u[0];
                 let r = (1.0 - z * z).max(0.0).sqrt();
                 let (s, co) = sin_cos_turns(u[1]);
-                Some(EnvironmentSample {
+                (part == 0).then(|| EnvironmentSample {
                     direction: DVec3::new(r * co, r * s, z),
                     radiance: *c,
                     pdf: 0.25 * FRAC_1_PI,
                 })
             }
-            Environment::Map(map) => map.sample(u),
+            Environment::Map(map) => map.sample_part(part, u),
+        }
+    }
+
+    /// How many parts that do not overlap the environment can be sampled
+    /// in, one sample of each ([`Environment::sample_part`]): 2 for a map
+    /// whose few brightest texels carry most of its power (a sun, see
+    /// [`EnvironmentMap`]), else 1.
+    pub fn parts(&self) -> usize {
+        match self {
+            Environment::Constant(_) => 1,
+            Environment::Map(map) => map.parts(),
         }
     }
 
     /// Starts loading the texel [`Environment::radiance_and_pdf`] reads
     /// for `direction` (see [`EnvironmentMap::prefetch_direction`]) and
-    /// returns it, for [`Environment::radiance_and_pdf_in`]; nothing for a
+    /// returns it, for [`Environment::radiance_and_pdfs_in`]; nothing for a
     /// constant, at the cost of one test.
     #[inline(always)]
     pub(crate) fn prefetch_direction(&self, direction: DVec3) -> Option<Texel> {
@@ -372,18 +397,28 @@ impl Environment {
         }
     }
 
-    /// [`Environment::radiance_and_pdf`] of `direction`, read from
-    /// `texel` when [`Environment::prefetch_direction`] found it for that
-    /// direction (the same answer, without finding the texel again).
-    pub(crate) fn radiance_and_pdf_in(&self, direction: DVec3, texel: Option<Texel>) -> (Rgb, f64) {
+    /// [`Environment::radiance`], [`Environment::pdf`] and
+    /// [`Environment::part_pdf`] of `direction`, read from `texel` when
+    /// [`Environment::prefetch_direction`] found it for that direction
+    /// (the same answer, without finding the texel again): what a path
+    /// escaping to a light-sampled sky needs.
+    pub(crate) fn radiance_and_pdfs_in(
+        &self,
+        direction: DVec3,
+        texel: Option<Texel>,
+    ) -> (Rgb, f64, f64) {
         match (self, texel) {
-            (Environment::Map(map), Some(texel)) => map.texel_radiance_and_pdf(texel),
-            _ => self.radiance_and_pdf(direction),
+            (Environment::Map(map), Some(texel)) => map.texel_radiance_and_pdfs(texel),
+            (Environment::Map(map), None) => map.radiance_and_pdfs(direction),
+            (Environment::Constant(_), _) => {
+                let pdf = self.pdf(direction);
+                (self.radiance(direction), pdf, pdf)
+            }
         }
     }
 
     /// [`Environment::radiance`] of `direction`, read from `texel` as
-    /// [`Environment::radiance_and_pdf_in`] does.
+    /// [`Environment::radiance_and_pdfs_in`] does.
     pub(crate) fn radiance_in(&self, direction: DVec3, texel: Option<Texel>) -> Rgb {
         match (self, texel) {
             (Environment::Map(map), Some(texel)) => map.texel_radiance(texel),
@@ -397,6 +432,15 @@ impl Environment {
         match self {
             Environment::Constant(_) => 0.25 * FRAC_1_PI,
             Environment::Map(map) => map.pdf(direction),
+        }
+    }
+
+    /// Density per unit solid angle at the unit world `direction` of
+    /// [`Environment::sample_part`] of the part the direction lies in.
+    pub fn part_pdf(&self, direction: DVec3) -> f64 {
+        match self {
+            Environment::Constant(_) => 0.25 * FRAC_1_PI,
+            Environment::Map(map) => map.radiance_and_pdfs(direction).2,
         }
     }
 }
@@ -433,6 +477,26 @@ impl Environment {
 /// luminance is below one unit of its row (2⁻¹⁵ of the row's mean) may get
 /// weight 0: it is then never light-sampled and reports density 0, which
 /// the integrator's MIS reads as "left to BRDF sampling" (unbiased).
+///
+/// # Two parts: a sun apart from its sky
+///
+/// Sampled by luminance alone, a map with a small, very bright source (the
+/// sun of an outdoor panorama, a lamp) spends nearly every light sample
+/// on it, and the rest of the sky reaches a shading point through BRDF
+/// samples alone: a diffuse base in the sun's light gets its skylight with
+/// the noise of cosine sampling. Where a few texels (at most 1 in 256),
+/// each at least 64 times the map's mean luminance, carry at least half of
+/// its power and leave the rest at least 1/1024 of it, those texels are a
+/// part of their own, drawn by a small alias table
+/// (`HotPart`), and the row tables sample the rest with those texels at
+/// weight 0. [`EnvironmentMap::sample_part`] draws from one part, and
+/// [`EnvironmentMap::sample`] from the whole map: a part chosen by its
+/// share of the power, so that it draws what one table over every texel
+/// would. The parts do not overlap, so a texel's density in its part, and
+/// in the whole map (that times the part's share), are one lookup. The
+/// integrator takes one sample of each part where a pixel sees a vertex
+/// sharply, and one of the whole map elsewhere. Maps that do not qualify
+/// (smooth skies, the studio) stay one part.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EnvironmentMap {
     width: usize,
@@ -447,6 +511,16 @@ pub struct EnvironmentMap {
     rows: Vec<RowSampling>,
     /// The distribution of rows; `None` when every texel is black.
     marginal: Option<AliasTable>,
+    /// The brightest texels, sampled apart (see the type's documentation);
+    /// `None` for a map sampled as one part.
+    hot: Option<HotPart>,
+    /// The luminance from which a texel belongs to `hot` (∞ without one):
+    /// one comparison tells a density lookup which part a texel is in.
+    hot_threshold: f64,
+    /// The probabilities with which [`Self::sample`] draws from the rest
+    /// (the rows' tables) and from `hot`: their shares of the map's power,
+    /// `[1, 0]` without a hot part.
+    part_shares: [f64; 2],
     rotation_deg: f64,
     /// The rotation in radians, for the reference mapping in tests.
     #[cfg(test)]
@@ -475,6 +549,33 @@ struct RowSampling {
     z_top: f64,
     /// cosθ at the row's lower edge.
     z_bottom: f64,
+}
+
+/// A texel is bright enough to be sampled apart from the rest of its map
+/// at this many times the map's mean luminance over the sphere (a sun is
+/// 10⁴–10⁶ times its sky's; the studio's soft boxes, the brightest
+/// sources that should stay in one part, about 20 times its mean).
+const HOT_OVER_MEAN: f64 = 64.0;
+/// ... when such texels carry at least this share of the map's power (the
+/// rest of the map then gets at most half the light samples of one part).
+const HOT_MIN_SHARE: f64 = 0.5;
+/// ... and when they are at most one texel in this many (a compact source,
+/// whose own table stays small: a 0.5° sun is about 100 texels of a
+/// 4096 × 2048 map).
+const HOT_MAX_TEXELS_PER: usize = 256;
+/// ... and the rest carries at least this share (a black sky with a sun is
+/// one part: a sample of its rest would find nothing).
+const REST_MIN_SHARE: f64 = 1.0 / 1024.0;
+
+/// The hot texels of a map sampled as two parts (see [`EnvironmentMap`]).
+#[derive(Debug, Clone, PartialEq)]
+struct HotPart {
+    /// Flat indices (`row × width + col`) of the texels, ascending.
+    texels: Vec<u32>,
+    /// Draws one of `texels` with probability ∝ luminance × solid angle.
+    table: AliasTable,
+    /// The part's share of the map's power, in (0, 1).
+    share: f64,
 }
 
 /// Units of each bucket of a row's alias table (2¹⁵: a threshold fits in
@@ -564,31 +665,49 @@ impl EnvironmentMap {
     ) -> Result<Self, EnvironmentError> {
         use rayon::prelude::*;
         let scales = Box::new(exponent_scales(intensity));
-        let luminances: Vec<Result<f64, usize>> = texels
+        let built: Vec<Result<RowLuminance, usize>> = texels
             .par_chunks_mut(width)
-            .map(|row| build_row_table(row, &scales))
+            .map(|row| build_row_table(row, &scales, f64::INFINITY))
             .collect();
         let z: Vec<f64> = (0..=height)
             .map(|row| (PI * row as f64 / height as f64).cos())
             .collect();
-        let mut row_weights = Vec::with_capacity(height);
-        for (row, &luminance) in luminances.iter().enumerate() {
-            let sum = luminance.map_err(|col| EnvironmentError::BadTexel {
+        let mut luminances = Vec::with_capacity(height);
+        for (row, built) in built.iter().enumerate() {
+            luminances.push(built.map_err(|col| EnvironmentError::BadTexel {
                 origin: origin.clone(),
                 x: col,
                 y: row,
                 value: decode(texels[row * width + col], &scales),
-            })?;
-            // ∝ Σ Y × Ω_row: the density per solid angle follows luminance.
-            row_weights.push(sum * TAU * (z[row] - z[row + 1]));
+            })?);
         }
+        let hot = hot_part(&texels, width, &z, &luminances, &scales);
+        let hot_threshold = match &hot {
+            Some((part, threshold)) => {
+                // The rows holding hot texels again, with those at weight 0.
+                let mut hot_rows: Vec<usize> =
+                    part.texels.iter().map(|&i| i as usize / width).collect();
+                hot_rows.dedup();
+                for row in hot_rows {
+                    let texels = &mut texels[row * width..][..width];
+                    luminances[row] = build_row_table(texels, &scales, *threshold)
+                        .expect("a row already built once");
+                }
+                *threshold
+            }
+            None => f64::INFINITY,
+        };
+        // ∝ Σ Y × Ω_row: the density per solid angle follows luminance.
+        let row_weights: Vec<f64> = (0..height)
+            .map(|row| luminances[row].sum * TAU * (z[row] - z[row + 1]))
+            .collect();
         // Only all-black rows (or a sum overflowing to ∞) fail here.
         let marginal = AliasTable::new(&row_weights).ok();
         let rows = (0..height)
             .map(|row| {
                 let (z_top, z_bottom) = (z[row], z[row + 1]);
                 let probability = marginal.as_ref().map_or(0.0, |m| m.probability(row));
-                let sum = luminances[row].unwrap_or(0.0);
+                let sum = luminances[row].sum;
                 RowSampling {
                     units_per_luminance: if probability > 0.0 {
                         row_units_per_luminance(sum, width)
@@ -608,6 +727,12 @@ impl EnvironmentMap {
             scales,
             rows,
             marginal,
+            part_shares: match &hot {
+                Some((part, _)) => [1.0 - part.share, part.share],
+                None => [1.0, 0.0],
+            },
+            hot: hot.map(|(part, _)| part),
+            hot_threshold,
             rotation_deg,
             #[cfg(test)]
             rotation_rad: rotation_deg.to_radians(),
@@ -768,18 +893,72 @@ impl EnvironmentMap {
     /// [`Self::radiance`] and [`Self::pdf`] of one direction, from one
     /// texel read; equal to the separate calls.
     pub fn radiance_and_pdf(&self, direction: DVec3) -> (Rgb, f64) {
+        let (radiance, pdf, _) = self.radiance_and_pdfs(direction);
+        (radiance, pdf)
+    }
+
+    /// [`Self::radiance`], [`Self::pdf`] and the density of
+    /// [`Self::sample_part`] of the part the direction lies in, from one
+    /// texel read.
+    fn radiance_and_pdfs(&self, direction: DVec3) -> (Rgb, f64, f64) {
         match self.texel_index(direction) {
-            Some((row, col)) => self.texel_radiance_and_pdf(Texel { row, col }),
-            None => (Rgb::ZERO, 0.0),
+            Some((row, col)) => self.texel_radiance_and_pdfs(Texel { row, col }),
+            None => (Rgb::ZERO, 0.0, 0.0),
         }
     }
 
-    /// [`Self::radiance_and_pdf`] of a texel found by
+    /// [`Self::radiance_and_pdfs`] of a texel found by
     /// [`Self::prefetch_direction`].
-    fn texel_radiance_and_pdf(&self, Texel { row, col }: Texel) -> (Rgb, f64) {
-        let bits = self.texels[row * self.width + col];
+    #[inline]
+    fn texel_radiance_and_pdfs(&self, texel: Texel) -> (Rgb, f64, f64) {
+        let bits = self.texels[texel.row * self.width + texel.col];
         let radiance = decode(bits, &self.scales);
-        (radiance, texel_pdf(bits, radiance, &self.rows[row]))
+        let (whole, part) = self.texel_pdfs(texel, bits, radiance);
+        (radiance, whole, part)
+    }
+
+    /// The densities at `texel`, read as `bits` (its decoded `radiance`
+    /// passed in): [`Self::sample`]'s, and that of the part it is in (the
+    /// hot part's when its luminance reaches the hot threshold, else its
+    /// row's, [`texel_pdf`]); the first is the second times the part's
+    /// share of the whole map's draws.
+    #[inline]
+    fn texel_pdfs(&self, texel: Texel, bits: u64, radiance: Rgb) -> (f64, f64) {
+        let y = luminance(radiance);
+        if y >= self.hot_threshold {
+            let part = self.hot_texel_pdf(texel);
+            return (part * self.part_shares[1], part);
+        }
+        let part = texel_pdf(bits, y, &self.rows[texel.row]);
+        (part * self.part_shares[0], part)
+    }
+
+    /// The hot part's density at a texel in it: its probability in the
+    /// part's table over its solid angle (a draw is uniform in solid angle
+    /// inside it). Out of line: only directions towards the sun need it.
+    #[inline(never)]
+    fn hot_texel_pdf(&self, Texel { row, col }: Texel) -> f64 {
+        let Some(hot) = &self.hot else {
+            return 0.0;
+        };
+        let index = (row * self.width + col) as u32;
+        match hot.texels.binary_search(&index) {
+            Ok(i) => hot.table.probability(i) / self.texel_solid_angle(row),
+            Err(_) => 0.0,
+        }
+    }
+
+    /// The solid angle of a texel of `row`.
+    fn texel_solid_angle(&self, row: usize) -> f64 {
+        let band = &self.rows[row];
+        TAU * (band.z_top - band.z_bottom) / self.width as f64
+    }
+
+    /// How many parts [`Self::sample_part`] draws from: 2 for a map whose
+    /// brightest texels are sampled apart from the rest, else 1 (see the
+    /// type's documentation).
+    pub fn parts(&self) -> usize {
+        1 + usize::from(self.hot.is_some())
     }
 
     /// Starts loading the texel [`Self::radiance_and_pdf`] reads for
@@ -807,26 +986,61 @@ impl EnvironmentMap {
     }
 
     /// Draws a direction with density ∝ luminance per solid angle; radiance
-    /// and pdf are those of the returned direction (see [`Environment::sample`]).
-    /// `u[1]` picks the row and the height in it, `u[0]` the column and
-    /// the azimuth in it, each by an alias table.
+    /// and pdf are those of the returned direction (see
+    /// [`Environment::sample`]): a part chosen by its share of the map's
+    /// power (`u[0]` below the hot part's share picks it, the rest of
+    /// `u[0]` rescaled), then [`Self::sample_part`] of it.
     pub fn sample(&self, u: [f64; 2]) -> Option<EnvironmentSample> {
-        let marginal = self.marginal.as_ref()?;
-        let (row, v_within) = marginal.sample_bin(u[1]);
-        let texels = &self.texels[row * self.width..][..self.width];
-        let (col, u_within) = draw(u[0], self.width, COLUMN_CAPACITY, |j| bucket(texels[j]));
-        let bits = texels[col];
-        let sampling = &self.rows[row];
+        let [rest, hot] = self.part_shares;
+        let (part, u0, share) = if u[0] < hot {
+            (1, u[0] / hot, hot)
+        } else if hot > 0.0 {
+            (0, ((u[0] - hot) / rest).min(1.0_f64.next_down()), rest)
+        } else {
+            (0, u[0], rest)
+        };
+        let sample = self.sample_part(part, [u0, u[1]])?;
+        Some(EnvironmentSample {
+            pdf: sample.pdf * share,
+            ..sample
+        })
+    }
+
+    /// Draws a direction of part `part` (0: the rows' tables; 1: the hot
+    /// texels, when [`Self::parts`] is 2) with density ∝ luminance per
+    /// solid angle within the part; radiance and density are those of the
+    /// returned direction (see [`Environment::sample_part`]). In part 0
+    /// `u[1]` picks the row and the height in it, `u[0]` the column and
+    /// the azimuth in it, each by an alias table; in part 1 `u[0]` picks
+    /// the texel and the azimuth in it, `u[1]` the height.
+    pub fn sample_part(&self, part: usize, u: [f64; 2]) -> Option<EnvironmentSample> {
+        let (texel, u_within, v_within) = if part == 0 {
+            let (row, v_within) = self.marginal.as_ref()?.sample_bin(u[1]);
+            let texels = &self.texels[row * self.width..][..self.width];
+            let (col, u_within) = draw(u[0], self.width, COLUMN_CAPACITY, |j| bucket(texels[j]));
+            (Texel { row, col }, u_within, v_within)
+        } else {
+            let hot = self.hot.as_ref().filter(|_| part == 1)?;
+            let (i, u_within) = hot.table.sample_bin(u[0]);
+            let index = hot.texels[i] as usize;
+            let texel = Texel {
+                row: index / self.width,
+                col: index % self.width,
+            };
+            (texel, u_within, u[1])
+        };
+        let bits = self.texels[texel.row * self.width + texel.col];
         let radiance = decode(bits, &self.scales);
-        let pdf = texel_pdf(bits, radiance, sampling);
+        let (_, pdf) = self.texel_pdfs(texel, bits, radiance);
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
         // Uniform in solid angle over the texel: cosθ uniform over the
         // row's band, φ uniform over the column (φ = 2π·turns + rotation).
-        let z = sampling.z_top - v_within * (sampling.z_top - sampling.z_bottom);
+        let band = &self.rows[texel.row];
+        let z = band.z_top - v_within * (band.z_top - band.z_bottom);
         let sin_theta = ((1.0 - z) * (1.0 + z)).max(0.0).sqrt();
-        let turns = (col as f64 + u_within) / self.width as f64 + self.rotation_turns;
+        let turns = (texel.col as f64 + u_within) / self.width as f64 + self.rotation_turns;
         let (sin_phi, cos_phi) = sin_cos_turns(turns);
         Some(EnvironmentSample {
             direction: DVec3::new(sin_theta * cos_phi, sin_theta * sin_phi, z),
@@ -836,14 +1050,13 @@ impl EnvironmentMap {
     }
 }
 
-/// The density of a texel read as `bits` (its decoded `radiance` passed
-/// in): its integer weight `⌊Y s_r⌋ + extra` times the row's density per
+/// The density of a texel read as `bits` (the `luminance` of its decoded
+/// radiance passed in) in its row's table: its integer weight `⌊Y s_r⌋ + extra` times the row's density per
 /// unit; the same expression at build time made the weights the row's
 /// alias table samples.
 #[inline]
-fn texel_pdf(bits: u64, radiance: Rgb, row: &RowSampling) -> f64 {
-    let units = floor_units(luminance(radiance), row.units_per_luminance)
-        + ((bits >> EXTRA_UNIT_SHIFT) & 1);
+fn texel_pdf(bits: u64, luminance: f64, row: &RowSampling) -> f64 {
+    let units = floor_units(luminance, row.units_per_luminance) + ((bits >> EXTRA_UNIT_SHIFT) & 1);
     units as f64 * row.pdf_per_unit
 }
 
@@ -866,22 +1079,44 @@ fn row_units_per_luminance(sum: f64, width: usize) -> f64 {
     (width as u64 * COLUMN_CAPACITY) as f64 / sum * (1.0 - 2f64.powi(-30))
 }
 
-/// Fills the alias bits of one row of packed texels and returns the sum
-/// of their luminances (0 for a row that is not to be sampled), or the
-/// column of a texel whose luminance (or the row's sum) overflows. A black
-/// row gets buckets that keep all their units (never read: the row is
-/// never drawn).
-fn build_row_table(row: &mut [u64], scales: &[f64; 64]) -> Result<f64, usize> {
+/// What building a row's table found: the luminance it samples, and its
+/// brightest texel's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct RowLuminance {
+    /// The sum of the luminances the row's table samples (0 for a row
+    /// that is not to be sampled).
+    sum: f64,
+    /// The largest luminance of the row's texels, hot ones included.
+    brightest: f64,
+}
+
+/// Fills the alias bits of one row of packed texels, its texels from
+/// luminance `hot_threshold` up at weight 0 (they are sampled apart), and
+/// returns the luminance its table samples, or the column of a texel
+/// whose luminance (or the row's sum) overflows. A black row gets buckets
+/// that keep all their units (never read: the row is never drawn).
+fn build_row_table(
+    row: &mut [u64],
+    scales: &[f64; 64],
+    hot_threshold: f64,
+) -> Result<RowLuminance, usize> {
     let width = row.len();
-    let luminances: Vec<f64> = row.iter().map(|&b| luminance(decode(b, scales))).collect();
+    let mut luminances: Vec<f64> = row.iter().map(|&b| luminance(decode(b, scales))).collect();
     if let Some(col) = luminances.iter().position(|y| !y.is_finite()) {
         return Err(col);
+    }
+    let brightest = luminances.iter().fold(0.0, |a: f64, &y| a.max(y));
+    for y in &mut luminances {
+        if *y >= hot_threshold {
+            *y = 0.0;
+        }
     }
     let sum: f64 = luminances.iter().sum();
     if !sum.is_finite() {
         let brightest = (0..width).max_by(|&a, &b| luminances[a].total_cmp(&luminances[b]));
         return Err(brightest.unwrap_or(0));
     }
+    let sampled = RowLuminance { sum, brightest };
     let total = width as u64 * COLUMN_CAPACITY;
     let weights = (sum > 0.0)
         .then(|| row_weights(&luminances, row_units_per_luminance(sum, width), total))
@@ -894,7 +1129,10 @@ fn build_row_table(row: &mut [u64], scales: &[f64; 64]) -> Result<f64, usize> {
         }
         // Black, or (never) weights that could not be made exact: a row
         // the marginal leaves out.
-        return Ok(0.0);
+        return Ok(RowLuminance {
+            sum: 0.0,
+            ..sampled
+        });
     };
     for (col, ((threshold, alias), bits)) in alias_table(&weights, COLUMN_CAPACITY)
         .into_iter()
@@ -906,7 +1144,63 @@ fn build_row_table(row: &mut [u64], scales: &[f64; 64]) -> Result<f64, usize> {
             | u64::from(extra[col]) << EXTRA_UNIT_SHIFT
             | (alias as u64) << ALIAS_SHIFT;
     }
-    Ok(sum)
+    Ok(sampled)
+}
+
+/// The hot part of a map whose rows were built as one part, and the
+/// luminance from which a texel is in it, when the map qualifies (see
+/// [`EnvironmentMap`]'s "Two parts"): texels from [`HOT_OVER_MEAN`] × the
+/// mean luminance over the sphere, at most one in
+/// [`HOT_MAX_TEXELS_PER`], carrying at least [`HOT_MIN_SHARE`] of the
+/// power and leaving at least [`REST_MIN_SHARE`] to the rest. `z` holds
+/// the rows' edge cosines.
+fn hot_part(
+    texels: &[u64],
+    width: usize,
+    z: &[f64],
+    rows: &[RowLuminance],
+    scales: &[f64; 64],
+) -> Option<(HotPart, f64)> {
+    // Power ∝ Σ Y × texel solid angle, 2π Δz / width per texel of a row.
+    let texel_solid_angle = |row: usize| TAU * (z[row] - z[row + 1]) / width as f64;
+    let power: f64 = (0..rows.len())
+        .map(|row| rows[row].sum * texel_solid_angle(row))
+        .sum();
+    let threshold = HOT_OVER_MEAN * power / (4.0 * PI);
+    if !(threshold > 0.0 && threshold.is_finite()) {
+        return None;
+    }
+    let most = texels.len() / HOT_MAX_TEXELS_PER;
+    let mut indices = Vec::new();
+    let mut weights = Vec::new();
+    for (row, _) in rows
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.brightest >= threshold)
+    {
+        for (col, &bits) in texels[row * width..][..width].iter().enumerate() {
+            let y = luminance(decode(bits, scales));
+            if y >= threshold {
+                if indices.len() == most {
+                    return None;
+                }
+                indices.push((row * width + col) as u32);
+                weights.push(y * texel_solid_angle(row));
+            }
+        }
+    }
+    let hot_power: f64 = weights.iter().sum();
+    let qualifies =
+        hot_power >= HOT_MIN_SHARE * power && power - hot_power >= REST_MIN_SHARE * power;
+    let table = AliasTable::new(&weights).ok().filter(|_| qualifies)?;
+    Some((
+        HotPart {
+            texels: indices,
+            table,
+            share: hot_power / power,
+        },
+        threshold,
+    ))
 }
 
 /// The integer weights `⌊Y_i s⌋ + extra_i` of a row and the extra bits:
@@ -1734,9 +2028,11 @@ mod tests {
             for d in directions.into_iter().chain(random) {
                 // The texel the prefetch found reads what a lookup reads.
                 let texel = environment.prefetch_direction(d);
-                let expected = environment.radiance_and_pdf(d);
-                assert_eq!(environment.radiance_and_pdf_in(d, texel), expected);
-                assert_eq!(environment.radiance_in(d, texel), expected.0);
+                let (radiance, pdf) = environment.radiance_and_pdf(d);
+                let expected = (radiance, pdf, environment.part_pdf(d));
+                assert_eq!(environment.radiance_and_pdfs_in(d, texel), expected);
+                assert_eq!(environment.radiance_and_pdfs_in(d, None), expected);
+                assert_eq!(environment.radiance_in(d, texel), radiance);
             }
         }
     }

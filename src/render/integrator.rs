@@ -1,7 +1,8 @@
 //! The path tracer: at every hit the gem's pattern picks a layered BRDF,
 //! light arrives by next-event estimation (every light, and the environment
-//! by its luminance distribution) and by BRDF sampling, and the two
-//! strategies are combined with the power heuristic (Veach 1997, §9.2).
+//! by its luminance distribution, a sun in it apart) and by BRDF sampling,
+//! and the two strategies are combined with the power heuristic (Veach
+//! 1997, §9.2).
 //!
 //! Stones are opaque surfaces (the layered BRDF models what happens under
 //! the varnish), so a path bounces between stones and the ground until it
@@ -15,7 +16,7 @@ use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem, Medium};
 use crate::recipe::TableCache;
 use crate::render::dielectric::{cross_smooth_interface, split_smooth_interface, RoughInterface};
-use crate::render::environment::{Environment, EnvironmentMap, Texel};
+use crate::render::environment::{Environment, EnvironmentMap, EnvironmentSample, Texel};
 use crate::render::flake_lobe::{FlakeLobe, FlakeLobes};
 use crate::render::flake_medium::{FlakeView, OwnCell};
 use crate::render::footprint::{aggregate_probability, RayCone};
@@ -479,9 +480,10 @@ impl RenderScene {
         let mut throughput = Rgb::ONE;
         // Whether the first hit went into `first_hits` (else: nothing hit).
         let mut first_recorded = false;
-        // Where the previous BRDF sample came from and its pdf (None for
-        // the camera ray, whose emitters count in full).
-        let mut previous: Option<(DVec3, f64)> = None;
+        // Where the previous BRDF sample came from, its pdf and whether its
+        // vertex sampled the environment's parts apart (None for the
+        // camera ray, whose emitters count in full).
+        let mut previous: Option<(DVec3, f64, bool)> = None;
         // The stone the current segment leaves (outwards), which it cannot
         // meet again: every cabochon is convex.
         let mut leaving: Option<usize> = start_leaving;
@@ -747,7 +749,7 @@ impl RenderScene {
                     (_, Some(vertex)) => {
                         self.sampled_chain_weight(&vertex, light, origin, direction, t)
                     }
-                    (Some((p, brdf_pdf)), None) => {
+                    (Some((p, brdf_pdf, _)), None) => {
                         let light_pdf =
                             light.pdf(p, direction, t) * self.light_samples_per_emitter();
                         power_heuristic(brdf_pdf, light_pdf)
@@ -766,11 +768,15 @@ impl RenderScene {
                         self.environment.radiance_in(direction, escape_texel),
                         self.environment_sampled_chain_weight(&vertex, direction),
                     ),
-                    (Some((_, brdf_pdf)), _) if self.samples_environment() => {
-                        let (sky, light_pdf) = self
+                    (Some((_, brdf_pdf, parts_apart)), _) if self.samples_environment() => {
+                        let (sky, whole_pdf, part_pdf) = self
                             .environment
-                            .radiance_and_pdf_in(direction, escape_texel);
-                        let light_pdf = light_pdf * self.light_samples_per_emitter();
+                            .radiance_and_pdfs_in(direction, escape_texel);
+                        let light_pdf = if parts_apart {
+                            part_pdf
+                        } else {
+                            whole_pdf * self.light_samples_per_emitter()
+                        };
                         (sky, power_heuristic(brdf_pdf, light_pdf))
                     }
                     _ => (self.environment.radiance_in(direction, escape_texel), 1.0),
@@ -807,10 +813,17 @@ impl RenderScene {
                     let outwards = hit.point + hit.normal * RAY_OFFSET;
                     // Under a base on the ground no light arrives from
                     // outside (its outside is the ground).
+                    let parts_apart = self.environment_parts_apart(cone);
                     if contact.is_none() {
                         radiance += throughput
                             * self.direct_at_interface(
-                                &interface, frame, wo, outwards, stone, stream, counts,
+                                &interface,
+                                frame,
+                                wo,
+                                (outwards, parts_apart),
+                                stone,
+                                stream,
+                                counts,
                             );
                     }
                     let Some(sample) = interface.sample(wo, stream.next_3d()) else {
@@ -829,7 +842,7 @@ impl RenderScene {
                     cone = RayCone::UNBOUNDED;
                     // Light was sampled only outwards: an emitter met
                     // there is weighed against it; none shines inside.
-                    previous = (!now_inside).then_some((origin, sample.pdf));
+                    previous = (!now_inside).then_some((origin, sample.pdf, parts_apart));
                     bounce += 1;
                     continue;
                 }
@@ -939,7 +952,8 @@ impl RenderScene {
             }
 
             // Next-event estimation: the lights and the environment.
-            self.for_each_light_sample(point, stream, |sample, emitter| {
+            let parts_apart = self.environment_parts_apart(cone);
+            self.for_each_light_sample(point, parts_apart, stream, |sample, emitter| {
                 let contribution = self.direct(
                     &shading,
                     (&brdf_at, mix.as_ref()),
@@ -986,7 +1000,7 @@ impl RenderScene {
             if throughput.max_element() <= 0.0 {
                 break;
             }
-            previous = Some((point, pdf));
+            previous = Some((point, pdf, parts_apart));
             leaving = hit.stone_index();
             origin = point;
             direction = wi_world;
@@ -1079,8 +1093,9 @@ impl RenderScene {
     }
 
     /// Next-event estimation at a rough interface vertex: one sample of
-    /// every light, then of the environment, as at an opaque vertex
-    /// ([`RenderScene::direct`]'s power heuristic), for the directions
+    /// every light, then of the environment (or of each of its parts, when
+    /// `parts_apart`), as at an opaque vertex ([`RenderScene::direct`]'s
+    /// power heuristic), for the directions
     /// outwards (`frame.n` is the outward normal): reflection when the
     /// path arrived from outside, transmission out when from inside (no
     /// light shines inside a body). `point` is offset outwards; shadow rays
@@ -1091,7 +1106,7 @@ impl RenderScene {
         interface: &RoughInterface,
         frame: Frame,
         wo: DVec3,
-        point: DVec3,
+        (point, parts_apart): (DVec3, bool),
         stone: Option<usize>,
         stream: &mut SampleStream,
         counts: &mut RayCounts,
@@ -1116,7 +1131,7 @@ impl RenderScene {
             }
             sum += incoming * (f * light_sample_scale(wi.z, pdf, bsdf_pdf, sample.is_delta));
         };
-        self.for_each_light_sample(point, stream, &mut one);
+        self.for_each_light_sample(point, parts_apart, stream, &mut one);
         sum
     }
 
@@ -1174,7 +1189,9 @@ impl RenderScene {
     /// Next-event estimation's light samples at `point`, each passed to
     /// `take` with its density already multiplied by
     /// [`RenderScene::light_samples_per_emitter`]: one sample of every
-    /// light, then of the environment, while there are at most
+    /// light, then of the environment (of each of its parts when
+    /// `environment_parts_apart`, see
+    /// [`RenderScene::environment_parts_apart`]), while there are at most
     /// [`MAX_LIGHT_SAMPLES`] emitters; else [`MAX_LIGHT_SAMPLES`] samples,
     /// each of an emitter chosen uniformly in its stratum of the emitters
     /// (one number shared by the strata), so that a vertex's work stays
@@ -1186,18 +1203,19 @@ impl RenderScene {
     fn for_each_light_sample(
         &self,
         point: DVec3,
+        environment_parts_apart: bool,
         stream: &mut SampleStream,
         mut take: impl FnMut(LightSample, Option<usize>),
     ) {
-        let environment_sample = |u: [f64; 2], share: f64| {
-            self.environment.sample(u).map(|s| LightSample {
-                direction: s.direction,
-                distance: f64::INFINITY,
-                radiance: s.radiance,
-                pdf: s.pdf * share,
-                is_delta: false,
-            })
+        let light_sample = |s: EnvironmentSample, share: f64| LightSample {
+            direction: s.direction,
+            distance: f64::INFINITY,
+            radiance: s.radiance,
+            pdf: s.pdf * share,
+            is_delta: false,
         };
+        let environment_sample =
+            |u: [f64; 2], share: f64| self.environment.sample(u).map(|s| light_sample(s, share));
         let emitters = self.sampled_emitters();
         if emitters <= MAX_LIGHT_SAMPLES {
             for (index, light) in self.lights.iter().enumerate() {
@@ -1206,7 +1224,13 @@ impl RenderScene {
                     take(sample, Some(index));
                 }
             }
-            if let Some(sample) = self
+            if environment_parts_apart {
+                for part in 0..self.environment.parts() {
+                    if let Some(s) = self.environment.sample_part(part, stream.next_2d()) {
+                        take(light_sample(s, 1.0), None);
+                    }
+                }
+            } else if let Some(sample) = self
                 .samples_environment()
                 .then(|| environment_sample(stream.next_2d(), 1.0))
                 .flatten()
@@ -1264,6 +1288,23 @@ impl RenderScene {
             .any(|(index, light)| Some(index) != sampled && light.blocks(point, direction, reach))
     }
 
+    /// Whether next-event estimation at a vertex whose footprint is `cone`
+    /// samples each part of the environment ([`Environment::parts`]) with
+    /// a sample of its own instead of the whole map with one: where a
+    /// pixel sees the vertex sharply (the camera's vertices, and past
+    /// smooth reflections and refractions), when the map has two parts and
+    /// the scene's lights and both parts are at most [`MAX_LIGHT_SAMPLES`]
+    /// emitters. There the skylight that a sun leaves to BRDF sampling
+    /// shows as grain; past a glossy or diffuse bounce a pixel averages
+    /// it, and one sample of the whole map costs less.
+    #[inline(always)]
+    pub(crate) fn environment_parts_apart(&self, cone: RayCone) -> bool {
+        !cone.is_unbounded()
+            && self.samples_environment()
+            && self.environment.parts() == 2
+            && self.lights.len() + 2 <= MAX_LIGHT_SAMPLES
+    }
+
     /// Whether next-event estimation samples the environment. A constant
     /// environment is left to BRDF sampling alone: for uniform incident
     /// radiance the BRDF's own importance (cosine-weighted for the diffuse
@@ -1282,7 +1323,9 @@ impl RenderScene {
     ///
     /// [`PixelSampler::refill`]: crate::render::sampler::PixelSampler::refill
     pub(crate) fn first_vertex_pairs(&self) -> u32 {
-        let pairs = 2 + self.sampled_emitters().min(MAX_LIGHT_SAMPLES);
+        let parts_apart = self.environment_parts_apart(RayCone::from_camera(0.0));
+        let emitters = self.sampled_emitters() + usize::from(parts_apart);
+        let pairs = 2 + emitters.min(MAX_LIGHT_SAMPLES);
         pairs.min(SOBOL_PAIRS as usize) as u32
     }
 
