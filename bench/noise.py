@@ -10,8 +10,9 @@ Two binaries run alternately, and their ratios (B / A) close the table.
 Each against its own reference, so that a change of the expected image
 (e.g. of a compensation table) does not count as noise. A last line gives
 the ratios of trimmed RMSEs, without the largest 0.1 % of each binary's
-(render, pixel) squared errors: under a small bright source the plain RMSE
-is decided by a few caustic pixels of a few renders. Run with
+(render, pixel) squared errors, and of the median pixel's RMSE over the
+renders: under a small bright source the plain RMSE is decided by a few
+caustic pixels of a few renders. Run with
 bench/.venv/bin/python (it reads EXRs with Mitsuba's Bitmap):
 
     bench/.venv/bin/python bench/noise.py --scene bench/suite/env-softbox.ron \\
@@ -37,6 +38,12 @@ REGIONS = {
     "stones": lambda ids: ids >= 2,
     "all": lambda ids: np.ones(ids.shape, bool),
 }
+
+
+def median_pixel(squares):
+    """The median over pixels of each pixel's mean squared error over the
+    renders (`squares`: one array of the region's pixels per render)."""
+    return np.median(np.mean(squares, axis=0))
 
 
 def main():
@@ -98,6 +105,10 @@ def main():
                            / trimmed_mean(np.concatenate(squared[0][name]))) for name in REGIONS]
         print(f"| B / A, trimmed of the largest {TRIMMED:.1%} | "
               + " | ".join(f"{r:.3f}" for r in trimmed) + " | | |")
+        median = [np.sqrt(median_pixel(squared[1][name]) / median_pixel(squared[0][name]))
+                  for name in REGIONS]
+        print("| B / A, the median pixel's RMSE over the seeds | "
+              + " | ".join(f"{r:.3f}" for r in median) + " | | |")
 
 
 if __name__ == "__main__":
