@@ -909,7 +909,7 @@ impl EnvironmentMap {
 
     /// [`Self::radiance_and_pdfs`] of a texel found by
     /// [`Self::prefetch_direction`].
-    #[inline]
+    #[inline(always)]
     fn texel_radiance_and_pdfs(&self, texel: Texel) -> (Rgb, f64, f64) {
         let bits = self.texels[texel.row * self.width + texel.col];
         let radiance = decode(bits, &self.scales);
@@ -922,7 +922,7 @@ impl EnvironmentMap {
     /// hot part's when its luminance reaches the hot threshold, else its
     /// row's, [`texel_pdf`]); the first is the second times the part's
     /// share of the whole map's draws.
-    #[inline]
+    #[inline(always)]
     fn texel_pdfs(&self, texel: Texel, bits: u64, radiance: Rgb) -> (f64, f64) {
         let y = luminance(radiance);
         if y >= self.hot_threshold {
@@ -991,13 +991,14 @@ impl EnvironmentMap {
     /// power (`u[0]` below the hot part's share picks it, the rest of
     /// `u[0]` rescaled), then [`Self::sample_part`] of it.
     pub fn sample(&self, u: [f64; 2]) -> Option<EnvironmentSample> {
+        if self.hot.is_none() {
+            return self.sample_part(0, u);
+        }
         let [rest, hot] = self.part_shares;
         let (part, u0, share) = if u[0] < hot {
             (1, u[0] / hot, hot)
-        } else if hot > 0.0 {
-            (0, ((u[0] - hot) / rest).min(1.0_f64.next_down()), rest)
         } else {
-            (0, u[0], rest)
+            (0, ((u[0] - hot) / rest).min(1.0_f64.next_down()), rest)
         };
         let sample = self.sample_part(part, [u0, u[1]])?;
         Some(EnvironmentSample {
@@ -1014,33 +1015,35 @@ impl EnvironmentMap {
     /// the azimuth in it, each by an alias table; in part 1 `u[0]` picks
     /// the texel and the azimuth in it, `u[1]` the height.
     pub fn sample_part(&self, part: usize, u: [f64; 2]) -> Option<EnvironmentSample> {
-        let (texel, u_within, v_within) = if part == 0 {
+        // The part's density of the texel drawn: a row's texel is never a
+        // hot one (those have weight 0 there), so each branch reads its
+        // own part's density, as `texel_pdfs` would.
+        let (row, col, u_within, v_within, radiance, pdf) = if part == 0 {
             let (row, v_within) = self.marginal.as_ref()?.sample_bin(u[1]);
             let texels = &self.texels[row * self.width..][..self.width];
             let (col, u_within) = draw(u[0], self.width, COLUMN_CAPACITY, |j| bucket(texels[j]));
-            (Texel { row, col }, u_within, v_within)
+            let bits = texels[col];
+            let radiance = decode(bits, &self.scales);
+            let pdf = texel_pdf(bits, luminance(radiance), &self.rows[row]);
+            (row, col, u_within, v_within, radiance, pdf)
         } else {
             let hot = self.hot.as_ref().filter(|_| part == 1)?;
             let (i, u_within) = hot.table.sample_bin(u[0]);
             let index = hot.texels[i] as usize;
-            let texel = Texel {
-                row: index / self.width,
-                col: index % self.width,
-            };
-            (texel, u_within, u[1])
+            let (row, col) = (index / self.width, index % self.width);
+            let radiance = decode(self.texels[index], &self.scales);
+            let pdf = hot.table.probability(i) / self.texel_solid_angle(row);
+            (row, col, u_within, u[1], radiance, pdf)
         };
-        let bits = self.texels[texel.row * self.width + texel.col];
-        let radiance = decode(bits, &self.scales);
-        let (_, pdf) = self.texel_pdfs(texel, bits, radiance);
         if !(pdf > 0.0 && pdf.is_finite()) {
             return None;
         }
         // Uniform in solid angle over the texel: cosθ uniform over the
         // row's band, φ uniform over the column (φ = 2π·turns + rotation).
-        let band = &self.rows[texel.row];
+        let band = &self.rows[row];
         let z = band.z_top - v_within * (band.z_top - band.z_bottom);
         let sin_theta = ((1.0 - z) * (1.0 + z)).max(0.0).sqrt();
-        let turns = (texel.col as f64 + u_within) / self.width as f64 + self.rotation_turns;
+        let turns = (col as f64 + u_within) / self.width as f64 + self.rotation_turns;
         let (sin_phi, cos_phi) = sin_cos_turns(turns);
         Some(EnvironmentSample {
             direction: DVec3::new(sin_theta * cos_phi, sin_theta * sin_phi, z),

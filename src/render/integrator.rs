@@ -511,6 +511,9 @@ impl RenderScene {
         // The environment texel the last bounce's continuation (this
         // iteration's ray) would escape to, found when it was prefetched.
         let mut escape: Option<Texel> = None;
+        // Whether the sharply seen vertices sample the environment's parts
+        // apart ([`RenderScene::environment_parts_apart`]).
+        let parts_apart_where_sharp = self.environment_parts_apart();
         loop {
             counts.traced += 1;
             let arriving = connected.take();
@@ -813,7 +816,7 @@ impl RenderScene {
                     let outwards = hit.point + hit.normal * RAY_OFFSET;
                     // Under a base on the ground no light arrives from
                     // outside (its outside is the ground).
-                    let parts_apart = self.environment_parts_apart(cone);
+                    let parts_apart = parts_apart_where_sharp && !cone.is_unbounded();
                     if contact.is_none() {
                         radiance += throughput
                             * self.direct_at_interface(
@@ -952,7 +955,7 @@ impl RenderScene {
             }
 
             // Next-event estimation: the lights and the environment.
-            let parts_apart = self.environment_parts_apart(cone);
+            let parts_apart = parts_apart_where_sharp && !cone.is_unbounded();
             self.for_each_light_sample(point, parts_apart, stream, |sample, emitter| {
                 let contribution = self.direct(
                     &shading,
@@ -1288,19 +1291,17 @@ impl RenderScene {
             .any(|(index, light)| Some(index) != sampled && light.blocks(point, direction, reach))
     }
 
-    /// Whether next-event estimation at a vertex whose footprint is `cone`
-    /// samples each part of the environment ([`Environment::parts`]) with
-    /// a sample of its own instead of the whole map with one: where a
-    /// pixel sees the vertex sharply (the camera's vertices, and past
-    /// smooth reflections and refractions), when the map has two parts and
+    /// Whether next-event estimation may sample each part of the
+    /// environment ([`Environment::parts`]) with a sample of its own
+    /// instead of the whole map with one: when the map has two parts and
     /// the scene's lights and both parts are at most [`MAX_LIGHT_SAMPLES`]
-    /// emitters. There the skylight that a sun leaves to BRDF sampling
-    /// shows as grain; past a glossy or diffuse bounce a pixel averages
-    /// it, and one sample of the whole map costs less.
-    #[inline(always)]
-    pub(crate) fn environment_parts_apart(&self, cone: RayCone) -> bool {
-        !cone.is_unbounded()
-            && self.samples_environment()
+    /// emitters. A vertex does so where a pixel sees it sharply (its
+    /// footprint is bounded: the camera's vertices, and those past smooth
+    /// reflections and refractions). There the skylight that a sun leaves
+    /// to BRDF sampling shows as grain; past a glossy or diffuse bounce a
+    /// pixel averages it, and one sample of the whole map costs less.
+    pub(crate) fn environment_parts_apart(&self) -> bool {
+        self.samples_environment()
             && self.environment.parts() == 2
             && self.lights.len() + 2 <= MAX_LIGHT_SAMPLES
     }
@@ -1323,7 +1324,7 @@ impl RenderScene {
     ///
     /// [`PixelSampler::refill`]: crate::render::sampler::PixelSampler::refill
     pub(crate) fn first_vertex_pairs(&self) -> u32 {
-        let parts_apart = self.environment_parts_apart(RayCone::from_camera(0.0));
+        let parts_apart = self.environment_parts_apart();
         let emitters = self.sampled_emitters() + usize::from(parts_apart);
         let pairs = 2 + emitters.min(MAX_LIGHT_SAMPLES);
         pairs.min(SOBOL_PAIRS as usize) as u32
