@@ -1010,8 +1010,11 @@ impl RenderScene {
             flakes_as_medium = cone.is_unbounded();
             cone = RayCone::UNBOUNDED;
             bounce += 1;
-            // Should the ray escape, its texel loads while it is traced.
-            escape = self.environment.prefetch_direction(direction);
+            // Should the ray escape, its texel loads while it is traced (a
+            // ray bound for the ground never escapes: nothing to find).
+            escape = (self.samples_environment() && !self.world.cannot_escape(origin, direction))
+                .then(|| self.environment.prefetch_direction(direction))
+                .flatten();
         }
         if !BRANCH && !first_recorded {
             let nothing = FirstHit {

@@ -316,6 +316,16 @@ impl World {
         self.ground_height
     }
 
+    /// Whether a ray from `origin` along `direction` must end on the ground
+    /// or a stone, never escaping: it points down from above the ground
+    /// (the test by which [`World::intersect_leaving`] looks for the
+    /// ground, which then always finds it).
+    #[inline(always)]
+    pub(crate) fn cannot_escape(&self, origin: DVec3, direction: DVec3) -> bool {
+        self.ground_height
+            .is_some_and(|h| direction.z < 0.0 && origin.z > h - GROUND_CONTACT)
+    }
+
     /// The world ray in stone `index`'s object space, by its precomputed
     /// placement (a rotation keeps lengths: t is the same in both spaces).
     pub(crate) fn object_ray(
