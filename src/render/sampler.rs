@@ -195,6 +195,14 @@ impl SampleStream<'_> {
         Rng::new(mix64(self.pixel_seed ^ salt), u64::from(self.sample_index))
     }
 
+    /// [`SampleStream::side_stream`] of the point of the path `pairs_ahead`
+    /// pairs on: another generator at each vertex (the main stream's
+    /// position is mixed in), for an extra sample that must not shift the
+    /// main stream's pairs, whose numbers a caller may also know ahead.
+    pub(crate) fn side_stream_ahead(&self, pairs_ahead: u32, salt: u64) -> Rng {
+        self.side_stream(salt ^ mix64(u64::from(self.next_pair + pairs_ahead)))
+    }
+
     /// Three numbers for a BRDF sample: a Sobol pair and one more.
     /// Inlined like [`SampleStream::next_2d`].
     #[inline(always)]
