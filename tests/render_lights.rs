@@ -381,3 +381,26 @@ fn sampling_a_sun_apart_at_the_camera_s_vertices_keeps_the_image_s_expectation()
     );
     assert_close(apart, whole, 0.01, "parts apart against the whole map");
 }
+
+#[test]
+fn a_sun_sampled_apart_renders_the_same_bytes_on_any_thread_count() {
+    // The sky part's numbers come from a side generator of each vertex:
+    // still a pure function of the pixel and sample.
+    let (environment, _) = sky_and_sun();
+    let stone = StoneInstance {
+        cabochon: Cabochon::new(CabochonParams::default()).unwrap(),
+        rotation: DQuat::IDENTITY,
+        position: DVec3::new(0.0, 7.0, 0.0),
+        gem: 0,
+    };
+    let on = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            floor_radiance_bouncing(environment.clone(), vec![], vec![stone.clone()], 64, 3)
+        })
+    };
+    assert_eq!(on(1).to_bits(), on(3).to_bits());
+}

@@ -973,8 +973,9 @@ impl EnvironmentMap {
         Some(Texel { row, col })
     }
 
-    /// Starts loading the texel that [`Self::sample`] reads first for `u`
-    /// (a map larger than the caches misses on it nearly every draw), so
+    /// Starts loading the texel that [`Self::sample_part`] of the rows'
+    /// part (and so [`Self::sample`] of a map of one part) reads first for
+    /// `u` (a map larger than the caches misses on it nearly every draw), so
     /// that a caller who knows its numbers early overlaps the wait with
     /// other work. A hint: nothing observable changes.
     #[inline]
