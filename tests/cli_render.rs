@@ -615,3 +615,43 @@ fn the_vector_code_path_writes_the_same_bytes_as_the_portable_one() {
         );
     }
 }
+
+#[test]
+fn a_map_with_a_sun_is_reported_as_sampled_apart_and_a_smooth_one_is_not() {
+    let dir = scratch("sun-map");
+    // A 64 × 32 sky with a one-texel sun of 97 % of its power, and the
+    // same sky without it.
+    let sky = |_col: usize, row: usize| if row < 16 { [0.5, 0.6, 0.8] } else { [0.1; 3] };
+    let (sunny, plain) = (dir.join("sunny.hdr"), dir.join("plain.hdr"));
+    common::maps::write_hdr(&sunny, 64, 32, |col, row| {
+        if (col, row) == (10, 5) {
+            [2.0e4; 3]
+        } else {
+            sky(col, row)
+        }
+    });
+    common::maps::write_hdr(&plain, 64, 32, sky);
+    let out_png = dir.join("out.png");
+    let report = |map: &std::path::Path| {
+        let args = [
+            "render",
+            "-o",
+            out_png.to_str().unwrap(),
+            "--size",
+            "8",
+            "--spp",
+            "1",
+            "--env",
+            map.to_str().unwrap(),
+        ];
+        let out = lapidary(&args);
+        assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+        stderr(&out)
+    };
+    let sunny_report = report(&sunny);
+    assert!(
+        sunny_report.contains("environment map: its 1 brightest texels hold 9"),
+        "{sunny_report}"
+    );
+    assert!(!report(&plain).contains("sampled apart"));
+}

@@ -736,22 +736,11 @@ fn check_loaded(env: &Environment, rotation_deg: f64, intensity: f64) {
     }
 }
 
-fn write_hdr(path: &std::path::Path, w: usize, h: usize, f: impl Fn(usize, usize) -> [f32; 3]) {
-    let pixels: Vec<image::Rgb<f32>> = (0..h)
-        .flat_map(|row| (0..w).map(move |col| (col, row)))
-        .map(|(col, row)| image::Rgb(f(col, row)))
-        .collect();
-    let file = std::fs::File::create(path).unwrap();
-    image::codecs::hdr::HdrEncoder::new(std::io::BufWriter::new(file))
-        .encode(&pixels, w, h)
-        .unwrap();
-}
-
 #[test]
 fn loads_hdr_and_exr_files() {
     let dir = common::cli::scratch("env", "load");
     let hdr = dir.join("tiny.hdr");
-    write_hdr(&hdr, 4, 2, test_texel);
+    common::maps::write_hdr(&hdr, 4, 2, test_texel);
     let env = Environment::from_file(&hdr, 0.0, 1.0).unwrap();
     check_loaded(&env, 0.0, 1.0);
     let env = Environment::from_file(&hdr, 45.0, 3.0).unwrap();
@@ -1052,7 +1041,7 @@ fn hdr_scanlines_read_as_the_image_crate_reads_them() {
             [t * 100.0, t * t, 0.001 + t]
         }
     };
-    write_hdr(&path, w, h, value);
+    common::maps::write_hdr(&path, w, h, value);
     let reference = image::open(&path).unwrap().into_rgb32f();
     let Environment::Map(map) = Environment::from_file(&path, 0.0, 1.0).unwrap() else {
         panic!("a file is a map")

@@ -353,6 +353,17 @@ fn a_sun_sampled_apart_from_its_sky_gives_the_map_s_irradiance() {
     );
 }
 
+/// A default stone 7 mm from the floor point the tests look at, whose
+/// light reaches it after a bounce.
+fn stone_beside_the_point() -> StoneInstance {
+    StoneInstance {
+        cabochon: Cabochon::new(CabochonParams::default()).unwrap(),
+        rotation: DQuat::IDENTITY,
+        position: DVec3::new(0.0, 7.0, 0.0),
+        gem: 0,
+    }
+}
+
 #[test]
 fn sampling_a_sun_apart_at_the_camera_s_vertices_keeps_the_image_s_expectation() {
     // With bounces off a grey stone beside the point: the camera's
@@ -361,12 +372,7 @@ fn sampling_a_sun_apart_at_the_camera_s_vertices_keeps_the_image_s_expectation()
     // than a vertex samples apart, so every vertex then samples the whole
     // map: the same expected image by other estimators.
     let (environment, _) = sky_and_sun();
-    let stone = StoneInstance {
-        cabochon: Cabochon::new(CabochonParams::default()).unwrap(),
-        rotation: DQuat::IDENTITY,
-        position: DVec3::new(0.0, 7.0, 0.0),
-        gem: 0,
-    };
+    let stone = stone_beside_the_point();
     let black = |x: f64| Light::Point {
         position: DVec3::new(x, 0.0, 5.0),
         intensity: Rgb::ZERO,
@@ -387,12 +393,7 @@ fn a_sun_sampled_apart_renders_the_same_bytes_on_any_thread_count() {
     // The sky part's numbers come from a side generator of each vertex:
     // still a pure function of the pixel and sample.
     let (environment, _) = sky_and_sun();
-    let stone = StoneInstance {
-        cabochon: Cabochon::new(CabochonParams::default()).unwrap(),
-        rotation: DQuat::IDENTITY,
-        position: DVec3::new(0.0, 7.0, 0.0),
-        gem: 0,
-    };
+    let stone = stone_beside_the_point();
     let on = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)

@@ -954,6 +954,13 @@ impl EnvironmentMap {
         TAU * (band.z_top - band.z_bottom) / self.width as f64
     }
 
+    /// The texels sampled apart from the rest and their share of the map's
+    /// power, when it has two parts (see the type's documentation): what
+    /// `lapidary render` reports of a map with a sun.
+    pub fn sampled_apart(&self) -> Option<(usize, f64)> {
+        self.hot.as_ref().map(|hot| (hot.texels.len(), hot.share))
+    }
+
     /// How many parts [`Self::sample_part`] draws from: 2 for a map whose
     /// brightest texels are sampled apart from the rest, else 1 (see the
     /// type's documentation).

@@ -91,13 +91,23 @@ pub fn prepare_scene(
         },
     );
     let gems = gems?;
+    let environment = environment?;
+    if let Environment::Map(map) = &environment {
+        if let Some((texels, share)) = map.sampled_apart() {
+            report(&format!(
+                "environment map: its {texels} brightest texels hold {:.1} % of its power \
+                 (a sun): sampled apart from the rest where the camera sees a surface",
+                100.0 * share
+            ));
+        }
+    }
     Ok(RenderScene {
         world: World::new(stones, scene.ground.as_ref().map(|g| g.height)),
         material_id_bases: RenderScene::material_id_bases(&gems),
         gems,
         ground_brdf: ground.map(|(brdf, _)| brdf),
         lights: scene.lights.clone(),
-        environment: environment?,
+        environment,
         max_bounces,
         ambient_occlusion: None,
         connect_through_surfaces: true,

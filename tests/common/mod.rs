@@ -11,10 +11,12 @@
 //!   known CDF.
 //! * [`rng`]: deterministic test randomness (xorshift64*).
 //! * [`scenes`]: cameras the render tests share.
+//! * [`maps`]: environment map files the tests write.
 #![allow(dead_code)]
 
 pub mod chi2;
 pub mod cli;
 pub mod ks;
+pub mod maps;
 pub mod rng;
 pub mod scenes;
