@@ -691,7 +691,7 @@ impl EnvironmentMap {
                 for row in hot_rows {
                     let texels = &mut texels[row * width..][..width];
                     luminances[row] = build_row_table(texels, &scales, *threshold)
-                        .expect("a row already built once");
+                        .expect("the row was built once; zeroing texels keeps its sum finite");
                 }
                 *threshold
             }
