@@ -402,6 +402,7 @@ impl Environment {
     /// [`Environment::prefetch_direction`] found it for that direction
     /// (the same answer, without finding the texel again): what a path
     /// escaping to a light-sampled sky needs.
+    #[inline(always)]
     pub(crate) fn radiance_and_pdfs_in(
         &self,
         direction: DVec3,
@@ -517,10 +518,10 @@ pub struct EnvironmentMap {
     /// The luminance from which a texel belongs to `hot` (∞ without one):
     /// one comparison tells a density lookup which part a texel is in.
     hot_threshold: f64,
-    /// The probabilities with which [`Self::sample`] draws from the rest
-    /// (the rows' tables) and from `hot`: their shares of the map's power,
-    /// `[1, 0]` without a hot part.
-    part_shares: [f64; 2],
+    /// The probability with which [`Self::sample`] draws from the rest
+    /// (the rows' tables): 1 − `hot`'s share, 1 without a hot part (kept
+    /// for every density lookup of a row's texel).
+    rest_share: f64,
     rotation_deg: f64,
     /// The rotation in radians, for the reference mapping in tests.
     #[cfg(test)]
@@ -727,10 +728,7 @@ impl EnvironmentMap {
             scales,
             rows,
             marginal,
-            part_shares: match &hot {
-                Some((part, _)) => [1.0 - part.share, part.share],
-                None => [1.0, 0.0],
-            },
+            rest_share: hot.as_ref().map_or(1.0, |(part, _)| 1.0 - part.share),
             hot: hot.map(|(part, _)| part),
             hot_threshold,
             rotation_deg,
@@ -926,25 +924,28 @@ impl EnvironmentMap {
     fn texel_pdfs(&self, texel: Texel, bits: u64, radiance: Rgb) -> (f64, f64) {
         let y = luminance(radiance);
         if y >= self.hot_threshold {
-            let part = self.hot_texel_pdf(texel);
-            return (part * self.part_shares[1], part);
+            return self.hot_texel_pdfs(texel);
         }
         let part = texel_pdf(bits, y, &self.rows[texel.row]);
-        (part * self.part_shares[0], part)
+        (part * self.rest_share, part)
     }
 
-    /// The hot part's density at a texel in it: its probability in the
-    /// part's table over its solid angle (a draw is uniform in solid angle
-    /// inside it). Out of line: only directions towards the sun need it.
+    /// [`Self::texel_pdfs`] of a texel of the hot part: its probability in
+    /// the part's table over its solid angle (a draw is uniform in solid
+    /// angle inside it), and that times the part's share. Out of line:
+    /// only directions towards the sun need it.
     #[inline(never)]
-    fn hot_texel_pdf(&self, Texel { row, col }: Texel) -> f64 {
+    fn hot_texel_pdfs(&self, Texel { row, col }: Texel) -> (f64, f64) {
         let Some(hot) = &self.hot else {
-            return 0.0;
+            return (0.0, 0.0);
         };
         let index = (row * self.width + col) as u32;
         match hot.texels.binary_search(&index) {
-            Ok(i) => hot.table.probability(i) / self.texel_solid_angle(row),
-            Err(_) => 0.0,
+            Ok(i) => {
+                let part = hot.table.probability(i) / self.texel_solid_angle(row);
+                (part * hot.share, part)
+            }
+            Err(_) => (0.0, 0.0),
         }
     }
 
@@ -999,10 +1000,10 @@ impl EnvironmentMap {
     /// power (`u[0]` below the hot part's share picks it, the rest of
     /// `u[0]` rescaled), then [`Self::sample_part`] of it.
     pub fn sample(&self, u: [f64; 2]) -> Option<EnvironmentSample> {
-        if self.hot.is_none() {
+        let Some(HotPart { share: hot, .. }) = self.hot else {
             return self.sample_part(0, u);
-        }
-        let [rest, hot] = self.part_shares;
+        };
+        let rest = self.rest_share;
         let (part, u0, share) = if u[0] < hot {
             (1, u[0] / hot, hot)
         } else {
@@ -1062,9 +1063,9 @@ impl EnvironmentMap {
 }
 
 /// The density of a texel read as `bits` (the `luminance` of its decoded
-/// radiance passed in) in its row's table: its integer weight `⌊Y s_r⌋ + extra` times the row's density per
-/// unit; the same expression at build time made the weights the row's
-/// alias table samples.
+/// radiance passed in) in its row's table: its integer weight `⌊Y s_r⌋ +
+/// extra` times the row's density per unit; the same expression at build
+/// time made the weights the row's alias table samples.
 #[inline]
 fn texel_pdf(bits: u64, luminance: f64, row: &RowSampling) -> f64 {
     let units = floor_units(luminance, row.units_per_luminance) + ((bits >> EXTRA_UNIT_SHIFT) & 1);

@@ -317,13 +317,20 @@ impl World {
     }
 
     /// Whether a ray from `origin` along `direction` must end on the ground
-    /// or a stone, never escaping: it points down from above the ground
-    /// (the test by which [`World::intersect_leaving`] looks for the
-    /// ground, which then always finds it).
+    /// or a stone, never escaping: [`World::ground_ahead`], by which
+    /// [`World::intersect_leaving`] then always finds the ground.
     #[inline(always)]
     pub(crate) fn cannot_escape(&self, origin: DVec3, direction: DVec3) -> bool {
+        self.ground_ahead(origin, direction).is_some()
+    }
+
+    /// The ground's height when a ray from `origin` along `direction`
+    /// meets it: it points down from above the ground (or from within
+    /// [`GROUND_CONTACT`] below it).
+    #[inline(always)]
+    fn ground_ahead(&self, origin: DVec3, direction: DVec3) -> Option<f64> {
         self.ground_height
-            .is_some_and(|h| direction.z < 0.0 && origin.z > h - GROUND_CONTACT)
+            .filter(|&h| direction.z < 0.0 && origin.z > h - GROUND_CONTACT)
     }
 
     /// The world ray in stone `index`'s object space, by its precomputed
@@ -421,20 +428,18 @@ impl World {
         // SurfaceHit is only built if no stone is nearer.
         let mut limit = t_max;
         let mut ground = None;
-        if let Some(h) = self.ground_height {
-            if direction.z < 0.0 && origin.z > h - GROUND_CONTACT {
-                // h − origin.z < 0 (exactly, for distinct numbers) over
-                // direction.z < 0: t > 0, so `t > t_min` holds for every
-                // t_min ≤ 0 and is tested only above 0 (a ray from just
-                // below the ground meets it at t = 0). Written as
-                // `t > t_min && t < limit`, with the camera ray's (0, ∞)
-                // LLVM fused the two into a 13-instruction test of t's
-                // bits.
-                let t = ((h - origin.z) / direction.z).max(0.0);
-                if t < limit && (t_min <= 0.0 || t > t_min) {
-                    limit = t;
-                    ground = Some(h);
-                }
+        if let Some(h) = self.ground_ahead(origin, direction) {
+            // h − origin.z < 0 (exactly, for distinct numbers) over
+            // direction.z < 0: t > 0, so `t > t_min` holds for every
+            // t_min ≤ 0 and is tested only above 0 (a ray from just
+            // below the ground meets it at t = 0). Written as
+            // `t > t_min && t < limit`, with the camera ray's (0, ∞)
+            // LLVM fused the two into a 13-instruction test of t's
+            // bits.
+            let t = ((h - origin.z) / direction.z).max(0.0);
+            if t < limit && (t_min <= 0.0 || t > t_min) {
+                limit = t;
+                ground = Some(h);
             }
         }
         let stone = if self.nothing_else_to_test(leaving) {
@@ -489,14 +494,8 @@ impl World {
     /// first test of [`World::occluded_leaving`].
     #[inline(always)]
     fn ground_blocks(&self, origin: DVec3, direction: DVec3, distance: f64) -> bool {
-        match self.ground_height {
-            Some(h) => {
-                direction.z < 0.0
-                    && origin.z > h - GROUND_CONTACT
-                    && (h - origin.z) / direction.z < distance
-            }
-            None => false,
-        }
+        self.ground_ahead(origin, direction)
+            .is_some_and(|h| (h - origin.z) / direction.z < distance)
     }
 
     /// Whether stone number `index`, unless it is the one the ray leaves,
