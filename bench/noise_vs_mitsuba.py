@@ -18,7 +18,8 @@ Mitsuba's film is a box, each sample in one pixel as in lapidary's
 filter importance sampling (a lapidary build with a box film reads the
 same against it: bench/results/2026-12-05-equal-error-vs-mitsuba.md);
 --mitsuba-filter tent gives it lapidary's tent, which Mitsuba splats
-into neighbouring pixels, so that they share samples.
+into neighbouring pixels, so that they share samples; --lapidary-filter
+box gives lapidary Mitsuba's box (`lapidary render --filter box`).
 Mitsuba renders through bench/peer_mitsuba.py (`llvm_ad_rgb`, max_depth =
 --bounces + 2). Run with bench/.venv/bin/python:
 
@@ -95,6 +96,9 @@ def main():
                              "pixel, as lapidary's filter importance sampling) or tent "
                              "(lapidary's 1-pixel tent, which Mitsuba splats into "
                              "neighbouring pixels: they share samples)")
+    parser.add_argument("--lapidary-filter", choices=("tent", "box"), default="tent",
+                        help="lapidary's pixel filter (`render --filter`): its default "
+                             "tent, or box, as Mitsuba's default here")
     args = parser.parse_args()
     if args.seeds < 2:
         parser.error("--seeds must be at least 2 (the standard error needs two renders)")
@@ -109,7 +113,7 @@ def main():
     def lapidary(spp, seed, out):
         subprocess.run([BINARY, "render", "-q", "--scene", scene, "--size", str(args.size),
                         "--spp", str(spp), "--seed", str(seed), "--bounces", str(args.bounces),
-                        "-o", out], check=True, env=dict(os.environ, LAPIDARY_CACHE="off"))
+                        "--filter", args.lapidary_filter, "-o", out], check=True, env=dict(os.environ, LAPIDARY_CACHE="off"))
 
     def mitsuba(spp, seed, out):
         subprocess.run([PYTHON, os.path.join(BENCH, "peer_mitsuba.py"), "render",

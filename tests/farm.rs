@@ -267,6 +267,7 @@ fn merge_refuses_every_tile_that_does_not_belong_and_writes_nothing() {
     tile(&t("spp.exr"), 1, 2, "3", &[]);
     tile(&t("seed.exr"), 1, 2, "2", &["--seed", "1"]);
     tile(&t("gem.exr"), 1, 2, "2", &["--bounces", "3"]);
+    tile(&t("box.exr"), 1, 2, "2", &["--filter", "box"]);
     tile(&t("of3.exr"), 1, 3, "2", &[]);
     let frame = t("frame.exr"); // written as frame-0001.exr
     let mut args = SMALL.to_vec();
@@ -331,13 +332,14 @@ fn merge_refuses_every_tile_that_does_not_belong_and_writes_nothing() {
 
     let out = t("out.png");
     std::fs::write(&out, "existing").unwrap();
-    let cases: [(&[&str], &str); 14] = [
+    let cases: [(&[&str], &str); 15] = [
         (
             &["a0.exr", "spp.exr"],
             "spp.exr belongs to another render than",
         ),
         (&["a0.exr", "seed.exr"], "its seed is 1, not 0"),
         (&["a0.exr", "gem.exr"], "its bounces is 3, not 4"),
+        (&["a0.exr", "box.exr"], "its filter is Box, not Tent"),
         (&["a0.exr", "frame-0001.exr"], "its frame is 1 of 2"),
         (&["a0.exr", "file-gem.exr"], "its recipe is"),
         (

@@ -14,7 +14,7 @@ use lapidary::recipe::parse_material;
 use lapidary::recipe::TableCache;
 use lapidary::render::camera::PinholeCamera;
 use lapidary::render::environment::{Environment, EnvironmentMap};
-use lapidary::render::film::{render, FilmSettings};
+use lapidary::render::film::{render, FilmSettings, PixelFilter};
 use lapidary::render::flake_lobe::FlakeLobes;
 use lapidary::render::integrator::RenderScene;
 use lapidary::render::lights::Light;
@@ -404,4 +404,84 @@ fn a_sun_sampled_apart_renders_the_same_bytes_on_any_thread_count() {
         })
     };
     assert_eq!(on(1).to_bits(), on(3).to_bits());
+}
+
+/// Columns of an 8 × 8 render looking straight down at the edge x = 0 of
+/// a soft box of radiance 1 lying on z = 0 and covering x > 0 (black
+/// beyond): the edge runs between columns 3 and 4. The mean of each
+/// column, ordered from the dark side to the lit one.
+fn columns_across_an_edge(filter: PixelFilter) -> Vec<f64> {
+    let light = Light::Rect {
+        centre: DVec3::new(50.0, 0.0, 0.0),
+        normal: DVec3::Z,
+        u_axis: DVec3::X,
+        v_axis: DVec3::Y,
+        width: 100.0,
+        height: 200.0,
+        radiance: Rgb::splat(1.0),
+    };
+    let scene = RenderScene {
+        world: World::new(vec![], None),
+        material_id_bases: vec![],
+        gems: vec![],
+        ground_brdf: None,
+        lights: vec![light],
+        environment: Environment::constant(Rgb::ZERO),
+        max_bounces: 0,
+        ambient_occlusion: None,
+        connect_through_surfaces: true,
+        flake_lobes: FlakeLobes::default(),
+    };
+    let camera = PinholeCamera::new(
+        DVec3::new(0.0, 0.0, 10.0),
+        DVec3::ZERO,
+        DVec3::Y,
+        10.0,
+        8,
+        8,
+    );
+    let settings = FilmSettings {
+        filter,
+        ..FilmSettings::new(8, 8, 64, 5)
+    };
+    let film = render(&scene, &camera, &settings, &|_| {});
+    let mut columns: Vec<f64> = (0..8)
+        .map(|x| {
+            (0..8)
+                .map(|y| f64::from(film.rgb[y * 8 + x][1]))
+                .sum::<f64>()
+                / 8.0
+        })
+        .collect();
+    if columns[0] > columns[7] {
+        columns.reverse();
+    }
+    columns
+}
+
+#[test]
+fn the_box_filter_keeps_an_edge_in_its_pixels_and_the_tent_spreads_an_eighth_across() {
+    // Filter importance sampling: a pixel's samples cross the film where
+    // its filter puts them. The box keeps them in the pixel: the dark
+    // column beside the edge stays black and the lit one sees the light
+    // whole. The tent of radius one pixel puts ∫ (1 − t) dt over
+    // t ∈ [½, 1] = 1/8 of them beyond the edge, from either side.
+    let boxed = columns_across_an_edge(PixelFilter::Box);
+    assert_eq!(boxed[..4], [0.0; 4], "box, dark side: {boxed:?}");
+    for lit in &boxed[4..] {
+        assert!((lit - 1.0).abs() < 1e-3, "box, lit side: {boxed:?}");
+    }
+    let tent = columns_across_an_edge(PixelFilter::Tent);
+    assert_eq!(tent[..3], [0.0; 3], "tent, dark side: {tent:?}");
+    assert!(
+        (tent[3] - 0.125).abs() < 0.01,
+        "tent, beside the edge: {tent:?}"
+    );
+    assert!(
+        (tent[4] - 0.875).abs() < 0.01,
+        "tent, beside the edge: {tent:?}"
+    );
+    for lit in &tent[5..] {
+        assert!((lit - 1.0).abs() < 1e-3, "tent, lit side: {tent:?}");
+    }
 }

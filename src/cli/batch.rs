@@ -4,13 +4,13 @@
 
 use std::path::{Path, PathBuf};
 
-use lapidary::farm::job::{FormatSpec, Job, TonemapSpec};
+use lapidary::farm::job::{FilterSpec, FormatSpec, Job, TonemapSpec};
 use lapidary::farm::merge::{merge, read_tile};
 use lapidary::output::animation::write_apng;
 use lapidary::recipe::compile::read_ron_file;
 use lapidary::render::tiles::TileSplit;
 
-use super::render::{RenderArgs, TaskOutcome, TonemapArg, ANIMATION_FRAMES_PER_SECOND};
+use super::render::{FilterArg, RenderArgs, TaskOutcome, TonemapArg, ANIMATION_FRAMES_PER_SECOND};
 use super::validate::check_job_inputs;
 
 /// Arguments of `lapidary batch`.
@@ -126,6 +126,10 @@ fn render_args(job: &Job, image: usize, output: PathBuf, args: &BatchArgs) -> Re
             TonemapSpec::Linear => TonemapArg::Linear,
         },
         bounces: settings.bounces,
+        filter: match settings.filter {
+            FilterSpec::Tent => FilterArg::Tent,
+            FilterSpec::Box => FilterArg::Box,
+        },
         ao: settings.ao_mm,
         exact_flakes: false,
         max_memory: super::render::DEFAULT_MAX_MEMORY_GIB,

@@ -17,7 +17,9 @@ use lapidary::output::exr::{film_channels, write_exr_owned, write_exr_with_note}
 use lapidary::output::tonemap::ToneCurve;
 use lapidary::recipe::gem::{GemSource, Tables};
 use lapidary::recipe::library::DEFAULT_GEM;
-use lapidary::render::film::{render_rows_cancellable, FilmSettings, FILM_BYTES_PER_PIXEL};
+use lapidary::render::film::{
+    render_rows_cancellable, FilmSettings, PixelFilter, FILM_BYTES_PER_PIXEL,
+};
 use lapidary::render::integrator::RenderScene;
 use lapidary::render::overlaps::placement_problems;
 use lapidary::render::prepare::{camera_for, prepare_scene};
@@ -47,6 +49,27 @@ pub enum TonemapArg {
     Filmic,
     /// Clamp to [0, 1].
     Linear,
+}
+
+/// The pixel filter (see [`PixelFilter`]).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FilterArg {
+    /// A tent of radius one pixel: smoother edges; a glint shows in its
+    /// neighbours too.
+    #[default]
+    Tent,
+    /// The pixel's own square: crisper; a glint stays in its pixel
+    /// (Mitsuba's `box` film).
+    Box,
+}
+
+impl From<FilterArg> for PixelFilter {
+    fn from(filter: FilterArg) -> Self {
+        match filter {
+            FilterArg::Tent => PixelFilter::Tent,
+            FilterArg::Box => PixelFilter::Box,
+        }
+    }
 }
 
 /// Arguments of `lapidary render`.
@@ -97,6 +120,9 @@ pub struct RenderArgs {
     /// Bounces after the first hit (0: direct light only).
     #[arg(long, value_name = "N", default_value_t = 4)]
     pub(super) bounces: u32,
+    /// Pixel (reconstruction) filter.
+    #[arg(long, value_enum, default_value_t = FilterArg::Tent)]
+    pub(super) filter: FilterArg,
     /// Ambient occlusion within DIST scene units (mm), as the appendix
     /// shader gathers it: adds an `ao` layer to EXR output; a PNG shows the
     /// occlusion itself (white: open, black: enclosed) instead of the beauty.
@@ -552,6 +578,7 @@ impl Renderer {
             },
             connections,
             flake_footprints: !args.exact_flakes,
+            filter: args.filter.into(),
             frame: None,
             inputs_sha256: inputs.sha256,
         };
@@ -571,6 +598,7 @@ impl Renderer {
             traced: None,
             settings: FilmSettings {
                 code_path: super::code_path_from_env(),
+                filter: args.filter.into(),
                 ..FilmSettings::new(width, height, args.spp, args.seed)
             },
             pool: super::worker_pool(args.threads)?,

@@ -95,6 +95,9 @@ pub struct SettingsSpec {
     /// PNG tone curve (default `Filmic`).
     #[serde(default)]
     pub tonemap: TonemapSpec,
+    /// Pixel filter (default `Tent`, as `--filter`).
+    #[serde(default)]
+    pub filter: FilterSpec,
     /// Ambient occlusion within this many mm, > 0 (default: off).
     #[serde(default, deserialize_with = "ao_mm")]
     pub ao_mm: Option<f64>,
@@ -113,6 +116,7 @@ impl Default for SettingsSpec {
             bounces: 4,
             exposure_ev: 0.0,
             tonemap: TonemapSpec::Filmic,
+            filter: FilterSpec::Tent,
             ao_mm: None,
             format: FormatSpec::Png,
         }
@@ -128,6 +132,17 @@ pub enum TonemapSpec {
     Filmic,
     /// A clamp (as `--tonemap linear`).
     Linear,
+}
+
+/// The pixel filter.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename = "Filter")]
+pub enum FilterSpec {
+    /// A tent of radius one pixel (as `--filter tent`).
+    #[default]
+    Tent,
+    /// The pixel's own square (as `--filter box`).
+    Box,
 }
 
 /// The format of the merged images.
@@ -450,6 +465,20 @@ mod tests {
             job.image_path(0, Some(2)),
             Path::new("jobs/out/goldstone-studio-s0-0002.png")
         );
+    }
+
+    #[test]
+    fn a_settings_filter_is_read_and_defaults_to_the_tent() {
+        let read = job(
+            r#"Job(output: "o", recipes: ["goldstone"], settings: [Settings(filter: Box), Settings()])"#,
+        )
+        .unwrap();
+        let filters: Vec<FilterSpec> = read.images.iter().map(|i| i.settings.filter).collect();
+        assert_eq!(filters, [FilterSpec::Box, FilterSpec::Tent]);
+        let e =
+            job(r#"Job(output: "o", recipes: ["goldstone"], settings: [Settings(filter: Gauss)])"#)
+                .unwrap_err();
+        assert!(e.contains("Gauss"), "{e}");
     }
 
     #[test]

@@ -17,6 +17,7 @@ use sha2::{Digest, Sha256};
 use crate::output::exr::{ChannelData, ExrChannel};
 use crate::output::tonemap::{DisplayTransform, ToneCurve};
 use crate::recipe::gem::GemSource;
+use crate::render::film::PixelFilter;
 use crate::render::tiles::TileSplit;
 use crate::scene::{EnvironmentSpec, Scene, TurnSpec};
 
@@ -70,6 +71,8 @@ pub struct RenderRecord {
     /// Whether flakes are shaded by their footprint (the default; off with
     /// `--exact-flakes`).
     pub flake_footprints: bool,
+    /// The pixel filter.
+    pub filter: PixelFilter,
     /// The turntable frame, for an animation.
     pub frame: Option<FrameOf>,
     /// SHA-256 (hex) of the bytes of every input file the render read.
@@ -127,6 +130,7 @@ impl RenderRecord {
             ("tonemap", format!("{:?}", self.tone_curve)),
             ("connections", self.connections.to_string()),
             ("flake_footprints", self.flake_footprints.to_string()),
+            ("filter", format!("{:?}", self.filter)),
             ("frame", frame),
             ("inputs_sha256", self.inputs_sha256.clone()),
         ]
@@ -263,6 +267,7 @@ impl RenderRecord {
             tone_curve: ToneCurve::Filmic,
             connections: true,
             flake_footprints: true,
+            filter: PixelFilter::Tent,
             frame: None,
             inputs_sha256: String::new(),
         };
@@ -380,6 +385,7 @@ mod tests {
             tone_curve: ToneCurve::Filmic,
             connections: true,
             flake_footprints: true,
+            filter: PixelFilter::Tent,
             frame: Some(FrameOf {
                 frame: 3,
                 frames: 8,

@@ -3,9 +3,10 @@
 //! Pixels are independent: pixel (x, y) draws its samples from
 //! `SampleStream`s keyed by (seed, pixel, sample), so rows can be
 //! rendered by any thread in any order and the result is the same bytes.
-//! The reconstruction filter is a tent of radius one pixel, applied by
-//! filter importance sampling (each sample's film position is drawn from
-//! the filter, all weights are 1), which keeps pixels independent.
+//! The reconstruction filter ([`PixelFilter`]: a tent of radius one pixel
+//! by default, or the pixel's own box) is applied by filter importance
+//! sampling (each sample's film position is drawn from the filter, all
+//! weights are 1), which keeps pixels independent.
 
 use glam::DVec3;
 use std::ops::Range;
@@ -33,6 +34,23 @@ pub struct FilmSettings {
     /// The most CPU-specific copy of the pixel loop to run (capped at
     /// [`CodePath::best_available`]); every copy writes the same bytes.
     pub code_path: CodePath,
+    /// The reconstruction filter.
+    pub filter: PixelFilter,
+}
+
+/// The reconstruction filter: the weight a pixel gives a sample by where
+/// it crosses the film, as a density the sample's position is drawn from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum PixelFilter {
+    /// A tent of radius one pixel about the pixel's centre (separable, 1 −
+    /// |t| along each axis): neighbouring pixels share samples' regions, so
+    /// edges are smoother, and a point brighter than its surroundings (a
+    /// glint) shows in its neighbours too.
+    #[default]
+    Tent,
+    /// The pixel's own square: every sample inside the pixel, none shared;
+    /// crisper, and a glint stays in its pixel (Mitsuba's `box` film).
+    Box,
 }
 
 impl FilmSettings {
@@ -45,6 +63,7 @@ impl FilmSettings {
             samples_per_pixel,
             seed,
             code_path: CodePath::best_available(),
+            filter: PixelFilter::Tent,
         }
     }
 }
@@ -192,7 +211,7 @@ fn tent(u: f64) -> f64 {
 }
 
 /// The camera rays' directions for the first `lanes` samples of a batch of
-/// pixel (x, y): the footprints (pair 0) through the tent filter, then
+/// pixel (x, y): the footprints (pair 0) through the pixel filter, then
 /// [`PinholeCamera::directions`]; the same bits as `camera.ray` per sample.
 /// Inlined into the pixel loop, whose x86-64-v3 copy compiles the lanes four
 /// to a register. A partial batch (a pixel's last samples)
@@ -204,6 +223,7 @@ fn camera_directions(
     y: u32,
     batch: &SampleBatch,
     lanes: u32,
+    filter: PixelFilter,
 ) -> [DVec3; SAMPLE_BATCH as usize] {
     if lanes < SAMPLE_BATCH {
         let mut directions = [DVec3::ZERO; SAMPLE_BATCH as usize];
@@ -211,12 +231,15 @@ fn camera_directions(
         for (footprint, direction) in footprints.iter().zip(&mut directions).take(lanes as usize) {
             let [fx, fy] = *footprint;
             *direction = camera
-                .ray(film_coordinate(x, fx), film_coordinate(y, fy))
+                .ray(
+                    film_coordinate(x, fx, filter),
+                    film_coordinate(y, fy, filter),
+                )
                 .direction;
         }
         return directions;
     }
-    camera_directions_lanes(camera, x, y, batch)
+    camera_directions_lanes(camera, x, y, batch, filter)
 }
 
 /// See [`camera_directions`].
@@ -226,30 +249,45 @@ fn camera_directions_lanes(
     x: u32,
     y: u32,
     batch: &SampleBatch,
+    filter: PixelFilter,
 ) -> [DVec3; SAMPLE_BATCH as usize] {
-    let (x_px, y_px) = film_points(x, y, batch);
+    let (x_px, y_px) = film_points(x, y, batch, filter);
     camera.directions(&x_px, &y_px)
 }
 
-/// Where each lane's camera ray crosses the film of pixel (x, y).
+/// Where each lane's camera ray crosses the film of pixel (x, y). One
+/// branch on the filter for the whole batch, so each arm's lane loop
+/// stays branch-free.
 #[inline(always)]
 fn film_points(
     x: u32,
     y: u32,
     batch: &SampleBatch,
+    filter: PixelFilter,
 ) -> ([f64; SAMPLE_BATCH as usize], [f64; SAMPLE_BATCH as usize]) {
     let footprints = batch.footprints();
-    (
-        footprints.map(|[fx, _]| film_coordinate(x, fx)),
-        footprints.map(|[_, fy]| film_coordinate(y, fy)),
-    )
+    match filter {
+        PixelFilter::Tent => (
+            footprints.map(|[fx, _]| film_coordinate(x, fx, PixelFilter::Tent)),
+            footprints.map(|[_, fy]| film_coordinate(y, fy, PixelFilter::Tent)),
+        ),
+        PixelFilter::Box => (
+            footprints.map(|[fx, _]| film_coordinate(x, fx, PixelFilter::Box)),
+            footprints.map(|[_, fy]| film_coordinate(y, fy, PixelFilter::Box)),
+        ),
+    }
 }
 
 /// One film coordinate of a sample of pixel number `pixel` (along x or y):
-/// the pixel's centre moved by `footprint` through the tent filter.
+/// the pixel's centre moved by `footprint` (uniform in [0, 1)) through the
+/// filter's inverse CDF: the tent's, or the box's own (the pixel's lower
+/// edge plus `footprint`).
 #[inline(always)]
-fn film_coordinate(pixel: u32, footprint: f64) -> f64 {
-    f64::from(pixel) + 0.5 + tent(footprint)
+fn film_coordinate(pixel: u32, footprint: f64, filter: PixelFilter) -> f64 {
+    match filter {
+        PixelFilter::Tent => f64::from(pixel) + 0.5 + tent(footprint),
+        PixelFilter::Box => f64::from(pixel) + footprint,
+    }
 }
 
 fn to_f32x3(v: DVec3) -> [f32; 3] {
@@ -322,7 +360,7 @@ fn render_span_portable(
         for first_sample in (0..spp).step_by(SAMPLE_BATCH as usize) {
             let lanes = (spp - first_sample).min(SAMPLE_BATCH);
             pixel.refill(&mut batch, first_sample, lanes, eager_pairs);
-            let directions = camera_directions(camera, x, y, &batch, lanes);
+            let directions = camera_directions(camera, x, y, &batch, lanes, settings.filter);
             for lane in 0..lanes {
                 let s = first_sample + lane;
                 let mut stream = batch.stream(lane);
