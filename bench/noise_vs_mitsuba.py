@@ -14,9 +14,12 @@ squared errors: the caustics that make the plain one heavy-tailed;
 meaningful region by region, as over "all" the largest are mostly one
 region's), and the ratio of the median pixel's RMSE over the renders. The
 regions are lapidary's `material_id` masks (the two images are aligned).
-Mitsuba's film is a box, each sample in one pixel as in lapidary's
-filter importance sampling (a lapidary build with a box film reads the
-same against it: bench/results/2026-12-05-equal-error-vs-mitsuba.md);
+Mitsuba's film is a box; lapidary's default film is a one-pixel tent
+(filter importance sampling: each sample in one pixel, placed by the
+tent), which spreads a glint's samples into its neighbours: where small
+bright things are seen sharply its RMSE reads 1.2-1.3x higher than with
+--lapidary-filter box (bench/results/2026-12-05-box-film.md), elsewhere
+1.0-1.1x;
 --mitsuba-filter tent gives it lapidary's tent, which Mitsuba splats
 into neighbouring pixels, so that they share samples; --lapidary-filter
 box gives lapidary Mitsuba's box (`lapidary render --filter box`).
