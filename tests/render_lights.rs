@@ -460,7 +460,8 @@ fn columns_across_an_edge(filter: PixelFilter) -> Vec<f64> {
 }
 
 #[test]
-fn the_box_filter_keeps_an_edge_in_its_pixels_and_the_tent_spreads_an_eighth_across() {
+fn the_box_filter_keeps_an_edge_in_its_pixels_and_the_tent_and_the_gaussian_spread_it_as_their_densities_say(
+) {
     // Filter importance sampling: a pixel's samples cross the film where
     // its filter puts them. The box keeps them in the pixel: the dark
     // column beside the edge stays black and the lit one sees the light
@@ -471,6 +472,31 @@ fn the_box_filter_keeps_an_edge_in_its_pixels_and_the_tent_spreads_an_eighth_acr
     for lit in &boxed[4..] {
         assert!((lit - 1.0).abs() < 1e-3, "box, lit side: {boxed:?}");
     }
+    // The round Gaussian (σ = ½, cut off at R = 3/2): P(x > ½) =
+    // ∫ from ½ to R of (acos(½/r)/π) (r/σ²) e^(−r²/2σ²) dr / (1 − e^(−R²/2σ²)),
+    // by the midpoint rule; nothing reaches the column beyond.
+    let (sigma, radius) = (0.5f64, 1.5f64);
+    let steps = 20_000;
+    let step = (radius - 0.5) / f64::from(steps);
+    let beyond: f64 = (0..steps)
+        .map(|i| {
+            let r = 0.5 + (f64::from(i) + 0.5) * step;
+            (0.5 / r).acos() / PI * r / (sigma * sigma) * (-r * r / (2.0 * sigma * sigma)).exp()
+        })
+        .sum::<f64>()
+        * step
+        / (1.0 - (-radius * radius / (2.0 * sigma * sigma)).exp());
+    assert!((beyond - 0.1559).abs() < 1e-3, "{beyond}");
+    let gaussian = columns_across_an_edge(PixelFilter::Gaussian);
+    assert_eq!(gaussian[..3], [0.0; 3], "gaussian, dark side: {gaussian:?}");
+    assert!(
+        (gaussian[3] - beyond).abs() < 0.01,
+        "gaussian, beside the edge: {gaussian:?}"
+    );
+    assert!(
+        (gaussian[4] - (1.0 - beyond)).abs() < 0.01,
+        "gaussian, beside the edge: {gaussian:?}"
+    );
     let tent = columns_across_an_edge(PixelFilter::Tent);
     assert_eq!(tent[..3], [0.0; 3], "tent, dark side: {tent:?}");
     assert!(

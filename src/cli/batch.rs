@@ -129,6 +129,7 @@ fn render_args(job: &Job, image: usize, output: PathBuf, args: &BatchArgs) -> Re
         filter: match settings.filter {
             FilterSpec::Tent => FilterArg::Tent,
             FilterSpec::Box => FilterArg::Box,
+            FilterSpec::Gaussian => FilterArg::Gaussian,
         },
         ao: settings.ao_mm,
         exact_flakes: false,

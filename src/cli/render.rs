@@ -61,6 +61,8 @@ pub enum FilterArg {
     /// The pixel's own square: crisper; a glint stays in its pixel
     /// (Mitsuba's `box` film).
     Box,
+    /// A round Gaussian, σ = ½ pixel, cut off at 1.5 pixels: the softest.
+    Gaussian,
 }
 
 impl From<FilterArg> for PixelFilter {
@@ -68,6 +70,7 @@ impl From<FilterArg> for PixelFilter {
         match filter {
             FilterArg::Tent => PixelFilter::Tent,
             FilterArg::Box => PixelFilter::Box,
+            FilterArg::Gaussian => PixelFilter::Gaussian,
         }
     }
 }

@@ -143,6 +143,8 @@ pub enum FilterSpec {
     Tent,
     /// The pixel's own square (as `--filter box`).
     Box,
+    /// A round Gaussian, σ = ½ pixel (as `--filter gaussian`).
+    Gaussian,
 }
 
 /// The format of the merged images.

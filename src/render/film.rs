@@ -4,7 +4,7 @@
 //! `SampleStream`s keyed by (seed, pixel, sample), so rows can be
 //! rendered by any thread in any order and the result is the same bytes.
 //! The reconstruction filter ([`PixelFilter`]: a tent of radius one pixel
-//! by default, or the pixel's own box) is applied by filter importance
+//! by default, the pixel's own box, or a Gaussian) is applied by filter importance
 //! sampling (each sample's film position is drawn from the filter, all
 //! weights are 1), which keeps pixels independent.
 
@@ -19,6 +19,7 @@ use crate::render::camera::PinholeCamera;
 use crate::render::cpu::CodePath;
 use crate::render::integrator::{FirstHitSums, RayCounts, RenderScene};
 use crate::render::sampler::{PixelSampler, SampleBatch, SAMPLE_BATCH};
+use crate::sampling::sin_cos_turns;
 
 /// What to render.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,7 +52,16 @@ pub enum PixelFilter {
     /// The pixel's own square: every sample inside the pixel, none shared;
     /// crisper, and a glint stays in its pixel (Mitsuba's `box` film).
     Box,
+    /// A round Gaussian of standard deviation ½ pixel about the pixel's
+    /// centre, cut off at 1.5 pixels (3σ; pbrt-v4's default widths): the
+    /// softest of the three.
+    Gaussian,
 }
+
+/// The Gaussian filter's standard deviation, pixels.
+const GAUSSIAN_SIGMA_PX: f64 = 0.5;
+/// The Gaussian filter's radius, pixels.
+const GAUSSIAN_RADIUS_PX: f64 = 1.5;
 
 impl FilmSettings {
     /// `width` × `height` pixels, `samples_per_pixel` samples each, drawn
@@ -229,13 +239,8 @@ fn camera_directions(
         let mut directions = [DVec3::ZERO; SAMPLE_BATCH as usize];
         let footprints = batch.footprints();
         for (footprint, direction) in footprints.iter().zip(&mut directions).take(lanes as usize) {
-            let [fx, fy] = *footprint;
-            *direction = camera
-                .ray(
-                    film_coordinate(x, fx, filter),
-                    film_coordinate(y, fy, filter),
-                )
-                .direction;
+            let (film_x, film_y) = film_point(x, y, *footprint, filter);
+            *direction = camera.ray(film_x, film_y).direction;
         }
         return directions;
     }
@@ -266,27 +271,46 @@ fn film_points(
     filter: PixelFilter,
 ) -> ([f64; SAMPLE_BATCH as usize], [f64; SAMPLE_BATCH as usize]) {
     let footprints = batch.footprints();
+    // The separable filters axis by axis (as [`film_point`]), so that each
+    // axis's lanes stay one straight loop.
+    let (centre_x, centre_y) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
     match filter {
         PixelFilter::Tent => (
-            footprints.map(|[fx, _]| film_coordinate(x, fx, PixelFilter::Tent)),
-            footprints.map(|[_, fy]| film_coordinate(y, fy, PixelFilter::Tent)),
+            footprints.map(|[fx, _]| centre_x + tent(fx)),
+            footprints.map(|[_, fy]| centre_y + tent(fy)),
         ),
         PixelFilter::Box => (
-            footprints.map(|[fx, _]| film_coordinate(x, fx, PixelFilter::Box)),
-            footprints.map(|[_, fy]| film_coordinate(y, fy, PixelFilter::Box)),
+            footprints.map(|[fx, _]| f64::from(x) + fx),
+            footprints.map(|[_, fy]| f64::from(y) + fy),
         ),
+        PixelFilter::Gaussian => {
+            let points = footprints.map(|footprint| film_point(x, y, footprint, filter));
+            (points.map(|(px, _)| px), points.map(|(_, py)| py))
+        }
     }
 }
 
-/// One film coordinate of a sample of pixel number `pixel` (along x or y):
-/// the pixel's centre moved by `footprint` (uniform in [0, 1)) through the
-/// filter's inverse CDF: the tent's, or the box's own (the pixel's lower
-/// edge plus `footprint`).
+/// Where a sample of pixel (x, y) crosses the film: the pixel's centre
+/// moved by `footprint` (uniform in [0, 1)²) through the filter's inverse
+/// CDF. The tent and the box are separable, one coordinate each (the box:
+/// the pixel's lower corner plus `footprint`); the Gaussian is round: the
+/// first number draws the radius from its truncated Rayleigh distribution
+/// (CDF (1 − e^(−r²/2σ²)) / (1 − e^(−R²/2σ²)) for r ≤ R), the second the
+/// angle.
 #[inline(always)]
-fn film_coordinate(pixel: u32, footprint: f64, filter: PixelFilter) -> f64 {
+fn film_point(x: u32, y: u32, [fx, fy]: [f64; 2], filter: PixelFilter) -> (f64, f64) {
+    let (centre_x, centre_y) = (f64::from(x) + 0.5, f64::from(y) + 0.5);
     match filter {
-        PixelFilter::Tent => f64::from(pixel) + 0.5 + tent(footprint),
-        PixelFilter::Box => f64::from(pixel) + footprint,
+        PixelFilter::Tent => (centre_x + tent(fx), centre_y + tent(fy)),
+        PixelFilter::Box => (f64::from(x) + fx, f64::from(y) + fy),
+        PixelFilter::Gaussian => {
+            let two_variance = 2.0 * GAUSSIAN_SIGMA_PX * GAUSSIAN_SIGMA_PX;
+            // 1 − e^(−R²/2σ²), the share of the whole Gaussian inside R.
+            let inside = -(-GAUSSIAN_RADIUS_PX * GAUSSIAN_RADIUS_PX / two_variance).exp_m1();
+            let radius = (-two_variance * (-fx * inside).ln_1p()).sqrt();
+            let (sin, cos) = sin_cos_turns(fy);
+            (centre_x + radius * cos, centre_y + radius * sin)
+        }
     }
 }
 
