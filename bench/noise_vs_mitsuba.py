@@ -99,7 +99,7 @@ def main():
                              "pixel, as lapidary's filter importance sampling) or tent "
                              "(lapidary's 1-pixel tent, which Mitsuba splats into "
                              "neighbouring pixels: they share samples)")
-    parser.add_argument("--lapidary-filter", choices=("tent", "box"), default="tent",
+    parser.add_argument("--lapidary-filter", choices=("tent", "box", "gaussian"), default="tent",
                         help="lapidary's pixel filter (`render --filter`): its default "
                              "tent, or box, as Mitsuba's default here")
     args = parser.parse_args()

@@ -101,6 +101,52 @@ fn thread_count_does_not_change_a_single_byte() {
 }
 
 #[test]
+fn each_pixel_filter_renders_its_own_picture_the_same_on_any_thread_count() {
+    let dir = scratch("filters");
+    let render = |filter: &str, threads: &str| {
+        let path = dir.join(format!("{filter}-{threads}.png"));
+        let out = lapidary(&[
+            "render",
+            "-o",
+            path.to_str().unwrap(),
+            "--size",
+            "24",
+            "--spp",
+            "3",
+            "--threads",
+            threads,
+            "--filter",
+            filter,
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        (std::fs::read(path).unwrap(), stderr(&out))
+    };
+    let mut pictures = Vec::new();
+    for (filter, named) in [
+        ("tent", ""),
+        ("box", ", box filter"),
+        ("gaussian", ", Gaussian filter"),
+    ] {
+        let (one, report) = render(filter, "1");
+        let (three, _) = render(filter, "3");
+        assert_eq!(one, three, "{filter}: the thread count changed the picture");
+        assert!(
+            report.contains(&format!("3 spp{named})")),
+            "{filter}: {report}"
+        );
+        pictures.push(one);
+    }
+    assert!(pictures[0] != pictures[1] && pictures[1] != pictures[2] && pictures[0] != pictures[2]);
+    let out = lapidary(&["render", "-o", "x.png", "--filter", "mitchell"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("tent, box, gaussian"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+#[test]
 fn scene_studio_is_the_built_in_scene_and_a_gem_is_no_scene() {
     // `--scene studio` (no file of that name here) is the default scene,
     // as `validate studio` and a job's `scenes: ["studio"]` name it.

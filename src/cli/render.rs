@@ -791,8 +791,14 @@ impl Renderer {
                 rows.end
             )
         });
+        // The filter when it is not the default tent.
+        let filter = match self.settings.filter {
+            PixelFilter::Tent => "",
+            PixelFilter::Box => ", box filter",
+            PixelFilter::Gaussian => ", Gaussian filter",
+        };
         self.report(&format!(
-            "{what}wrote {} ({width} × {height}{tile}, {} spp) in {:.1} s: {:.2} Mrays/s, {:.2} M samples/s, {:.1} s total, {} code",
+            "{what}wrote {} ({width} × {height}{tile}, {} spp{filter}) in {:.1} s: {:.2} Mrays/s, {:.2} M samples/s, {:.1} s total, {} code",
             path.display(),
             self.settings.samples_per_pixel,
             seconds,
