@@ -4,8 +4,10 @@
 Each renderer against its own long reference (seed 0; their means differ
 by their models), then --seeds renders at --spp with seeds 1, 2, … of
 each; the RMSE of linear RGB over the ground's pixels, the stones', the
-stones' highlights (either reference's luminance above 1: the lights'
-mirror images, whose edges are a few pixels of very large variance), the
+stones' highlights (either reference's luminance above 1, or Mitsuba's
+alone with --highlights-from mitsuba, grown by --highlight-grow pixels:
+the lights' mirror images, whose edges are a few pixels of very large
+variance), the
 stones' other pixels and all, as the square root of the mean over seeds
 of each render's mean squared error, and the ratio lapidary / Mitsuba
 with its standard error (from the spread of the renders' MSEs), and the
@@ -102,6 +104,13 @@ def main():
     parser.add_argument("--lapidary-filter", choices=("tent", "box", "gaussian"), default="tent",
                         help="lapidary's pixel filter (`render --filter`): its default "
                              "tent, or box, as Mitsuba's default here")
+    parser.add_argument("--highlights-from", choices=("either", "mitsuba"), default="either",
+                        help="which reference marks the stones' highlights (luminance > 1): "
+                             "either one (the default), or Mitsuba's alone, so that the "
+                             "regions are the same for every lapidary build compared")
+    parser.add_argument("--highlight-grow", type=int, default=0, metavar="PX",
+                        help="grow the highlights by PX pixels (4-neighbours), leaving a "
+                             "glint's neighbours out of the stones without highlights")
     args = parser.parse_args()
     if args.seeds < 2:
         parser.error("--seeds must be at least 2 (the standard error needs two renders)")
@@ -135,8 +144,18 @@ def main():
             if name == "lapidary":
                 material = ids
         stone = material >= 2
-        highlight = stone & (np.maximum(references["lapidary"] @ LUMINANCE,
-                                        references["Mitsuba"] @ LUMINANCE) > 1.0)
+        bright = references["Mitsuba"] @ LUMINANCE
+        if args.highlights_from == "either":
+            bright = np.maximum(references["lapidary"] @ LUMINANCE, bright)
+        highlight = bright > 1.0
+        for _ in range(args.highlight_grow):
+            grown = highlight.copy()
+            grown[1:, :] |= highlight[:-1, :]
+            grown[:-1, :] |= highlight[1:, :]
+            grown[:, 1:] |= highlight[:, :-1]
+            grown[:, :-1] |= highlight[:, 1:]
+            highlight = grown
+        highlight &= stone
         regions = {
             "ground": material == 1,
             "stones": stone,
