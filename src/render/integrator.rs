@@ -832,12 +832,13 @@ impl RenderScene {
                     // outside (its outside is the ground).
                     let parts_apart = parts_apart_where_sharp && !cone.is_unbounded();
                     if contact.is_none() {
+                        let sky = parts_apart.then(|| self.sky_part_numbers(stream));
                         radiance += throughput
                             * self.direct_at_interface(
                                 &interface,
                                 frame,
                                 wo,
-                                (outwards, parts_apart),
+                                (outwards, sky),
                                 stone,
                                 stream,
                                 counts,
@@ -912,10 +913,10 @@ impl RenderScene {
             }
             let wo_world = -direction;
             let parts_apart = parts_apart_where_sharp && !cone.is_unbounded();
-            if parts_apart {
-                // The sky part's texel (the sun's few are in the caches).
-                self.prefetch_sky_part_sample(stream);
-            } else if self.sampled_emitters() <= MAX_LIGHT_SAMPLES {
+            // The sky part's numbers, once: its texel loads while the
+            // vertex is shaded (the sun's few are in the caches).
+            let sky = parts_apart.then(|| self.sky_part_numbers_prefetched(stream));
+            if !parts_apart && self.sampled_emitters() <= MAX_LIGHT_SAMPLES {
                 self.prefetch_environment_sample(stream, self.lights.len());
             }
             let Some(shading) = self.shade(&hit, wo_world, cone.width_at(hit.t), stream) else {
@@ -973,7 +974,7 @@ impl RenderScene {
             }
 
             // Next-event estimation: the lights and the environment.
-            self.for_each_light_sample(point, parts_apart, stream, |sample, emitter| {
+            self.for_each_light_sample(point, sky, stream, |sample, emitter| {
                 let contribution = self.direct(
                     &shading,
                     (&brdf_at, mix.as_ref()),
@@ -1100,14 +1101,25 @@ impl RenderScene {
         }
     }
 
-    /// [`RenderScene::prefetch_environment_sample`] for the sky part's
-    /// sample of a vertex that samples a map's parts apart, drawn by
-    /// [`sky_part_numbers`] after the lights' and the sun's pairs.
+    /// The numbers of the sky part's light sample of a vertex that samples
+    /// a map's parts apart, drawn after the lights' and the sun's pairs
+    /// ([`sky_part_numbers`]), for [`RenderScene::for_each_light_sample`]:
+    /// a pure function of the stream's next pair, which the vertex's
+    /// shading (single numbers only) does not move.
+    fn sky_part_numbers(&self, stream: &SampleStream) -> [f64; 2] {
+        sky_part_numbers(stream, self.lights.len() as u32 + 1)
+    }
+
+    /// [`RenderScene::sky_part_numbers`], and the texel they draw first
+    /// starts loading ([`RenderScene::prefetch_environment_sample`] for
+    /// the sky part). Out of line: only maps with a sun need it.
     #[inline(never)]
-    fn prefetch_sky_part_sample(&self, stream: &SampleStream) {
+    fn sky_part_numbers_prefetched(&self, stream: &SampleStream) -> [f64; 2] {
+        let numbers = self.sky_part_numbers(stream);
         if let Environment::Map(map) = &self.environment {
-            map.prefetch_sample(sky_part_numbers(stream, self.lights.len() as u32 + 1));
+            map.prefetch_sample(numbers);
         }
+        numbers
     }
 
     /// Whether a vertex inside stone `stone` connects lights through the
@@ -1127,7 +1139,7 @@ impl RenderScene {
 
     /// Next-event estimation at a rough interface vertex: one sample of
     /// every light, then of the environment (or of each of its parts, when
-    /// `parts_apart`), as at an opaque vertex ([`RenderScene::direct`]'s
+    /// `sky` holds the sky part's numbers), as at an opaque vertex ([`RenderScene::direct`]'s
     /// power heuristic), for the directions
     /// outwards (`frame.n` is the outward normal): reflection when the
     /// path arrived from outside, transmission out when from inside (no
@@ -1139,7 +1151,7 @@ impl RenderScene {
         interface: &RoughInterface,
         frame: Frame,
         wo: DVec3,
-        (point, parts_apart): (DVec3, bool),
+        (point, sky): (DVec3, Option<[f64; 2]>),
         stone: Option<usize>,
         stream: &mut SampleStream,
         counts: &mut RayCounts,
@@ -1164,7 +1176,7 @@ impl RenderScene {
             }
             sum += incoming * (f * light_sample_scale(wi.z, pdf, bsdf_pdf, sample.is_delta));
         };
-        self.for_each_light_sample(point, parts_apart, stream, &mut one);
+        self.for_each_light_sample(point, sky, stream, &mut one);
         sum
     }
 
@@ -1222,8 +1234,8 @@ impl RenderScene {
     /// Next-event estimation's light samples at `point`, each passed to
     /// `take` with its density already multiplied by
     /// [`RenderScene::light_samples_per_emitter`]: one sample of every
-    /// light, then of the environment (of each of its parts when
-    /// `environment_parts_apart`, see
+    /// light, then of the environment (of each of its parts when `sky`
+    /// holds the sky part's numbers, see
     /// [`RenderScene::environment_parts_apart`]), while there are at most
     /// [`MAX_LIGHT_SAMPLES`] emitters; else [`MAX_LIGHT_SAMPLES`] samples,
     /// each of an emitter chosen uniformly in its stratum of the emitters
@@ -1236,7 +1248,7 @@ impl RenderScene {
     fn for_each_light_sample(
         &self,
         point: DVec3,
-        environment_parts_apart: bool,
+        sky: Option<[f64; 2]>,
         stream: &mut SampleStream,
         mut take: impl FnMut(LightSample, Option<usize>),
     ) {
@@ -1257,13 +1269,13 @@ impl RenderScene {
                     take(sample, Some(index));
                 }
             }
-            if environment_parts_apart {
+            if let Some(sky) = sky {
                 // The sun where the whole map's sample would be (it drew
                 // the sun 98 % of the time in the suite's map), the sky
                 // from a side generator: the BRDF sample and the later
                 // vertices keep the Sobol pairs they had.
                 let sun = self.environment.sample_part(1, stream.next_2d());
-                let sky = self.environment.sample_part(0, sky_part_numbers(stream, 0));
+                let sky = self.environment.sample_part(0, sky);
                 for s in [sun, sky].into_iter().flatten() {
                     take(light_sample(s, 1.0), None);
                 }
