@@ -38,6 +38,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+# Importing bench/peer_mitsuba.py must not leave a __pycache__ in bench/.
+sys.dont_write_bytecode = True
+
 BENCH = Path(__file__).resolve().parent
 ROOT = BENCH.parent
 OUT = BENCH / "out" / "random"
