@@ -14,10 +14,15 @@ helpers), and both render it as whole processes, alternately, `--rounds`
 times: the table gives the median times, their ratio, and the ratio of
 the two images' means per channel (box films in both), which says whether
 the two renderers agree on the scene (the stones' and the glossy ground's
-models differ by a few per cent, see bench/peer_mitsuba.py).
+models differ by a few per cent, see bench/peer_mitsuba.py). With
+`--noise`, also each renderer's RMSE at 128², 16 spp over `--seeds`
+renders against its own `--reference-spp` render (box films in both), the
+ratio plain and trimmed of the largest 0.1 % of squared errors, and the
+time to equal error, ratio² × the time ratio.
 
     bench/.venv/bin/python bench/random_vs_mitsuba.py --scenes 8 --rounds 2
     bench/.venv/bin/python bench/random_vs_mitsuba.py --scenes 8 --record   # also bench/results/DATE-random-vs-mitsuba.md
+    bench/.venv/bin/python bench/random_vs_mitsuba.py --scenes 8 --noise    # and noise at equal spp, time to equal error
 
 Needs bench/.venv (`bench/compare --install`), the suite's maps
 (`bench/.venv/bin/python bench/peer_mitsuba.py suite-maps bench/out/suite`)
@@ -208,7 +213,7 @@ def render_mitsuba(args):
     dr.set_thread_count(args.threads)
     scene = json.loads(Path(args.scene).read_text())
     built = mitsuba_scene(mi, dr, peer, scene, args.size, args.spp, args.max_depth)
-    image = mi.render(mi.load_dict(built), spp=args.spp, seed=0)
+    image = mi.render(mi.load_dict(built), spp=args.spp, seed=args.seed)
     mi.util.write_bitmap(args.out, image)
 
 
@@ -221,6 +226,42 @@ def mean_rgb(path):
 
     peer = load_script("peer_mitsuba", BENCH / "peer_mitsuba.py")
     return np.asarray(peer.read_rgb(str(path)), dtype=np.float64).reshape(-1, 3).mean(axis=0)
+
+
+#: The share of the largest (render, pixel) squared errors the trimmed
+#: RMSE leaves out (a sun's caustics make the plain one heavy-tailed), as
+#: bench/noise_vs_mitsuba.py.
+TRIMMED = 0.001
+
+
+def noise(args, scene, commands):
+    """RMSE of each renderer at 128², 16 spp against its own long render:
+    (lapidary / Mitsuba plain, the same trimmed of the largest TRIMMED)."""
+    import numpy as np
+
+    peer = load_script("peer_mitsuba", BENCH / "peer_mitsuba.py")
+    seed = scene["seed"]
+    squares = {}
+    for who in ("lapidary", "mitsuba"):
+        def render(spp, render_seed, out):
+            cmd = list(commands[seed][who])
+            for option, value in (("--size", 128), ("--spp", spp)):
+                cmd[cmd.index(option) + 1] = str(value)
+            cmd[cmd.index(str(OUT / f"{who}-{seed}.exr"))] = str(out)
+            subprocess.run([*cmd, "--seed", str(render_seed)], check=True, capture_output=True,
+                           env=load_script("bench_compare", BENCH / "compare").peer_env())
+            return np.asarray(peer.read_rgb(str(out)), dtype=np.float64)
+        reference = render(args.reference_spp, 0, OUT / f"noise-{who}-reference.exr")
+        squares[who] = np.concatenate([
+            ((render(16, k, OUT / f"noise-{who}.exr") - reference) ** 2).ravel()
+            for k in range(1, args.seeds + 1)])
+
+    def trimmed(values):
+        kept = len(values) - int(len(values) * TRIMMED)
+        return np.partition(values, kept - 1)[:kept].mean()
+
+    plain = math.sqrt(squares["lapidary"].mean() / squares["mitsuba"].mean())
+    return plain, math.sqrt(trimmed(squares["lapidary"]) / trimmed(squares["mitsuba"]))
 
 
 def run(args):
@@ -259,8 +300,12 @@ def run(args):
                 times[seed][who].append(seconds)
                 print(f"  round {round_index + 1}/{args.rounds}  scene {seed:<3} {who:<9}"
                       f" {seconds:7.2f} s", file=sys.stderr, flush=True)
-    lines = ["| scene | what | lapidary s | Mitsuba s | lapidary / Mitsuba | mean lapidary / Mitsuba (R, G, B) |",
-             "|---:|---|---:|---:|---:|---|"]
+    head = "| scene | what | lapidary s | Mitsuba s | lapidary / Mitsuba | mean lapidary / Mitsuba (R, G, B) |"
+    rule = "|---:|---|---:|---:|---:|---|"
+    if args.noise:
+        head += " noise at equal spp (trimmed) | time to equal error (trimmed) |"
+        rule += "---:|---:|"
+    lines = [head, rule]
     ratios = []
     for scene in scenes:
         seed = scene["seed"]
@@ -269,8 +314,14 @@ def run(args):
                                                         times[seed]["mitsuba"]))
         ratios.append(ratio)
         means = mean_rgb(OUT / f"lapidary-{seed}.exr") / mean_rgb(OUT / f"mitsuba-{seed}.exr")
-        lines.append(f"| {seed} | {describe(scene)} | {lap:.2f} | {mts:.2f} | {ratio:.3f} | "
-                     + ", ".join(f"{m:.3f}" for m in means) + " |")
+        line = (f"| {seed} | {describe(scene)} | {lap:.2f} | {mts:.2f} | {ratio:.3f} | "
+                + ", ".join(f"{m:.3f}" for m in means) + " |")
+        if args.noise:
+            plain, trim = noise(args, scene, commands)
+            line += (f" {plain:.3f} ({trim:.3f}) | {plain ** 2 * ratio:.3f} "
+                     f"({trim ** 2 * ratio:.3f}) |")
+            print(f"  noise scene {seed}: {plain:.3f} ({trim:.3f})", file=sys.stderr, flush=True)
+        lines.append(line)
     summary = (f"Ratio of times over the {len(ratios)} scenes: median {statistics.median(ratios):.3f}, "
                f"range {min(ratios):.3f}–{max(ratios):.3f}.")
     table = "\n".join(lines)
@@ -282,12 +333,18 @@ def run(args):
                                 text=True).stdout.strip()
         date = datetime.date.today().isoformat()
         path = BENCH / "results" / f"{date}-random-vs-mitsuba.md"
+        run_index = 1
+        while path.exists():  # a later run that day: -2, -3, …
+            run_index += 1
+            path = BENCH / "results" / f"{date}-random-vs-mitsuba-{run_index}.md"
         path.write_text(
             f"# {date} — lapidary against Mitsuba 3 on random scenes (issue 28)\n\n"
             f"- commit: {commit}\n- host: {platform.processor() or platform.machine()}, "
             f"{platform.system()}\n"
             f"- command: `bench/.venv/bin/python bench/random_vs_mitsuba.py --scenes {args.scenes} "
-            f"--rounds {args.rounds} --first-seed {args.first_seed}` ({args.size}², {args.spp} spp, "
+            f"--rounds {args.rounds} --first-seed {args.first_seed}"
+            f"{' --noise --seeds ' + str(args.seeds) + ' --reference-spp ' + str(args.reference_spp) if args.noise else ''}"
+            f"` ({args.size}², {args.spp} spp, "
             f"{args.bounces} bounces, {args.threads} threads, box films, whole processes, "
             f"medians of the rounds)\n\n{table}\n\n{summary}\n")
         print(f"written to {path.relative_to(ROOT)}")
@@ -303,11 +360,17 @@ def main(argv):
     m.add_argument("--spp", type=int, required=True)
     m.add_argument("--max-depth", type=int, required=True)
     m.add_argument("--threads", type=int, default=2)
+    m.add_argument("--seed", type=int, default=0)
     for option, default in (("--scenes", 8), ("--rounds", 2), ("--first-seed", 1), ("--size", 512),
                             ("--spp", 64), ("--bounces", 4), ("--threads", 2)):
         p.add_argument(option, type=int, default=default)
+    p.add_argument("--noise", action="store_true",
+                   help="also noise at equal spp: RMSE at 128², 16 spp over --seeds renders, "
+                        "each renderer against its own --reference-spp render")
+    p.add_argument("--seeds", type=int, default=8)
+    p.add_argument("--reference-spp", type=int, default=2048)
     p.add_argument("--record", action="store_true",
-                   help="also write bench/results/YYYY-MM-DD-random-vs-mitsuba.md")
+                   help="also write bench/results/YYYY-MM-DD-random-vs-mitsuba.md (-2, … for later runs)")
     args = p.parse_args(argv)
     if args.command == "mitsuba":
         render_mitsuba(args)
