@@ -14,7 +14,9 @@ helpers), and both render it as whole processes, alternately, `--rounds`
 times: the table gives the median times, their ratio, and the ratio of
 the two images' means per channel (box films in both), which says whether
 the two renderers agree on the scene (the stones' and the glossy ground's
-models differ by a few per cent, see bench/peer_mitsuba.py). With
+models differ by a few per cent, see bench/peer_mitsuba.py; a scene whose
+camera is behind a soft box is marked, since lapidary's soft box lets rays
+through from behind and Mitsuba's rectangle does not). With
 `--noise`, also each renderer's RMSE at 128², 16 spp over `--seeds`
 renders against its own `--reference-spp` render (box films in both), the
 ratio plain and trimmed of the largest 0.1 % of squared errors, and the
@@ -119,12 +121,27 @@ def map_path(scene):
     return MAPS / ("sky-2048x1024.exr" if scene["environment"] == "sky" else "sun-4096x2048.exr")
 
 
+def camera_behind_a_rect(scene):
+    """Whether the camera is behind a soft box's plane. The twins then may
+    differ: lapidary's soft box is one-sided and lets rays through from
+    behind, Mitsuba's rectangle is an opaque card there (black: its
+    default BSDF is one-sided), and hides what lies behind it."""
+    target, distance, elevation, azimuth, _ = scene["camera"]
+    e, a = math.radians(elevation), math.radians(azimuth)
+    camera = [t + distance * c for t, c in
+              zip(target, (math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)))]
+    # A soft box faces the origin: its normal is −centre.
+    return any(sum((camera[i] - light["centre"][i]) * -light["centre"][i] for i in range(3)) < 0
+               for light in scene["lights"] if light["kind"] == "rect")
+
+
 def describe(scene):
     """A short description for the table."""
     lights = [light["kind"] for light in scene["lights"]]
     counts = ", ".join(f"{lights.count(k)} {k}" for k in ("sphere", "rect") if k in lights)
+    behind = " (camera behind a soft box)" if camera_behind_a_rect(scene) else ""
     return (f"{len(scene['stones'])} stone(s), {scene['ground']} ground, "
-            f"{counts or 'no lights'}, {scene['environment']} sky")
+            f"{counts or 'no lights'}, {scene['environment']} sky{behind}")
 
 
 def lapidary_ron(scene):
