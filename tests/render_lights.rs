@@ -185,9 +185,10 @@ fn a_sun_gives_its_irradiance_times_the_cosine() {
 
 #[test]
 fn with_more_lights_than_a_vertex_samples_their_irradiances_still_add() {
-    // Four lights, of which each vertex samples three (chosen by strata),
-    // weighted against BRDF sampling with their densities times 3/4: the
-    // floor's radiance is still the sum of the four closed forms above.
+    // Four lights, of which each vertex samples three (chosen by strata,
+    // mostly by their estimated irradiance there), weighted against BRDF
+    // sampling with their densities times 3 × their choice probability:
+    // the floor's radiance is still the sum of the four closed forms above.
     let (soft_box_light, form_factor) = overhead_soft_box(4.0);
     let soft_box = PI * 4.0 * form_factor;
     // A sphere wholly above the horizon: E = π L (r/d)² cos θ, here at

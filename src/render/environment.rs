@@ -317,6 +317,15 @@ impl Environment {
         Ok(Environment::Map(map))
     }
 
+    /// A rough luminance of the irradiance it gives a surface (π · the
+    /// mean radiance's luminance), for choosing among emitters.
+    pub(crate) fn irradiance_estimate(&self) -> f64 {
+        match self {
+            Environment::Constant(c) => PI * luminance(*c),
+            Environment::Map(map) => map.irradiance_estimate(),
+        }
+    }
+
     /// Radiance arriving from the unit world `direction` (black for a zero
     /// or non-finite direction).
     pub fn radiance(&self, direction: DVec3) -> Rgb {
@@ -522,6 +531,11 @@ pub struct EnvironmentMap {
     /// (the rows' tables): 1 − `hot`'s share, 1 without a hot part (kept
     /// for every density lookup of a row's texel).
     rest_share: f64,
+    /// ∫ Y dω / 4 over the sphere: the luminance of the irradiance on a
+    /// plane that faces a uniform sky of the map's mean (π · mean), by
+    /// which a vertex weighs the map against lights when it chooses
+    /// among more emitters than it samples.
+    irradiance_estimate: f64,
     rotation_deg: f64,
     /// The rotation in radians, for the reference mapping in tests.
     #[cfg(test)]
@@ -682,6 +696,11 @@ impl EnvironmentMap {
                 value: decode(texels[row * width + col], &scales),
             })?);
         }
+        // ∫ Y dω over the sphere, every texel counted (before the hot part
+        // leaves the rows' tables).
+        let luminance_integral: f64 = (0..height)
+            .map(|row| luminances[row].sum / width as f64 * TAU * (z[row] - z[row + 1]))
+            .sum();
         let hot = hot_part(&texels, width, &z, &luminances, &scales);
         let hot_threshold = match &hot {
             Some((part, threshold)) => {
@@ -731,6 +750,7 @@ impl EnvironmentMap {
             rest_share: hot.as_ref().map_or(1.0, |(part, _)| 1.0 - part.share),
             hot: hot.map(|(part, _)| part),
             hot_threshold,
+            irradiance_estimate: luminance_integral / 4.0,
             rotation_deg,
             #[cfg(test)]
             rotation_rad: rotation_deg.to_radians(),
@@ -760,6 +780,12 @@ impl EnvironmentMap {
             rotation_deg,
         )
         .expect("the studio's texels are finite, non-negative and below 12")
+    }
+
+    /// A rough luminance of the irradiance the map gives a surface (see
+    /// the field).
+    pub(crate) fn irradiance_estimate(&self) -> f64 {
+        self.irradiance_estimate
     }
 
     /// Columns (azimuth bins).

@@ -97,6 +97,15 @@ pub struct RenderScene {
 /// a light and an environment map, as many as that of a scene with more.
 const MAX_LIGHT_SAMPLES: usize = 3;
 
+/// The share of a choice among more emitters than a vertex samples that is
+/// spread evenly over them; the rest follows their estimated irradiance at
+/// the vertex ([`RenderScene::emitter_choice`]).
+const UNIFORM_CHOICE: f64 = 0.25;
+
+/// How many emitters' estimates a vertex keeps on its stack while it
+/// chooses among them (those of further emitters are computed again).
+const KEPT_ESTIMATES: usize = 16;
+
 /// Scattering events a path may take inside translucent bodies (which are
 /// not bounces): a stone whose light scatters further is dark anyway.
 const MAX_SCATTERINGS: u32 = 1024;
@@ -496,8 +505,10 @@ impl RenderScene {
         let mut first_recorded = false;
         // Where the previous BRDF sample came from, its pdf and whether its
         // vertex sampled the environment's parts apart (None for the
-        // camera ray, whose emitters count in full).
-        let mut previous: Option<(DVec3, f64, bool)> = None;
+        // camera ray, whose emitters count in full)
+        // (and, with more emitters than a vertex samples, the sum of their
+        // estimates there, see `RenderScene::emitter_total_at`).
+        let mut previous: Option<(DVec3, f64, bool, f64)> = None;
         // The stone the current segment leaves (outwards), which it cannot
         // meet again: every cabochon is convex.
         let mut leaving: Option<usize> = start_leaving;
@@ -761,14 +772,14 @@ impl RenderScene {
                 }
             }
             // An emitter in front of the surface (or of the sky).
-            if let Some((light, t, emitted)) = self.nearest_light(origin, direction, t_hit) {
+            if let Some((index, light, t, emitted)) = self.nearest_light(origin, direction, t_hit) {
                 let weight = match (previous, arriving.filter(|vertex| vertex.exited)) {
                     (_, Some(vertex)) => {
                         self.sampled_chain_weight(&vertex, light, origin, direction, t)
                     }
-                    (Some((p, brdf_pdf, _)), None) => {
-                        let light_pdf =
-                            light.pdf(p, direction, t) * self.light_samples_per_emitter();
+                    (Some((p, brdf_pdf, _, total)), None) => {
+                        let light_pdf = light.pdf(p, direction, t)
+                            * self.light_samples_per_emitter(index, p, total);
                         power_heuristic(brdf_pdf, light_pdf)
                     }
                     (None, None) => 1.0,
@@ -785,14 +796,14 @@ impl RenderScene {
                         self.environment.radiance_in(direction, escape_texel),
                         self.environment_sampled_chain_weight(&vertex, direction),
                     ),
-                    (Some((_, brdf_pdf, parts_apart)), _) if self.samples_environment() => {
+                    (Some((p, brdf_pdf, parts_apart, total)), _) if self.samples_environment() => {
                         let (sky, whole_pdf, part_pdf) = self
                             .environment
                             .radiance_and_pdfs_in(direction, escape_texel);
                         let light_pdf = if parts_apart {
                             part_pdf
                         } else {
-                            whole_pdf * self.light_samples_per_emitter()
+                            whole_pdf * self.light_samples_per_emitter(self.lights.len(), p, total)
                         };
                         (sky, power_heuristic(brdf_pdf, light_pdf))
                     }
@@ -860,7 +871,15 @@ impl RenderScene {
                     cone = RayCone::UNBOUNDED;
                     // Light was sampled only outwards: an emitter met
                     // there is weighed against it; none shines inside.
-                    previous = (!now_inside).then_some((origin, sample.pdf, parts_apart));
+                    // (`origin` is `outwards` then, where the light was sampled.)
+                    previous = (!now_inside).then(|| {
+                        (
+                            origin,
+                            sample.pdf,
+                            parts_apart,
+                            self.emitter_total_at(origin),
+                        )
+                    });
                     bounce += 1;
                     continue;
                 }
@@ -974,17 +993,18 @@ impl RenderScene {
             }
 
             // Next-event estimation: the lights and the environment.
-            self.for_each_light_sample(point, sky, stream, |sample, emitter| {
-                let contribution = self.direct(
-                    &shading,
-                    (&brdf_at, mix.as_ref()),
-                    &hit,
-                    point,
-                    (&sample, emitter),
-                    counts,
-                );
-                radiance += throughput * contribution;
-            });
+            let emitter_total =
+                self.for_each_light_sample(point, sky, stream, |sample, emitter| {
+                    let contribution = self.direct(
+                        &shading,
+                        (&brdf_at, mix.as_ref()),
+                        &hit,
+                        point,
+                        (&sample, emitter),
+                        counts,
+                    );
+                    radiance += throughput * contribution;
+                });
 
             // Continue the path by sampling the BRDF: (ωi in world space,
             // f·cosθi/pdf, pdf).
@@ -1021,7 +1041,7 @@ impl RenderScene {
             if throughput.max_element() <= 0.0 {
                 break;
             }
-            previous = Some((point, pdf, parts_apart));
+            previous = Some((point, pdf, parts_apart, emitter_total));
             leaving = hit.stone_index();
             origin = point;
             direction = wi_world;
@@ -1216,18 +1236,63 @@ impl RenderScene {
         self.lights.len() + usize::from(self.samples_environment())
     }
 
-    /// How many samples of each emitter a vertex's next-event estimation
-    /// draws on average ([`RenderScene::for_each_light_sample`]): 1 while
-    /// there are at most [`MAX_LIGHT_SAMPLES`] emitters, else
-    /// [`MAX_LIGHT_SAMPLES`] shared among them. An emitter's light-sampling
-    /// density in the power heuristic is its own density times this.
+    /// How many samples of emitter `emitter` (as
+    /// [`RenderScene::sampled_emitters`] counts them: the lights, then the
+    /// environment) next-event estimation draws on average at `point`
+    /// ([`RenderScene::for_each_light_sample`]), `total` being
+    /// [`RenderScene::emitter_total_at`] there: 1 while there are at most
+    /// [`MAX_LIGHT_SAMPLES`] emitters, else [`MAX_LIGHT_SAMPLES`] times its
+    /// choice probability. An emitter's light-sampling density in the
+    /// power heuristic is its own density times this.
     #[inline(always)]
-    fn light_samples_per_emitter(&self) -> f64 {
+    fn light_samples_per_emitter(&self, emitter: usize, point: DVec3, total: f64) -> f64 {
+        if self.sampled_emitters() <= MAX_LIGHT_SAMPLES {
+            return 1.0;
+        }
+        MAX_LIGHT_SAMPLES as f64 * self.emitter_choice(emitter, point, total)
+    }
+
+    /// A rough luminance of the irradiance emitter `emitter` gives a
+    /// surface at `point` (see [`Light::irradiance_estimate`]).
+    #[inline(always)]
+    fn emitter_estimate(&self, emitter: usize, point: DVec3) -> f64 {
+        let estimate = match self.lights.get(emitter) {
+            Some(light) => light.irradiance_estimate(point),
+            None => self.environment.irradiance_estimate(),
+        };
+        if estimate.is_finite() {
+            estimate
+        } else {
+            0.0
+        }
+    }
+
+    /// The sum of [`RenderScene::emitter_estimate`] over the emitters at
+    /// `point` when a vertex chooses among them (more than
+    /// [`MAX_LIGHT_SAMPLES`]), else 0 (not needed): computed once a vertex,
+    /// for its light samples and for the BRDF sample's MIS weight.
+    #[inline(always)]
+    fn emitter_total_at(&self, point: DVec3) -> f64 {
         let emitters = self.sampled_emitters();
         if emitters <= MAX_LIGHT_SAMPLES {
-            1.0
+            return 0.0;
+        }
+        (0..emitters).map(|e| self.emitter_estimate(e, point)).sum()
+    }
+
+    /// The probability that a light sample at `point` goes to emitter
+    /// `emitter`, `total` being [`RenderScene::emitter_total_at`]:
+    /// a share [`UNIFORM_CHOICE`] spread evenly (so that an emitter the
+    /// estimate undervalues, or a soft box seen edge-on, keeps samples),
+    /// the rest in proportion to the estimates.
+    #[inline(always)]
+    fn emitter_choice(&self, emitter: usize, point: DVec3, total: f64) -> f64 {
+        let uniform = 1.0 / self.sampled_emitters() as f64;
+        if total > 0.0 && total < f64::INFINITY {
+            UNIFORM_CHOICE * uniform
+                + (1.0 - UNIFORM_CHOICE) * self.emitter_estimate(emitter, point) / total
         } else {
-            MAX_LIGHT_SAMPLES as f64 / emitters as f64
+            uniform
         }
     }
 
@@ -1238,12 +1303,13 @@ impl RenderScene {
     /// holds the sky part's numbers, see
     /// [`RenderScene::environment_parts_apart`]), while there are at most
     /// [`MAX_LIGHT_SAMPLES`] emitters; else [`MAX_LIGHT_SAMPLES`] samples,
-    /// each of an emitter chosen uniformly in its stratum of the emitters
-    /// (one number shared by the strata), so that a vertex's work stays
-    /// bounded however many lights a scene has. Each of a vertex's samples
-    /// then counts 1 / (its emitter's density × the expected samples of
-    /// that emitter): unbiased, and the weights with BRDF sampling still
-    /// sum to 1.
+    /// each of an emitter chosen in its stratum of the emitters' cumulative
+    /// choice probabilities ([`RenderScene::emitter_choice`], by their
+    /// estimated irradiance at `point`, whose sum is `emitter_total`; one
+    /// number shared by the strata), so that a vertex's work stays bounded
+    /// however many lights a scene has. Each of a vertex's samples then
+    /// counts 1 / (its emitter's density × the expected samples of that
+    /// emitter): unbiased, and the weights with BRDF sampling still sum to 1.
     #[inline(always)]
     fn for_each_light_sample(
         &self,
@@ -1251,7 +1317,7 @@ impl RenderScene {
         sky: Option<[f64; 2]>,
         stream: &mut SampleStream,
         mut take: impl FnMut(LightSample, Option<usize>),
-    ) {
+    ) -> f64 {
         let light_sample = |s: EnvironmentSample, share: f64| LightSample {
             direction: s.direction,
             distance: f64::INFINITY,
@@ -1286,13 +1352,43 @@ impl RenderScene {
             {
                 take(sample, None);
             }
-            return;
+            return 0.0;
         }
-        let share = MAX_LIGHT_SAMPLES as f64 / emitters as f64;
+        // The first emitters' estimates kept (the rest, rare, computed
+        // again in the walk); then, as the strata's positions in [0, 1)
+        // rise, one walk along the emitters' cumulative choice finds all
+        // three.
+        let mut kept = [0.0; KEPT_ESTIMATES];
+        let mut total = 0.0;
+        for emitter in 0..emitters {
+            let estimate = self.emitter_estimate(emitter, point);
+            if let Some(slot) = kept.get_mut(emitter) {
+                *slot = estimate;
+            }
+            total += estimate;
+        }
+        let uniform = 1.0 / emitters as f64;
+        let usable = total > 0.0 && total < f64::INFINITY;
+        let choice_of = |emitter: usize| {
+            if !usable {
+                return uniform;
+            }
+            let estimate = kept
+                .get(emitter)
+                .copied()
+                .unwrap_or_else(|| self.emitter_estimate(emitter, point));
+            UNIFORM_CHOICE * uniform + (1.0 - UNIFORM_CHOICE) * estimate / total
+        };
         let offset = stream.next_1d();
+        let (mut chosen, mut below, mut choice) = (0, 0.0, choice_of(0));
         for stratum in 0..MAX_LIGHT_SAMPLES {
             let position = (stratum as f64 + offset) / MAX_LIGHT_SAMPLES as f64;
-            let chosen = ((position * emitters as f64) as usize).min(emitters - 1);
+            while position >= below + choice && chosen + 1 < emitters {
+                below += choice;
+                chosen += 1;
+                choice = choice_of(chosen);
+            }
+            let share = MAX_LIGHT_SAMPLES as f64 * choice;
             let u = stream.next_2d();
             let sample = match self.lights.get(chosen) {
                 Some(light) => light.sample(point, u).map(|s| LightSample {
@@ -1305,6 +1401,7 @@ impl RenderScene {
                 take(sample, self.light_of_emitter(chosen));
             }
         }
+        total
     }
 
     /// The index in [`RenderScene::lights`] of emitter number `emitter`
@@ -1411,13 +1508,13 @@ impl RenderScene {
         origin: DVec3,
         direction: DVec3,
         t_max: f64,
-    ) -> Option<(&Light, f64, Rgb)> {
-        let mut best: Option<(&Light, f64, Rgb)> = None;
-        for light in &self.lights {
+    ) -> Option<(usize, &Light, f64, Rgb)> {
+        let mut best: Option<(usize, &Light, f64, Rgb)> = None;
+        for (index, light) in self.lights.iter().enumerate() {
             // `hit` only reports a crossing nearer than the limit.
-            let limit = best.map_or(t_max, |b| b.1);
+            let limit = best.map_or(t_max, |b| b.2);
             if let Some((t, emitted)) = light.hit(origin, direction, limit) {
-                best = Some((light, t, emitted));
+                best = Some((index, light, t, emitted));
             }
         }
         best

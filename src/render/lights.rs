@@ -10,6 +10,7 @@ use std::f64::consts::PI;
 use glam::DVec3;
 
 use crate::brdf::Rgb;
+use crate::render::environment::luminance;
 use crate::scene::LightSpec;
 
 /// A light, in world space: the scene's light description, which already
@@ -34,6 +35,43 @@ pub struct LightSample {
 }
 
 impl LightSpec {
+    /// A rough luminance of the irradiance the light gives a surface at
+    /// `point` facing it, unoccluded: I/d² for a point, L·π r²/d² for a
+    /// sphere, L·A·cosθ/d² for a soft box (0 behind it), the sun's E. A
+    /// vertex weighs emitters by it when it chooses among more than it
+    /// samples; distances are kept from falling below the light's own size.
+    pub(crate) fn irradiance_estimate(&self, point: DVec3) -> f64 {
+        match *self {
+            LightSpec::Point {
+                position,
+                intensity,
+            } => luminance(intensity) / position.distance_squared(point).max(1e-6),
+            LightSpec::Sphere {
+                centre,
+                radius,
+                radiance,
+            } => {
+                let r2 = radius * radius;
+                luminance(radiance) * PI * r2 / centre.distance_squared(point).max(r2)
+            }
+            LightSpec::Rect {
+                centre,
+                normal,
+                width,
+                height,
+                radiance,
+                ..
+            } => {
+                let to_point = point - centre;
+                let d2 = to_point.length_squared();
+                let area = width * height;
+                let cos = (to_point.dot(normal) / d2.sqrt()).max(0.0);
+                luminance(radiance) * area * cos / d2.max(area)
+            }
+            LightSpec::Sun { irradiance, .. } => luminance(irradiance),
+        }
+    }
+
     /// A sun of `irradiance` (perpendicular to its direction) and angular
     /// diameter `angular_diameter_deg`, towards `direction`.
     pub fn sun(direction: DVec3, angular_diameter_deg: f64, irradiance: Rgb) -> Self {
