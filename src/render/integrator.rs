@@ -106,6 +106,21 @@ const UNIFORM_CHOICE: f64 = 0.25;
 /// chooses among them (those of further emitters are computed again).
 const KEPT_ESTIMATES: usize = 16;
 
+/// The probability of choosing an emitter of `estimate` among `emitters`
+/// whose estimates sum to `total`: [`UNIFORM_CHOICE`] spread evenly, the
+/// rest in proportion to the estimates (evenly when `total` is 0 or not
+/// finite). One formula for the choice and for its density in MIS, so that
+/// the two agree to the bit.
+#[inline(always)]
+fn choice_of_estimate(estimate: impl FnOnce() -> f64, total: f64, emitters: usize) -> f64 {
+    let uniform = 1.0 / emitters as f64;
+    if total > 0.0 && total < f64::INFINITY {
+        UNIFORM_CHOICE * uniform + (1.0 - UNIFORM_CHOICE) * estimate() / total
+    } else {
+        uniform
+    }
+}
+
 /// Scattering events a path may take inside translucent bodies (which are
 /// not bounces): a stone whose light scatters further is dark anyway.
 const MAX_SCATTERINGS: u32 = 1024;
@@ -503,11 +518,10 @@ impl RenderScene {
         let mut throughput = Rgb::ONE;
         // Whether the first hit went into `first_hits` (else: nothing hit).
         let mut first_recorded = false;
-        // Where the previous BRDF sample came from, its pdf and whether its
-        // vertex sampled the environment's parts apart (None for the
-        // camera ray, whose emitters count in full)
-        // (and, with more emitters than a vertex samples, the sum of their
-        // estimates there, see `RenderScene::emitter_total_at`).
+        // Where the previous BRDF sample came from, its pdf, whether its
+        // vertex sampled the environment's parts apart and the sum of the
+        // emitters' estimates there (`RenderScene::emitter_total_at`); None
+        // for the camera ray, whose emitters count in full.
         let mut previous: Option<(DVec3, f64, bool, f64)> = None;
         // The stone the current segment leaves (outwards), which it cannot
         // meet again: every cabochon is convex.
@@ -1287,13 +1301,11 @@ impl RenderScene {
     /// the rest in proportion to the estimates.
     #[inline(always)]
     fn emitter_choice(&self, emitter: usize, point: DVec3, total: f64) -> f64 {
-        let uniform = 1.0 / self.sampled_emitters() as f64;
-        if total > 0.0 && total < f64::INFINITY {
-            UNIFORM_CHOICE * uniform
-                + (1.0 - UNIFORM_CHOICE) * self.emitter_estimate(emitter, point) / total
-        } else {
-            uniform
-        }
+        choice_of_estimate(
+            || self.emitter_estimate(emitter, point),
+            total,
+            self.sampled_emitters(),
+        )
     }
 
     /// Next-event estimation's light samples at `point`, each passed to
@@ -1367,17 +1379,13 @@ impl RenderScene {
             }
             total += estimate;
         }
-        let uniform = 1.0 / emitters as f64;
-        let usable = total > 0.0 && total < f64::INFINITY;
         let choice_of = |emitter: usize| {
-            if !usable {
-                return uniform;
-            }
-            let estimate = kept
-                .get(emitter)
-                .copied()
-                .unwrap_or_else(|| self.emitter_estimate(emitter, point));
-            UNIFORM_CHOICE * uniform + (1.0 - UNIFORM_CHOICE) * estimate / total
+            let estimate = || {
+                kept.get(emitter)
+                    .copied()
+                    .unwrap_or_else(|| self.emitter_estimate(emitter, point))
+            };
+            choice_of_estimate(estimate, total, emitters)
         };
         let offset = stream.next_1d();
         let (mut chosen, mut below, mut choice) = (0, 0.0, choice_of(0));
