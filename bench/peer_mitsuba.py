@@ -132,10 +132,15 @@ def stone_mesh(mi, dr, nonlinear=True):
 
 
 def clear_stone_mesh(mi, dr, scattering=False, semi_axes=STONE_SEMI_AXES, lift=CLEAR_LIFT,
-                     ior=CLEAR_IOR, absorption=CLEAR_ABSORPTION):
+                     ior=CLEAR_IOR, absorption=CLEAR_ABSORPTION, turn_deg=0.0, xy=(0.0, 0.0),
+                     name="stone"):
     """The cap closed by its flat base (z = 0), lifted by `lift`, as a
     smooth `dielectric` of `ior` around a `homogeneous` medium of σa
-    `absorption` (per unit), purely absorbing unless `scattering`.
+    `absorption` (per unit), purely absorbing unless `scattering`: True
+    for the peer's SCATTERING and SCATTERING_G, or a pair (σs per unit,
+    the Henyey-Greenstein g). Turned by `turn_deg` about z and moved by
+    `xy` (lapidary's `rotation_deg: (0, 0, turn)` and `position`), the
+    mesh named `name`.
 
     The base is a separate fan of vertices with the normal −z, so the rim
     stays a sharp edge as lapidary's analytic stone has it.
@@ -152,13 +157,16 @@ def clear_stone_mesh(mi, dr, scattering=False, semi_axes=STONE_SEMI_AXES, lift=C
     cur = np.arange(segments)
     nxt = (cur + 1) % segments
     base_faces = np.stack([np.full(segments, centre), centre + 1 + nxt, centre + 1 + cur], axis=1)
-    pos = np.vstack([pos, base_pos])
-    pos[:, 2] += lift
-    nrm = np.vstack([nrm, base_nrm])
+    c, s = math.cos(math.radians(turn_deg)), math.sin(math.radians(turn_deg))
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    pos = np.vstack([pos, base_pos]) @ turn.T + np.array([xy[0], xy[1], lift])
+    nrm = np.vstack([nrm, base_nrm]) @ turn.T
     faces = np.concatenate([faces, base_faces]).astype(np.uint32)
     props = mi.Properties()
     props["bsdf"] = mi.load_dict({"type": "dielectric", "int_ior": ior, "ext_ior": 1.0})
-    sigma_s = SCATTERING if scattering else (0.0, 0.0, 0.0)
+    if scattering is True:
+        scattering = (SCATTERING, SCATTERING_G)
+    sigma_s, g = scattering or ((0.0, 0.0, 0.0), 0.0)
     sigma_t = [a + s for a, s in zip(absorption, sigma_s)]
     # Mitsuba reads an RGB σt as a reflectance (each channel ≤ 1): the
     # values are scaled into [0, 1] and `scale` restores them.
@@ -169,10 +177,10 @@ def clear_stone_mesh(mi, dr, scattering=False, semi_axes=STONE_SEMI_AXES, lift=C
             "scale": scale,
             "sigma_t": {"type": "rgb", "value": [t / scale for t in sigma_t]},
             "albedo": {"type": "rgb", "value": [s / t for s, t in zip(sigma_s, sigma_t)]},
-            "phase": {"type": "hg", "g": SCATTERING_G},
+            "phase": {"type": "hg", "g": g},
         }
     )
-    return mesh_of(mi, dr, pos, nrm, faces, props)
+    return mesh_of(mi, dr, pos, nrm, faces, props, name=name)
 
 
 def scene_dict(mi, dr, size, spp, max_depth, nonlinear=True, clear=False, scattering=False,

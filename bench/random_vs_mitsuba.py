@@ -8,7 +8,11 @@ Mitsuba's `plastic`) of random sizes, places and turns; a glossy layered
 ground (bench/suite/glossy-ground.ron, `roughplastic`) or a Lambert one
 (bench/peer-ground.ron, `diffuse`); zero to four sphere and rectangle
 lights; a constant sky, the smooth 2048 × 1024 sky map or the 4096 × 2048
-map with a sun; a random orbit camera. Each scene is written as a RON file
+map with a sun; a random orbit camera. With `--translucent` every stone
+is instead a translucent body, as suite case 5 without its flakes: a
+smooth dielectric of random IOR around a random absorbing medium, clear
+or scattering (Henyey-Greenstein), lifted 0.5 mm off the ground
+(Mitsuba's `dielectric` around a `homogeneous` medium, `volpath`). Each scene is written as a RON file
 for lapidary and built in code for Mitsuba (bench/peer_mitsuba.py's
 helpers), and both render it as whole processes, alternately, `--rounds`
 times: the table gives the median times, their ratio, and the ratio of
@@ -25,6 +29,7 @@ time to equal error, ratio² × the time ratio.
     bench/.venv/bin/python bench/random_vs_mitsuba.py --scenes 8 --rounds 2
     bench/.venv/bin/python bench/random_vs_mitsuba.py --scenes 8 --record   # also bench/results/DATE-random-vs-mitsuba.md
     bench/.venv/bin/python bench/random_vs_mitsuba.py --scenes 8 --noise    # and noise at equal spp, time to equal error
+    bench/.venv/bin/python bench/random_vs_mitsuba.py --scenes 8 --translucent   # glass stones instead
 
 Needs bench/.venv (`bench/compare --install`), the suite's maps
 (`bench/.venv/bin/python bench/peer_mitsuba.py suite-maps bench/out/suite`)
@@ -116,6 +121,42 @@ def draw_scene(seed):
     }
 
 
+#: How high a translucent stone's flat base sits above the ground, mm (as
+#: the suite's goldstone: light passes under it).
+TRANSLUCENT_LIFT_MM = 0.5
+
+
+def make_translucent(scene):
+    """Turn every stone of `scene` into a translucent body, drawn from its
+    own stream (the same scene's other draws stay those of `draw_scene`):
+    IOR 1.45–1.8, σa 0.02–0.4 per mm a channel, and for half of them a grey
+    σs 0.2–1.5 per mm with g 0–0.7."""
+    rng = random.Random(f"translucent-{scene['seed']}")
+    for stone in scene["stones"]:
+        stone["ior"] = rng.uniform(1.45, 1.8)
+        stone["absorption"] = [rng.uniform(0.02, 0.4) for _ in range(3)]
+        if rng.random() < 0.5:
+            sigma_s = rng.uniform(0.2, 1.5)
+            stone["scattering"] = ((sigma_s,) * 3, rng.uniform(0.0, 0.7))
+    return scene
+
+
+def stone_recipe(scene, k):
+    """The path of the recipe of stone `k` of `scene`: bench/peer-stone.ron,
+    or for a translucent stone a recipe written now into bench/out/random/."""
+    stone = scene["stones"][k]
+    if "ior" not in stone:
+        return BENCH / "peer-stone.ron"
+    path = OUT / f"stone-{scene['seed']}-{k}.ron"
+    body = f"ior: {stone['ior']!r}, absorption: {tuple(stone['absorption'])!r}"
+    if "scattering" in stone:
+        sigma_s, g = stone["scattering"]
+        body += f", scattering: {tuple(sigma_s)!r}, anisotropy: {g!r}"
+    path.write_text(f'Gem(name: "random {scene["seed"]}-{k}", surface: "teflon", '
+                    f"body: Translucent({body}))\n")
+    return path
+
+
 def map_path(scene):
     """The environment map file of a map scene (made by peer_mitsuba.py suite-maps)."""
     return MAPS / ("sky-2048x1024.exr" if scene["environment"] == "sky" else "sun-4096x2048.exr")
@@ -138,21 +179,32 @@ def camera_behind_a_rect(scene):
 def describe(scene):
     """A short description for the table."""
     lights = [light["kind"] for light in scene["lights"]]
+    kinds = ["scattering" if "scattering" in s else "clear" if "ior" in s else "coated"
+             for s in scene["stones"]]
+    stones = ", ".join(f"{kinds.count(k)} {k}" for k in ("coated", "clear", "scattering")
+                       if k in kinds)
     counts = ", ".join(f"{lights.count(k)} {k}" for k in ("sphere", "rect") if k in lights)
     behind = " (camera behind a soft box)" if camera_behind_a_rect(scene) else ""
-    return (f"{len(scene['stones'])} stone(s), {scene['ground']} ground, "
+    return (f"{len(scene['stones'])} stone(s) ({stones}), {scene['ground']} ground, "
             f"{counts or 'no lights'}, {scene['environment']} sky{behind}")
+
+
+def stone_position(stone):
+    """Where the stone's flat base sits: on the ground, or a translucent one
+    TRANSLUCENT_LIFT_MM above it."""
+    x, y, z = stone["position"]
+    return (x, y, z + (TRANSLUCENT_LIFT_MM if "ior" in stone else 0.0))
 
 
 def lapidary_ron(scene):
     """The scene as lapidary's RON."""
     target, distance, elevation, azimuth, fov = scene["camera"]
     stones = [
-        f'Stone(recipe: Some("{BENCH / "peer-stone.ron"}"), shape: Cabochon(outline: Oval, '
+        f'Stone(recipe: Some("{stone_recipe(scene, k)}"), shape: Cabochon(outline: Oval, '
         f"length: {2 * s['axes'][0]!r}, width: {2 * s['axes'][1]!r}, dome_height: {s['axes'][2]!r}, "
         f"profile_exponent: 2.0, girdle_height: 0.0, base: Flat), "
-        f"position: {tuple(s['position'])!r}, rotation_deg: (0.0, 0.0, {s['turn']!r}))"
-        for s in scene["stones"]
+        f"position: {stone_position(s)!r}, rotation_deg: (0.0, 0.0, {s['turn']!r}))"
+        for k, s in enumerate(scene["stones"])
     ]
     ground = (BENCH / "suite" / "glossy-ground.ron" if scene["ground"] == "glossy"
               else BENCH / "peer-ground.ron")
@@ -177,10 +229,18 @@ def lapidary_ron(scene):
 def mitsuba_scene(mi, dr, peer, scene, size, spp, max_depth):
     """The scene as a Mitsuba `load_dict` dictionary (peer_mitsuba.py's helpers)."""
     target, distance, elevation, azimuth, fov = scene["camera"]
-    result = {"type": "scene", "integrator": {"type": "path", "max_depth": max_depth},
+    translucent = any("ior" in stone for stone in scene["stones"])
+    result = {"type": "scene",
+              "integrator": {"type": "volpath" if translucent else "path", "max_depth": max_depth},
               "sensor": peer.sensor_dict(mi, peer.orbit_origin(target, distance, elevation, azimuth),
                                          target, fov, size, spp)}
     for k, stone in enumerate(scene["stones"]):
+        if "ior" in stone:
+            result[f"stone{k}"] = peer.clear_stone_mesh(
+                mi, dr, stone.get("scattering", False), semi_axes=stone["axes"],
+                lift=stone_position(stone)[2], ior=stone["ior"], absorption=stone["absorption"],
+                turn_deg=stone["turn"], xy=stone["position"][:2], name=f"stone{k}")
+            continue
         result[f"stone{k}"] = peer.placed_cap(mi, dr, f"stone{k}", stone["axes"],
                                               stone["position"], stone["turn"],
                                               peer.peer_stone_bsdf())
@@ -291,6 +351,8 @@ def run(args):
                      f"suite-maps {MAPS}")
     OUT.mkdir(parents=True, exist_ok=True)
     scenes = [draw_scene(args.first_seed + k) for k in range(args.scenes)]
+    if args.translucent:
+        scenes = [make_translucent(scene) for scene in scenes]
     commands = {}
     for scene in scenes:
         seed = scene["seed"]
@@ -360,6 +422,7 @@ def run(args):
             f"{platform.system()}\n"
             f"- command: `bench/.venv/bin/python bench/random_vs_mitsuba.py --scenes {args.scenes} "
             f"--rounds {args.rounds} --first-seed {args.first_seed}"
+            f"{' --translucent' if args.translucent else ''}"
             f"{' --noise --seeds ' + str(args.seeds) + ' --reference-spp ' + str(args.reference_spp) if args.noise else ''}"
             f"` ({args.size}², {args.spp} spp, "
             f"{args.bounces} bounces, {args.threads} threads, box films, whole processes, "
@@ -384,6 +447,8 @@ def main(argv):
     p.add_argument("--noise", action="store_true",
                    help="also noise at equal spp: RMSE at 128², 16 spp over --seeds renders, "
                         "each renderer against its own --reference-spp render")
+    p.add_argument("--translucent", action="store_true",
+                   help="every stone a translucent body (clear or scattering glass)")
     p.add_argument("--seeds", type=int, default=8)
     p.add_argument("--reference-spp", type=int, default=2048)
     p.add_argument("--record", action="store_true",
