@@ -104,6 +104,15 @@ def ellipsoid_cap_mesh(rings=96, segments=192, semi_axes=STONE_SEMI_AXES):
 # --- Mitsuba ------------------------------------------------------------------
 
 
+def turn_about_z(turn_deg):
+    """The 3 × 3 rotation by `turn_deg` about z (lapidary's `rotation_deg:
+    (0, 0, turn)`), for rows of points: `points @ turn.T`."""
+    import numpy as np
+
+    c, s = math.cos(math.radians(turn_deg)), math.sin(math.radians(turn_deg))
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 def mesh_of(mi, dr, pos, nrm, faces, props, name="stone"):
     """A Mitsuba mesh named `name` from numpy positions, vertex normals and
     faces, with `props` (its BSDF, and its interior medium if any)."""
@@ -157,8 +166,7 @@ def clear_stone_mesh(mi, dr, scattering=False, semi_axes=STONE_SEMI_AXES, lift=C
     cur = np.arange(segments)
     nxt = (cur + 1) % segments
     base_faces = np.stack([np.full(segments, centre), centre + 1 + nxt, centre + 1 + cur], axis=1)
-    c, s = math.cos(math.radians(turn_deg)), math.sin(math.radians(turn_deg))
-    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    turn = turn_about_z(turn_deg)
     pos = np.vstack([pos, base_pos]) @ turn.T + np.array([xy[0], xy[1], lift])
     nrm = np.vstack([nrm, base_nrm]) @ turn.T
     faces = np.concatenate([faces, base_faces]).astype(np.uint32)
@@ -276,8 +284,7 @@ def tray_scene_dict(mi, dr, size, spp, max_depth, tray_path):
     pos, nrm, faces = ellipsoid_cap_mesh(TRAY_CAP_RINGS, TRAY_CAP_SEGMENTS, semi_axes)
     all_pos, all_nrm, all_faces = [], [], []
     for k, (x, y, turn) in enumerate(placements):
-        c, s = math.cos(math.radians(turn)), math.sin(math.radians(turn))
-        turned = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        turned = turn_about_z(turn)
         all_pos.append(pos @ turned.T + np.array([x, y, 0.0]))
         all_nrm.append(nrm @ turned.T)
         all_faces.append(faces + k * len(pos))
@@ -413,8 +420,7 @@ def placed_cap(mi, dr, name, semi_axes, position, turn_deg, bsdf):
     import numpy as np
 
     pos, nrm, faces = ellipsoid_cap_mesh(semi_axes=semi_axes)
-    c, s = math.cos(math.radians(turn_deg)), math.sin(math.radians(turn_deg))
-    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    turn = turn_about_z(turn_deg)
     pos = pos @ turn.T + np.array(position)
     nrm = nrm @ turn.T
     props = mi.Properties()

@@ -39,6 +39,7 @@ stay in bench/out/random/ for a second look.
 
 import argparse
 import datetime
+import functools
 import importlib.machinery
 import importlib.util
 import json
@@ -62,8 +63,9 @@ LAPIDARY = ROOT / "target" / "dist" / "lapidary"
 GROUND_HALF_SIDE_MM = 1.0e5
 
 
+@functools.cache
 def load_script(name, path):
-    """Import a bench script (bench/compare has no .py suffix)."""
+    """Import a bench script (bench/compare has no .py suffix), once."""
     loader = importlib.machinery.SourceFileLoader(name, str(path))
     module = importlib.util.module_from_spec(importlib.util.spec_from_loader(name, loader))
     loader.exec_module(module)
@@ -305,16 +307,13 @@ def mean_rgb(path):
     return np.asarray(peer.read_rgb(str(path)), dtype=np.float64).reshape(-1, 3).mean(axis=0)
 
 
-#: The share of the largest (render, pixel) squared errors the trimmed
-#: RMSE leaves out (a sun's caustics make the plain one heavy-tailed), as
-#: bench/noise_vs_mitsuba.py.
-TRIMMED = 0.001
-
-
 def noise(args, scene, commands):
     """RMSE of each renderer at 128², 16 spp against its own long render:
-    (lapidary / Mitsuba plain, the same trimmed of the largest TRIMMED)."""
+    (lapidary / Mitsuba plain, the same trimmed of its largest squared
+    errors as bench/noise_vs_mitsuba.py trims them: a sun's caustics make
+    the plain one heavy-tailed)."""
     import numpy as np
+    from noise_vs_mitsuba import trimmed_mean
 
     peer = load_script("peer_mitsuba", BENCH / "peer_mitsuba.py")
     seed = scene["seed"]
@@ -333,12 +332,8 @@ def noise(args, scene, commands):
             ((render(16, k, OUT / f"noise-{who}.exr") - reference) ** 2).ravel()
             for k in range(1, args.seeds + 1)])
 
-    def trimmed(values):
-        kept = len(values) - int(len(values) * TRIMMED)
-        return np.partition(values, kept - 1)[:kept].mean()
-
     plain = math.sqrt(squares["lapidary"].mean() / squares["mitsuba"].mean())
-    return plain, math.sqrt(trimmed(squares["lapidary"]) / trimmed(squares["mitsuba"]))
+    return plain, math.sqrt(trimmed_mean(squares["lapidary"]) / trimmed_mean(squares["mitsuba"]))
 
 
 def run(args):
