@@ -32,6 +32,7 @@ pub(crate) mod stack;
 /// conductor tables of section 4.2.3).
 pub type Rgb = glam::DVec3;
 
+pub(crate) use coat::LANES;
 pub use layer::{Base, Interface};
 pub use microfacet::{Microfacet, MicrofacetModel};
 pub use stack::{BrdfAt, BrdfSample, LayeredBrdf};

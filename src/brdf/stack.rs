@@ -20,7 +20,7 @@
 //! * an energy-compensation lobe (see [`crate::brdf::compensation`]) restores
 //!   the light that the single crossing of the model loses.
 
-use crate::brdf::coat::CoatAt;
+use crate::brdf::coat::{CoatAt, LANES};
 use crate::brdf::compensation::{Compensation, CompensationAt};
 use crate::brdf::diffuse::lambert;
 use crate::brdf::fresnel;
@@ -29,6 +29,10 @@ use crate::brdf::microfacet::{refract, v_cavity_g, MicrofacetModel};
 use crate::brdf::Rgb;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use glam::DVec3;
+
+/// The fewest directions worth [`CoatAt::eval_and_pdf_lanes`] (one is
+/// evaluated alone).
+const MIN_LANES_USED: usize = 2;
 
 /// The least weight of an interface's own lobe when a BRDF sample picks
 /// it or the layers below, against their (1 − F)·albedo guess: as if the
@@ -758,6 +762,55 @@ impl BrdfAt<'_> {
         }
     }
 
+    /// The direction [`BrdfAt::sample`] draws from `u` (wi.z > 0) and then
+    /// evaluates; None where it returns None before evaluating. So
+    /// `sample(u)` is this direction's [`BrdfAt::eval_and_pdf`] passed to
+    /// [`accept`], for a caller that evaluates it with other directions
+    /// ([`BrdfAt::eval_and_pdf_lanes`]).
+    #[inline]
+    pub(crate) fn sample_direction(&self, u: [f64; 3]) -> Option<DVec3> {
+        match &self.form {
+            Form::Below => None,
+            Form::Lambert { .. } => {
+                let wi = cosine_hemisphere(u[1], u[2]);
+                (wi.z > 0.0).then_some(wi)
+            }
+            Form::Coat(coat) => coat.sample_direction(u),
+            Form::General(prepared) => self.general_sample_direction(prepared, u),
+        }
+    }
+
+    /// Whether [`BrdfAt::eval_and_pdf_lanes`] evaluates in vector lanes
+    /// (the closed form of a coat; other forms one direction at a time).
+    #[inline(always)]
+    pub(crate) fn has_lanes(&self) -> bool {
+        matches!(self.form, Form::Coat(_))
+    }
+
+    /// [`BrdfAt::eval_and_pdf`] at the first `count` of [`LANES`]
+    /// directions at once, the same bits: in vector lanes for the closed
+    /// form of a coat when there are at least [`MIN_LANES_USED`], one
+    /// after another otherwise.
+    #[inline(always)]
+    pub(crate) fn eval_and_pdf_lanes(
+        &self,
+        wi: &[DVec3; LANES],
+        count: usize,
+    ) -> [(Rgb, f64); LANES] {
+        match &self.form {
+            Form::Coat(coat) if count >= MIN_LANES_USED && wi.iter().all(|w| w.z > 0.0) => {
+                coat.eval_and_pdf_lanes(wi, count)
+            }
+            _ => {
+                let mut out = [(Rgb::ZERO, 0.0); LANES];
+                for (value, w) in out.iter_mut().zip(wi).take(count) {
+                    *value = self.eval_and_pdf(*w);
+                }
+                out
+            }
+        }
+    }
+
     /// The general form of [`BrdfAt::sample`]: the compensation lobe's
     /// cosine sampling or the stack's, then f and the mixture density.
     #[inline(never)]
@@ -768,6 +821,14 @@ impl BrdfAt<'_> {
     /// The body of [`BrdfAt::sample_general`] (with the evaluation inlined).
     #[inline(always)]
     fn sample_general_inline(&self, prepared: &Prepared, u: [f64; 3]) -> Option<BrdfSample> {
+        let wi = self.general_sample_direction(prepared, u)?;
+        let (value, pdf) = self.eval_and_pdf_general_inline(prepared, wi);
+        accept(wi, value, pdf)
+    }
+
+    /// The direction [`BrdfAt::sample_general`] draws (wi.z > 0).
+    #[inline(always)]
+    fn general_sample_direction(&self, prepared: &Prepared, u: [f64; 3]) -> Option<DVec3> {
         let p_comp = prepared.p_comp;
         let wi = if u[0] < p_comp {
             cosine_hemisphere(u[1], u[2])
@@ -775,11 +836,7 @@ impl BrdfAt<'_> {
             let u0 = ((u[0] - p_comp) / (1.0 - p_comp)).min(1.0 - f64::EPSILON);
             self.sample_stack(prepared, [u0, u[1], u[2]])?
         };
-        if wi.z <= 0.0 {
-            return None;
-        }
-        let (value, pdf) = self.eval_and_pdf_general_inline(prepared, wi);
-        accept(wi, value, pdf)
+        (wi.z > 0.0).then_some(wi)
     }
 
     /// `LayeredBrdf::sample_from(0, wo, u)` with the top interface's
@@ -920,6 +977,59 @@ mod tests {
     use crate::sampling::{cosine_hemisphere, Rng};
     use glam::DVec3;
     use std::f64::consts::PI;
+
+    #[test]
+    fn a_sample_is_its_direction_evaluated() {
+        // `sample` against `sample_direction`, `eval_and_pdf_lanes` (at one
+        // to four directions, the sampled one last) and `accept`, bit for
+        // bit, for every form: a lone direction takes the scalar path, two
+        // or more a coat's lanes.
+        let mut rng = Rng::new(41, 42);
+        let mut sampled = 0;
+        for brdf in materials() {
+            for k in 0..400 {
+                let [a, b, c] = rng.next_3();
+                let wo = DVec3::new(a - 0.5, b - 0.5, c + 0.02).normalize();
+                let at = brdf.at(wo);
+                let u = rng.next_3();
+                let expected = at.sample(u);
+                let Some(wi) = at.sample_direction(u) else {
+                    assert!(expected.is_none(), "{}: {expected:?}", brdf.name);
+                    continue;
+                };
+                let count = 1 + k % super::LANES;
+                let mut directions = [DVec3::Z; super::LANES];
+                for other in directions.iter_mut().take(count - 1) {
+                    let [x, y, z] = rng.next_3();
+                    *other = DVec3::new(x - 0.5, y - 0.5, z + 0.02).normalize();
+                }
+                directions[count - 1] = wi;
+                let values = at.eval_and_pdf_lanes(&directions, count);
+                for (w, (value, pdf)) in directions.iter().zip(values).take(count) {
+                    let (value_alone, pdf_alone) = at.eval_and_pdf(*w);
+                    assert_eq!(
+                        (value.to_array().map(f64::to_bits), pdf.to_bits()),
+                        (
+                            value_alone.to_array().map(f64::to_bits),
+                            pdf_alone.to_bits()
+                        ),
+                        "{} at {w} {wo}",
+                        brdf.name
+                    );
+                }
+                let (value, pdf) = values[count - 1];
+                let found = super::accept(wi, value, pdf);
+                assert_eq!(
+                    format!("{found:?}"),
+                    format!("{expected:?}"),
+                    "{}",
+                    brdf.name
+                );
+                sampled += found.is_some() as usize;
+            }
+        }
+        assert!(sampled > 1000, "only {sampled} samples");
+    }
 
     /// Every library material, plus a bare Lambert and a bare Oren-Nayar
     /// ground (no layers, no compensation) like the renderer's grounds.

@@ -327,7 +327,9 @@ impl Environment {
     }
 
     /// Radiance arriving from the unit world `direction` (black for a zero
-    /// or non-finite direction).
+    /// or non-finite direction). Inlined: a constant sky's answer is a few
+    /// instructions, which a call would double on every escaping path.
+    #[inline(always)]
     pub fn radiance(&self, direction: DVec3) -> Rgb {
         match self {
             Environment::Constant(c) => {

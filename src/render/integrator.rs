@@ -12,7 +12,8 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
+use crate::brdf::stack::accept;
+use crate::brdf::{BrdfAt, BrdfSample, LayeredBrdf, Rgb, LANES};
 use crate::recipe::gem::{Body, Gem, Medium};
 use crate::recipe::TableCache;
 use crate::render::dielectric::{cross_smooth_interface, split_smooth_interface, RoughInterface};
@@ -96,6 +97,41 @@ pub struct RenderScene {
 /// [`RenderScene::for_each_light_sample`]): every emitter of a scene with
 /// a light and an environment map, as many as that of a scene with more.
 const MAX_LIGHT_SAMPLES: usize = 3;
+
+// A vertex's light samples and its BRDF sample fill one call of the
+// BRDF's lanes (see `RenderScene::evaluate_vertex`).
+const _: () = assert!(MAX_LIGHT_SAMPLES < LANES);
+
+/// A light sample's f, the BRDF's density and cosθᵢ at its direction.
+type Evaluated = (Rgb, f64, f64);
+
+/// A vertex's light samples (at most [`MAX_LIGHT_SAMPLES`], the
+/// environment's two parts counted apart, see
+/// [`RenderScene::environment_parts_apart`]), gathered before the BRDF is
+/// evaluated at them (see [`RenderScene::evaluate_vertex`]).
+#[derive(Default)]
+struct VertexLightSamples {
+    samples: [Option<(LightSample, Option<usize>)>; MAX_LIGHT_SAMPLES],
+    count: usize,
+}
+
+impl VertexLightSamples {
+    /// Add a sample of emitter `emitter` (None: the environment).
+    #[inline(always)]
+    fn push(&mut self, sample: LightSample, emitter: Option<usize>) {
+        self.samples[self.count] = Some((sample, emitter));
+        self.count += 1;
+    }
+
+    /// The samples in the order they were added.
+    #[inline(always)]
+    fn iter(&self) -> impl Iterator<Item = (&LightSample, Option<usize>)> {
+        self.samples[..self.count]
+            .iter()
+            .flatten()
+            .map(|(sample, emitter)| (sample, *emitter))
+    }
+}
 
 /// The share of a choice among more emitters than a vertex samples that is
 /// spread evenly over them; the rest follows their estimated irradiance at
@@ -1006,28 +1042,66 @@ impl RenderScene {
                 mix.blend_own_facet(shading.brdf, shading.frame.n, wo_world, at.own_share);
             }
 
-            // Next-event estimation: the lights and the environment.
-            let emitter_total =
-                self.for_each_light_sample(point, sky, stream, |sample, emitter| {
-                    let contribution = self.direct(
-                        &shading,
-                        (&brdf_at, mix.as_ref()),
-                        &hit,
-                        point,
-                        (&sample, emitter),
-                        counts,
-                    );
-                    radiance += throughput * contribution;
-                });
-
-            // Continue the path by sampling the BRDF: (ωi in world space,
-            // f·cosθi/pdf, pdf).
-            let u = stream.next_3d();
-            let sample = match &mix {
-                Some(mix) => mix.sample(u),
-                None => brdf_at
-                    .sample(u)
-                    .map(|s| (shading.frame.to_world(s.wi), s.weight(), s.pdf)),
+            // Next-event estimation (the lights and the environment), then
+            // the path continued by sampling the BRDF: (ωi in world space,
+            // f·cosθi/pdf, pdf). Where the BRDF evaluates in vector lanes
+            // (a coat) and the vertex has two light samples or more, they
+            // are gathered first, so that the BRDF is evaluated at all
+            // their directions and at its own sample's in one call; else
+            // (lanes idle, or none) each sample is shaded as it is drawn.
+            // The numbers are drawn in the same order either way, and the
+            // bits are equal.
+            let gather = mix.is_none()
+                && brdf_at.has_lanes()
+                && (self.sampled_emitters() >= 2 || sky.is_some());
+            let (emitter_total, sample) = if gather {
+                let mut light_samples = VertexLightSamples::default();
+                let emitter_total =
+                    self.for_each_light_sample(point, sky, stream, |sample, emitter| {
+                        light_samples.push(sample, emitter)
+                    });
+                let (lights, sampled) = self.evaluate_vertex(
+                    &shading.frame,
+                    &brdf_at,
+                    &hit,
+                    &light_samples,
+                    stream.next_3d(),
+                );
+                for ((sample, emitter), evaluated) in light_samples.iter().zip(lights) {
+                    if let Some(evaluated) = evaluated {
+                        let contribution = self.direct_evaluated(
+                            evaluated,
+                            &hit,
+                            point,
+                            (sample, emitter),
+                            counts,
+                        );
+                        radiance += throughput * contribution;
+                    }
+                }
+                let sample = sampled.map(|s| (shading.frame.to_world(s.wi), s.weight(), s.pdf));
+                (emitter_total, sample)
+            } else {
+                let emitter_total =
+                    self.for_each_light_sample(point, sky, stream, |sample, emitter| {
+                        let contribution = self.direct(
+                            &shading,
+                            (&brdf_at, mix.as_ref()),
+                            &hit,
+                            point,
+                            (&sample, emitter),
+                            counts,
+                        );
+                        radiance += throughput * contribution;
+                    });
+                let u = stream.next_3d();
+                let sample = match &mix {
+                    Some(mix) => mix.sample(u),
+                    None => brdf_at
+                        .sample(u)
+                        .map(|s| (shading.frame.to_world(s.wi), s.weight(), s.pdf)),
+                };
+                (emitter_total, sample)
             };
             if bounce == 0 {
                 let first = FirstHit {
@@ -1173,7 +1247,7 @@ impl RenderScene {
 
     /// Next-event estimation at a rough interface vertex: one sample of
     /// every light, then of the environment (or of each of its parts, when
-    /// `sky` holds the sky part's numbers), as at an opaque vertex ([`RenderScene::direct`]'s
+    /// `sky` holds the sky part's numbers), as at an opaque vertex ([`RenderScene::direct_evaluated`]'s
     /// power heuristic), for the directions
     /// outwards (`frame.n` is the outward normal): reflection when the
     /// path arrived from outside, transmission out when from inside (no
@@ -1509,7 +1583,7 @@ impl RenderScene {
     }
 
     /// The nearest light surface along the ray before `t_max` (the sun only
-    /// when `t_max` is infinite). Always inlined, as [`RenderScene::direct`].
+    /// when `t_max` is infinite). Always inlined, as [`RenderScene::direct_evaluated`].
     #[inline(always)]
     fn nearest_light(
         &self,
@@ -1528,14 +1602,10 @@ impl RenderScene {
         best
     }
 
-    /// One light sample's MIS-weighted contribution f·L·cosθ/pdf.
-    ///
-    /// Always inlined into [`RenderScene::radiance`] (as the compiler chose
-    /// by itself until the film's loop grew): out of line, this and
-    /// [`RenderScene::nearest_light`] cost calls and arguments passed
-    /// through memory on every vertex.
+    /// One light sample's MIS-weighted contribution f·L·cosθ/pdf at a
+    /// vertex that shades its light samples one by one (see
+    /// [`RenderScene::evaluate_vertex`] for the others).
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn direct(
         &self,
         shading: &Shading<'_>,
@@ -1545,18 +1615,12 @@ impl RenderScene {
         (sample, emitter): (&LightSample, Option<usize>),
         counts: &mut RayCounts,
     ) -> Rgb {
-        let LightSample {
-            direction,
-            distance,
-            radiance: incoming,
-            pdf,
-            is_delta,
-        } = *sample;
+        let direction = sample.direction;
         let cos_stone = direction.dot(hit.normal);
-        if pdf <= 0.0 || cos_stone <= 0.0 {
+        if sample.pdf <= 0.0 || cos_stone <= 0.0 {
             return Rgb::ZERO;
         }
-        let (f, brdf_pdf, cos_i) = match mix {
+        let evaluated = match mix {
             Some(mix) => {
                 // The facets' f·cosθi, each by its own normal, as an f
                 // against the stone's cos θi (the shading frame is a
@@ -1573,6 +1637,73 @@ impl RenderScene {
                 (f, pdf, wi.z)
             }
         };
+        self.direct_evaluated(evaluated, hit, point, (sample, emitter), counts)
+    }
+
+    /// The BRDF at a vertex's light samples and at its own sample from
+    /// `u`, in one [`BrdfAt::eval_and_pdf_lanes`] call: per light sample
+    /// (f, the BRDF's density, cosθᵢ), None where the sample adds nothing
+    /// (below the stone's or the shading frame's horizon, or of density 0),
+    /// and what [`BrdfAt::sample`]`(u)` returns.
+    #[inline(always)]
+    fn evaluate_vertex(
+        &self,
+        frame: &Frame,
+        brdf_at: &BrdfAt<'_>,
+        hit: &SurfaceHit,
+        light_samples: &VertexLightSamples,
+        u: [f64; 3],
+    ) -> ([Option<Evaluated>; MAX_LIGHT_SAMPLES], Option<BrdfSample>) {
+        // The directions to evaluate (wi.z > 0), the BRDF sample's last.
+        let mut directions = [DVec3::Z; LANES];
+        let mut count = 0;
+        let mut lanes = [None; MAX_LIGHT_SAMPLES];
+        for (lane, (sample, _)) in lanes.iter_mut().zip(light_samples.iter()) {
+            if sample.pdf <= 0.0 || sample.direction.dot(hit.normal) <= 0.0 {
+                continue;
+            }
+            let wi = frame.to_local(sample.direction);
+            if wi.z > 0.0 {
+                directions[count] = wi;
+                *lane = Some(count);
+                count += 1;
+            }
+        }
+        let sampled_wi = brdf_at.sample_direction(u);
+        if let Some(wi) = sampled_wi {
+            directions[count] = wi;
+        }
+        let used = count + usize::from(sampled_wi.is_some());
+        let values = brdf_at.eval_and_pdf_lanes(&directions, used);
+        let lights = lanes.map(|lane| lane.map(|k| (values[k].0, values[k].1, directions[k].z)));
+        let sampled = sampled_wi.and_then(|wi| accept(wi, values[count].0, values[count].1));
+        (lights, sampled)
+    }
+
+    /// One light sample's MIS-weighted contribution f·L·cosθ/pdf, given f,
+    /// the BRDF's density and cosθᵢ at the sample's direction: its shadow
+    /// ray and the power heuristic.
+    ///
+    /// Always inlined into [`RenderScene::radiance`] (as the compiler chose
+    /// by itself until the film's loop grew): out of line, this and
+    /// [`RenderScene::nearest_light`] cost calls and arguments passed
+    /// through memory on every vertex.
+    #[inline(always)]
+    fn direct_evaluated(
+        &self,
+        (f, brdf_pdf, cos_i): Evaluated,
+        hit: &SurfaceHit,
+        point: DVec3,
+        (sample, emitter): (&LightSample, Option<usize>),
+        counts: &mut RayCounts,
+    ) -> Rgb {
+        let LightSample {
+            direction,
+            distance,
+            radiance: incoming,
+            pdf,
+            is_delta,
+        } = *sample;
         if f.max_element() <= 0.0 || incoming.max_element() <= 0.0 {
             return Rgb::ZERO;
         }
