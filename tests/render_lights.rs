@@ -21,11 +21,15 @@ use lapidary::render::lights::Light;
 use lapidary::render::world::{StoneInstance, World};
 
 fn white_lambert() -> lapidary::brdf::LayeredBrdf {
-    let text = "Material(layers: [], base: Diffuse(colour: (1, 1, 1)))";
+    material("Material(layers: [], base: Diffuse(colour: (1, 1, 1)))")
+}
+
+/// The material of recipe text `text`.
+fn material(text: &str) -> lapidary::brdf::LayeredBrdf {
     let m = parse_material("test", text).unwrap();
     let source = MaterialSource {
         path: "test".into(),
-        name: "white".into(),
+        name: "test".into(),
         text: text.into(),
     };
     compile_material(&source, &m).unwrap()
@@ -264,14 +268,10 @@ fn with_more_lights_than_a_vertex_samples_their_irradiances_still_add() {
 /// over Lambert, whose vertices evaluate their light samples in lanes
 /// when they draw two or more.
 fn grey_coat() -> lapidary::brdf::LayeredBrdf {
-    let text = "Material(layers: [Layer(ior: 1.5, roughness_deg: 20.0)], base: Diffuse(colour: (0.5, 0.5, 0.5)))";
-    let m = parse_material("test", text).unwrap();
-    let source = MaterialSource {
-        path: "test".into(),
-        name: "coat".into(),
-        text: text.into(),
-    };
-    compile_material(&source, &m).unwrap()
+    material(
+        "Material(layers: [Layer(ior: 1.5, roughness_deg: 20.0)], \
+         base: Diffuse(colour: (0.5, 0.5, 0.5)))",
+    )
 }
 
 #[test]
