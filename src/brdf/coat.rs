@@ -27,11 +27,11 @@
 //! to 10⁻¹² relative for every such library material and for Blinn,
 //! Beckmann and GGX lobes, with and without absorption and compensation).
 
-use crate::brdf::compensation::{Compensation, CompensationAt};
+use crate::brdf::compensation_lobe::{Compensation, CompensationAt};
 use crate::brdf::fresnel;
 use crate::brdf::layer::Interface;
 use crate::brdf::microfacet::MicrofacetModel;
-use crate::brdf::stack::{accept, diffuse_base_sample, mixture_pdf, BrdfSample};
+use crate::brdf::sample::{accept, diffuse_base_sample, mixture_pdf, BrdfSample};
 use crate::brdf::Rgb;
 use crate::sampling::cosine_hemisphere;
 use glam::DVec3;

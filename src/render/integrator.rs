@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use crate::brdf::stack::accept;
+use crate::brdf::sample::accept;
 use crate::brdf::{BrdfAt, BrdfSample, LayeredBrdf, Rgb, LANES};
 use crate::recipe::gem::{Body, Gem, Medium};
 use crate::recipe::TableCache;
