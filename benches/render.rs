@@ -24,7 +24,7 @@ fn renderer(c: &mut Criterion) {
     let scene = default_scene();
     let default_gem = lapidary::recipe::gem::GemSource::load(DEFAULT_GEM).expect("built-in");
     let cache = lapidary::recipe::TableCache::in_memory();
-    let tables = lapidary::recipe::gem::Tables::Computed(&cache);
+    let tables = lapidary::recipe::Tables::Computed(&cache);
     let prepared =
         prepare_scene(&scene, &default_gem, None, 4, tables, &|_| {}).expect("default scene");
     let camera = camera_for(&scene, SIDE, SIDE);

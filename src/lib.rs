@@ -40,5 +40,5 @@ pub mod sampling;
 pub mod scene;
 pub mod texture;
 
-pub use recipe::gem::{compile_gem, compile_gems, Gem, GemSource, Tables};
-pub use recipe::TableCache;
+pub use recipe::gem::{compile_gem, compile_gems, Gem, GemSource};
+pub use recipe::{TableCache, Tables};

@@ -537,8 +537,9 @@ fn a_gem_compiled_in_one_batch_has_each_material_s_own_table() {
     // its own material (the one-by-one compile reads the same process
     // cache, keyed by the material's parameters).
     use lapidary::recipe::compile::{compile_material, MaterialSource};
-    use lapidary::recipe::gem::{compile_gem, GemSource, Tables};
+    use lapidary::recipe::gem::{compile_gem, GemSource};
     use lapidary::recipe::TableCache;
+    use lapidary::recipe::Tables;
     for name in ["lavender-lepidolite", "sunstone"] {
         let source = GemSource::load(name).unwrap();
         let cache = TableCache::in_memory();

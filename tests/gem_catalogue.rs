@@ -9,11 +9,12 @@
 
 use glam::DVec3;
 use lapidary::recipe::gem::{
-    compile_gem, load_gem, parse_gem, Body, Gem, GemSource, Inclusions, Tables, Zoning,
+    compile_gem, load_gem, parse_gem, Body, Gem, GemSource, Inclusions, Zoning,
 };
 use lapidary::recipe::library::{builtin_gem_names, builtin_gem_source, BUILTIN_GEMS};
 use lapidary::recipe::material::{BaseSpec, Material};
 use lapidary::recipe::TableCache;
+use lapidary::recipe::Tables;
 use lapidary::render::film::{render, FilmSettings};
 use lapidary::render::integrator::{RenderScene, MATERIAL_ID_FIRST_STONE};
 use lapidary::render::prepare::{camera_for, prepare_scene};

@@ -644,7 +644,8 @@ fn a_flake_in_a_body_reflects_with_its_index_relative_to_the_body() {
     use lapidary::brdf::albedo::directional_albedo;
     use lapidary::brdf::fresnel::conductor;
     use lapidary::brdf::Rgb;
-    use lapidary::recipe::gem::{compile_gem, Body, GemSource, Tables};
+    use lapidary::recipe::gem::{compile_gem, Body, GemSource};
+    use lapidary::recipe::Tables;
     let text = r#"Gem(
     name: "copper in glass",
     surface: "copper",

@@ -36,7 +36,7 @@ fn render_bench_scene(file: &str, side: u32, spp: u32, bounces: u32, seed: u64) 
         .join(file);
     let scene = load_scene(&path).unwrap();
     let cache = lapidary::recipe::TableCache::in_memory();
-    let tables = lapidary::recipe::gem::Tables::Computed(&cache);
+    let tables = lapidary::recipe::Tables::Computed(&cache);
     let prepared = prepare_scene(
         &scene,
         &lapidary::recipe::gem::GemSource::load("green-aventurine").unwrap(),

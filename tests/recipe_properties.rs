@@ -14,8 +14,9 @@
 
 use std::sync::OnceLock;
 
-use lapidary::recipe::gem::{compile_gem, Gem, GemSource, Tables};
+use lapidary::recipe::gem::{compile_gem, Gem, GemSource};
 use lapidary::recipe::TableCache;
+use lapidary::recipe::Tables;
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, FilmSettings};
 use lapidary::render::flake_lobe::FlakeLobes;

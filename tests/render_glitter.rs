@@ -7,7 +7,8 @@
 use glam::{DQuat, DVec3};
 use lapidary::brdf::Rgb;
 use lapidary::geometry::{Cabochon, CabochonParams};
-use lapidary::recipe::gem::{compile_gem, GemSource, Tables};
+use lapidary::recipe::gem::{compile_gem, GemSource};
+use lapidary::recipe::Tables;
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, Film, FilmSettings};
 use lapidary::render::flake_lobe::FlakeLobes;

@@ -5,7 +5,8 @@
 use glam::{DQuat, DVec3};
 use lapidary::brdf::Rgb;
 use lapidary::geometry::{Cabochon, CabochonParams, Outline};
-use lapidary::recipe::gem::{compile_gem, GemSource, Tables};
+use lapidary::recipe::gem::{compile_gem, GemSource};
+use lapidary::recipe::Tables;
 use lapidary::render::camera::PinholeCamera;
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, Film, FilmSettings};

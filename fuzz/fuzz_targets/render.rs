@@ -32,7 +32,7 @@ fn base() -> &'static (RenderScene, Vec<StoneInstance>, Option<f64>, PinholeCame
     BASE.get_or_init(|| {
         let scene = default_scene();
         let cache = lapidary::recipe::TableCache::in_memory();
-        let tables = lapidary::recipe::gem::Tables::Computed(&cache);
+        let tables = lapidary::recipe::Tables::Computed(&cache);
         let prepared = prepare_scene(&scene, &lapidary::recipe::gem::GemSource::load(DEFAULT_GEM).expect("built-in"), None, 4, tables, &|_| {})
             .expect("the built-in scene prepares");
         let stones = stone_instances(&scene).expect("the built-in stones are valid");

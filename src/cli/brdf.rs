@@ -6,7 +6,7 @@ use lapidary::brdf::reference::{model_slice, reference_albedo_with, reference_sl
 use lapidary::brdf::LayeredBrdf;
 use lapidary::gallery::plot::{in_plane_panel, polar_plot, rgb_curves, PolarPanel, PolarPlotStyle};
 use lapidary::recipe::compile::load_material_with;
-use lapidary::recipe::gem::Tables;
+use lapidary::recipe::Tables;
 use lapidary::sampling::direction_from_degrees;
 
 /// Fixed seed of every estimate this command prints: same output each run.

@@ -4,7 +4,8 @@ use super::MapsArgs;
 use lapidary::brdf::compensation::single_crossing_albedo;
 use lapidary::brdf::Rgb;
 use lapidary::gallery::plot::maps::{maps_sheet, MapsSheetStyle};
-use lapidary::recipe::gem::{compile_gem, Gem, GemSource, Tables};
+use lapidary::recipe::gem::{compile_gem, Gem, GemSource};
+use lapidary::recipe::Tables;
 
 /// Panel sizes beyond this would make a sheet of more than ~200 MB.
 const MAX_PANEL_PX: u32 = 4096;

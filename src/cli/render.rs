@@ -15,8 +15,9 @@ use lapidary::farm::record::{
 use lapidary::output::animation::write_apng;
 use lapidary::output::exr::{film_channels, write_exr_owned, write_exr_with_note};
 use lapidary::output::tonemap::ToneCurve;
-use lapidary::recipe::gem::{GemSource, Tables};
+use lapidary::recipe::gem::GemSource;
 use lapidary::recipe::library::DEFAULT_GEM;
+use lapidary::recipe::Tables;
 use lapidary::render::film::{
     render_rows_cancellable, FilmSettings, PixelFilter, FILM_BYTES_PER_PIXEL,
 };

@@ -7,9 +7,9 @@ use crate::brdf::{Base, Interface, LayeredBrdf, Microfacet, Rgb};
 use crate::recipe::error::{
     did_you_mean, field_before, find_position, with_ron_hints, RecipeError,
 };
-use crate::recipe::gem::Tables;
 use crate::recipe::library::{builtin_gem_source, builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
+use crate::recipe::table_cache::Tables;
 use std::path::Path;
 
 /// Seed of the compensation tables: they are part of the compiled material,

@@ -52,7 +52,7 @@ use crate::recipe::error::{did_you_mean, line_col_of_offset, RecipeError};
 use crate::recipe::library::{builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
 use crate::recipe::ranges;
-use crate::recipe::table_cache::TableCache;
+use crate::recipe::table_cache::Tables;
 use crate::texture::hash::{derive_stream, hash_prefix, seed_key};
 use crate::texture::noise_fns::{Fbm, Marble, PerlinNoise, PerlinSource, Turbulence};
 use crate::texture::pattern::{
@@ -598,17 +598,6 @@ impl GemSource {
         let (path, text) = load_gem_source(recipe)?;
         Ok(Self { path, text })
     }
-}
-
-/// How compiled materials get their multiple-scattering compensation
-/// tables (section 4.2's energy the single-crossing model loses).
-#[derive(Clone, Copy)]
-pub enum Tables<'a> {
-    /// Every material that asks for one gets its table, through the cache.
-    Computed(&'a TableCache),
-    /// No tables: several times quicker to compile, a little darker; for
-    /// previews, patterns and tests, never for final pictures.
-    Skipped,
 }
 
 /// Compiles one gem recipe with its seed replaced by `seed` when given:

@@ -13,4 +13,4 @@ pub mod table_cache;
 pub use compile::{load_material, locate_material, parse_material};
 pub use error::RecipeError;
 pub use material::Material;
-pub use table_cache::TableCache;
+pub use table_cache::{TableCache, Tables};

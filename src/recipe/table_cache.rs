@@ -38,6 +38,17 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
+/// How compiled materials get their multiple-scattering compensation
+/// tables (section 4.2's energy the single-crossing model loses).
+#[derive(Clone, Copy)]
+pub enum Tables<'a> {
+    /// Every material that asks for one gets its table, through the cache.
+    Computed(&'a TableCache),
+    /// No tables: several times quicker to compile, a little darker; for
+    /// previews, patterns and tests, never for final pictures.
+    Skipped,
+}
+
 /// Version of the on-disk format (and of the way tables are computed, as
 /// far as the program's identity does not already cover it).
 pub(crate) const DISK_FORMAT_VERSION: u32 = 1;

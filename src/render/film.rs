@@ -545,8 +545,9 @@ pub fn render_rows_cancellable(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::recipe::gem::{GemSource, Tables};
+    use crate::recipe::gem::GemSource;
     use crate::recipe::TableCache;
+    use crate::recipe::Tables;
     use crate::render::integrator::MATERIAL_ID_FIRST_STONE;
     use crate::render::prepare;
     use crate::scene::default_scene;

@@ -6,7 +6,8 @@ use std::path::Path;
 
 use crate::geometry::Cabochon;
 use crate::recipe::compile::load_material_without_table;
-use crate::recipe::gem::{compile_gems, GemSource, Tables};
+use crate::recipe::gem::{compile_gems, GemSource};
+use crate::recipe::Tables;
 use crate::render::camera::PinholeCamera;
 use crate::render::environment::Environment;
 use crate::render::integrator::RenderScene;

@@ -539,7 +539,8 @@ fn survival_of(extinction_per_mm: Option<f64>, reflectance: f64, length_mm: f64)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::recipe::gem::{GemSource, Tables};
+    use crate::recipe::gem::GemSource;
+    use crate::recipe::Tables;
     use crate::render::dielectric::cross_smooth_interface;
     use crate::render::prepare::prepare_scene;
     use crate::render::sampler::PixelSampler;

@@ -20,7 +20,8 @@ use glam::{DQuat, DVec3, IVec3};
 
 use crate::brdf::Rgb;
 use crate::geometry::{Cabochon, CabochonParams, Outline};
-use crate::recipe::gem::{compile_gem, Body, Gem, GemSource, Tables};
+use crate::recipe::gem::{compile_gem, Body, Gem, GemSource};
+use crate::recipe::Tables;
 use crate::render::camera::PinholeCamera;
 use crate::render::environment::Environment;
 use crate::render::film::{render, Film, FilmSettings};
