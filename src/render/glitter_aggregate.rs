@@ -38,7 +38,7 @@ use glam::{DQuat, DVec3};
 
 use crate::brdf::compensation::material_key;
 use crate::brdf::{LayeredBrdf, Rgb};
-use crate::render::glitter_facets::{Facet, GlitterFacets, FACETS_PER_VERTEX};
+use crate::render::drawn_facets::{draw_facet_normals, Facet, FACETS_PER_VERTEX};
 use crate::sampling::{sin_cos_turns, Rng};
 use crate::texture::pattern::FacetBumpMap;
 
@@ -91,11 +91,12 @@ struct Row {
 impl Row {
     /// The row for cos θo = `cos_o` (see the module's comment), from its
     /// own generator `rng`.
-    fn build(facets: &GlitterFacets, brdf: &LayeredBrdf, cos_o: f64, rng: &mut Rng) -> Self {
+    fn build(facets: &FacetBumpMap, brdf: &LayeredBrdf, cos_o: f64, rng: &mut Rng) -> Self {
         let wo = DVec3::new((1.0 - cos_o * cos_o).max(0.0).sqrt(), 0.0, cos_o);
         let mut sums = vec![Rgb::ZERO; CELLS];
         for _ in 0..FACET_DRAWS_PER_ROW {
-            let normals = facets.draw((DVec3::Z, DVec3::Z, DQuat::IDENTITY), wo, rng);
+            let normals =
+                draw_facet_normals(facets, (DVec3::Z, DVec3::Z, DQuat::IDENTITY), wo, rng);
             for normal in normals {
                 let facet = Facet::new(brdf, normal, wo);
                 for _ in 0..SAMPLES_PER_FACET {
@@ -176,7 +177,7 @@ impl AggregateTable {
     /// depend on how many): the caller is a render task waiting in a
     /// `OnceLock`, and rayon's own workers, waiting for a part of this
     /// build, could take up another render task that waits on the same lock.
-    pub(crate) fn build(facets: &GlitterFacets, brdf: &LayeredBrdf) -> Self {
+    pub(crate) fn build(facets: &FacetBumpMap, brdf: &LayeredBrdf) -> Self {
         let row = |row: usize| {
             let (lo, hi) = theta_step(row, THETA_O_ROWS);
             let mut rng = Rng::new(row as u64, TABLE_STREAM);
@@ -379,13 +380,10 @@ mod tests {
 
     /// The lavender lepidolite's glitter facets (a 20° cone about the
     /// stone's normal).
-    fn lepidolite_facets() -> GlitterFacets {
+    fn lepidolite_facets() -> FacetBumpMap {
         let source = builtin_gem_source("lavender-lepidolite").unwrap();
-        GlitterFacets::of_gem(
-            &parse_gem("lavender-lepidolite", source).unwrap(),
-            &Default::default(),
-        )
-        .unwrap()
+        let gem = parse_gem("lavender-lepidolite", source).unwrap();
+        gem.pattern.glitter().expect("a glitter map").facets
     }
 
     /// Views from head on to grazing: at a row's centre and between rows.
@@ -479,7 +477,12 @@ mod tests {
                 let mut rng = Rng::new(view as u64, 8);
                 let (draws, samples) = (2000, 64);
                 for _ in 0..draws {
-                    let normals = facets.draw((DVec3::Z, DVec3::Z, DQuat::IDENTITY), wo, &mut rng);
+                    let normals = draw_facet_normals(
+                        &facets,
+                        (DVec3::Z, DVec3::Z, DQuat::IDENTITY),
+                        wo,
+                        &mut rng,
+                    );
                     let mix = FacetMix::new(brdf, &normals, wo);
                     for _ in 0..samples {
                         if let Some((wi, weight, _)) = mix.sample(rng.next_3()) {

@@ -31,15 +31,14 @@ use std::sync::{Arc, OnceLock};
 
 use glam::{DQuat, DVec3};
 
-use crate::brdf::{BrdfAt, LayeredBrdf, Rgb};
+use crate::brdf::{LayeredBrdf, Rgb};
 use crate::recipe::gem::{Body, Gem};
 use crate::recipe::TableCache;
+use crate::render::drawn_facets::{draw_facet_normals, Facet, FACETS_PER_VERTEX};
 use crate::render::glitter_aggregate::{AggregateTable, TableAt};
 use crate::sampling::Rng;
 use crate::texture::pattern::{Around, FacetBumpMap};
 
-/// Facets drawn per vertex where a footprint holds many.
-pub(crate) const FACETS_PER_VERTEX: usize = 8;
 /// The mean area a plane cuts from a cell of a Voronoi tessellation with
 /// one site per unit cube: one over its cells' mean breadth (1.5 for the
 /// unit cube, 1.458 for Poisson sites; a jittered grid lies between).
@@ -117,7 +116,7 @@ impl GlitterFacets {
         Some(table.get_or_init(|| {
             let key = AggregateTable::key(&self.facets, brdf);
             let Some(store) = &self.store.0 else {
-                return AggregateTable::build(self, brdf);
+                return AggregateTable::build(&self.facets, brdf);
             };
             if let Some(table) = store
                 .values(&key)
@@ -125,98 +124,21 @@ impl GlitterFacets {
             {
                 return table;
             }
-            let table = AggregateTable::build(self, brdf);
+            let table = AggregateTable::build(&self.facets, brdf);
             store.store_values(&key, &table.to_numbers());
             table
         }))
     }
 
-    /// [`FACETS_PER_VERTEX`] facet normals (world space) for a vertex
-    /// seen from `wo` on a stone turned by `rotation` whose normal there is
-    /// `object_normal` (object space) and `normal` (world), each facing
-    /// `wo` and `normal` or replaced by `normal` (as the facet under a
-    /// point is): stratified in the tilt's first number, the rest from
-    /// `rng`.
-    #[inline(never)]
+    /// [`draw_facet_normals`] of these facets.
+    #[inline(always)]
     pub(crate) fn draw(
         &self,
-        (object_normal, normal, rotation): (DVec3, DVec3, DQuat),
+        frame: (DVec3, DVec3, DQuat),
         wo: DVec3,
         rng: &mut Rng,
     ) -> [DVec3; FACETS_PER_VERTEX] {
-        std::array::from_fn(|k| {
-            let u_tilt = (k as f64 + rng.next_f64()) / FACETS_PER_VERTEX as f64;
-            let u_azimuth = rng.next_f64();
-            let facet = self
-                .facets
-                .normal_from(u_tilt, || rng.next_f64(), u_azimuth);
-            let n = (rotation * facet.world(object_normal)).normalize();
-            if n.dot(wo) > 0.0 && n.dot(normal) > 0.0 {
-                n
-            } else {
-                normal
-            }
-        })
-    }
-}
-
-/// One facet at a vertex: its frame and its material seen from ωo.
-#[derive(Clone, Copy)]
-pub(crate) struct Facet<'a> {
-    tangent: DVec3,
-    bitangent: DVec3,
-    normal: DVec3,
-    brdf_at: BrdfAt<'a>,
-}
-
-impl<'a> Facet<'a> {
-    /// `brdf` in the frame of the unit `normal` (world, facing `wo`), seen
-    /// from the unit `wo` (world).
-    pub(crate) fn new(brdf: &'a LayeredBrdf, normal: DVec3, wo: DVec3) -> Self {
-        let (tangent, bitangent) = normal.any_orthonormal_pair();
-        let local_wo = DVec3::new(wo.dot(tangent), wo.dot(bitangent), wo.dot(normal));
-        Facet {
-            tangent,
-            bitangent,
-            normal,
-            brdf_at: brdf.at(local_wo),
-        }
-    }
-
-    /// `v` (world) in the facet's frame.
-    fn local(&self, v: DVec3) -> DVec3 {
-        DVec3::new(
-            v.dot(self.tangent),
-            v.dot(self.bitangent),
-            v.dot(self.normal),
-        )
-    }
-
-    /// The facet's f·cosθi (its own cosine) towards the unit `wi` (world)
-    /// and its BRDF's density for it.
-    fn eval_cos_and_pdf(&self, wi: DVec3) -> (Rgb, f64) {
-        let local = self.local(wi);
-        if local.z <= 0.0 {
-            return (Rgb::ZERO, 0.0);
-        }
-        let (f, pdf) = self.brdf_at.eval_and_pdf(local);
-        (f * local.z, pdf)
-    }
-
-    /// A direction (world) drawn by the facet's BRDF from three uniform
-    /// numbers, and its weight f·cosθi over the density.
-    pub(crate) fn sample(&self, u: [f64; 3]) -> Option<(DVec3, Rgb)> {
-        let sample = self.brdf_at.sample(u)?;
-        let wi = sample.wi;
-        Some((
-            self.tangent * wi.x + self.bitangent * wi.y + self.normal * wi.z,
-            sample.weight(),
-        ))
-    }
-
-    /// [`Self::sample`]'s direction alone.
-    fn sample_direction(&self, u: [f64; 3]) -> Option<DVec3> {
-        self.sample(u).map(|(wi, _)| wi)
+        draw_facet_normals(&self.facets, frame, wo, rng)
     }
 }
 

@@ -11,6 +11,7 @@ mod chi2_cells;
 pub mod cpu;
 pub mod dielectric;
 pub mod distribution;
+pub(crate) mod drawn_facets;
 pub mod environment;
 pub mod film;
 pub mod flake_lobe;
