@@ -12,8 +12,8 @@ use lapidary::recipe::Tables;
 use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, Film, FilmSettings};
 use lapidary::render::flake_lobe::FlakeLobes;
-use lapidary::render::integrator::RenderScene;
 use lapidary::render::lights::Light;
+use lapidary::render::render_scene::RenderScene;
 use lapidary::render::world::{StoneInstance, World};
 
 mod common;

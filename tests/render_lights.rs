@@ -17,8 +17,8 @@ use lapidary::render::camera::PinholeCamera;
 use lapidary::render::environment::{Environment, EnvironmentMap};
 use lapidary::render::film::{render, FilmSettings, PixelFilter};
 use lapidary::render::flake_lobe::FlakeLobes;
-use lapidary::render::integrator::RenderScene;
 use lapidary::render::lights::Light;
+use lapidary::render::render_scene::RenderScene;
 use lapidary::render::world::{StoneInstance, World};
 
 fn white_lambert() -> lapidary::brdf::LayeredBrdf {

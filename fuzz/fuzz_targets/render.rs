@@ -16,7 +16,7 @@ use lapidary::recipe::library::DEFAULT_GEM;
 use lapidary::render::camera::PinholeCamera;
 use lapidary::render::film::{render, FilmSettings};
 use lapidary::render::flake_lobe::FlakeLobes;
-use lapidary::render::integrator::RenderScene;
+use lapidary::render::render_scene::RenderScene;
 use lapidary::render::prepare::{camera_for, prepare_scene, stone_instances};
 use lapidary::render::world::{StoneInstance, World};
 use lapidary::scene::default_scene;

@@ -21,9 +21,9 @@ use lapidary::recipe::Tables;
 use lapidary::render::film::{
     render_rows_cancellable, FilmSettings, PixelFilter, FILM_BYTES_PER_PIXEL,
 };
-use lapidary::render::integrator::RenderScene;
 use lapidary::render::overlaps::placement_problems;
 use lapidary::render::prepare::{camera_for, prepare_scene};
+use lapidary::render::render_scene::RenderScene;
 use lapidary::render::tiles::TileSplit;
 use lapidary::render::turntable::{orbited_camera, turned_stones};
 use lapidary::render::world::{StoneInstance, World};

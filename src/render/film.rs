@@ -17,7 +17,8 @@ use rayon::prelude::*;
 use crate::brdf::Rgb;
 use crate::render::camera::PinholeCamera;
 use crate::render::cpu::CodePath;
-use crate::render::integrator::{FirstHitSums, RayCounts, RenderScene};
+use crate::render::integrator::{FirstHitSums, RayCounts};
+use crate::render::render_scene::RenderScene;
 use crate::render::sampler::{PixelSampler, SampleBatch, SAMPLE_BATCH};
 use crate::sampling::sin_cos_turns;
 
@@ -548,8 +549,8 @@ mod tests {
     use crate::recipe::gem::GemSource;
     use crate::recipe::TableCache;
     use crate::recipe::Tables;
-    use crate::render::integrator::MATERIAL_ID_FIRST_STONE;
     use crate::render::prepare;
+    use crate::render::render_scene::MATERIAL_ID_FIRST_STONE;
     use crate::scene::default_scene;
 
     #[test]

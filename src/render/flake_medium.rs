@@ -36,7 +36,7 @@ use glam::DVec3;
 use crate::brdf::LayeredBrdf;
 use crate::recipe::gem::{Body, Inclusions};
 use crate::render::flake_lobe::FlakeLobe;
-use crate::render::integrator::RenderScene;
+use crate::render::render_scene::RenderScene;
 
 /// The most tentative collisions one free flight or transmittance draws (a
 /// bound on work for absurd inputs; a stone's chord at the densities

@@ -13,7 +13,7 @@ use std::sync::LazyLock;
 use glam::{DVec3, IVec3};
 
 use crate::recipe::gem::{FlakeShape, Inclusions};
-use crate::render::integrator::TEXTURE_UNITS_PER_SCENE_UNIT;
+use crate::render::render_scene::TEXTURE_UNITS_PER_SCENE_UNIT;
 use crate::sampling::sin_cos_turns;
 use crate::texture::hash::{derive_stream, mix64, seed_key, unit_f64, unit_triple_21bit};
 

@@ -8,17 +8,14 @@
 //! the varnish), so a path bounces between stones and the ground until it
 //! escapes to the environment, meets a light, or reaches `max_bounces`.
 
-use std::sync::Arc;
-
 use glam::DVec3;
 
 use crate::brdf::sample::accept;
 use crate::brdf::{BrdfAt, BrdfSample, LayeredBrdf, Rgb, LANES};
-use crate::recipe::gem::{Body, Gem, Medium};
-use crate::recipe::TableCache;
+use crate::recipe::gem::{Body, Medium};
 use crate::render::dielectric::{cross_smooth_interface, split_smooth_interface, RoughInterface};
 use crate::render::environment::{Environment, EnvironmentMap, EnvironmentSample, Texel};
-use crate::render::flake_lobe::{FlakeLobe, FlakeLobes};
+use crate::render::flake_lobe::FlakeLobe;
 use crate::render::flake_medium::{FlakeView, OwnCell};
 use crate::render::footprint::{aggregate_probability, RayCone};
 use crate::render::glitter_aggregate::TableAt;
@@ -29,14 +26,13 @@ use crate::render::medium::{
     beer_lambert, henyey_greenstein, sample_free_flight, sample_henyey_greenstein, SpectralPath,
 };
 use crate::render::refracted_light::ConnectedVertex;
-use crate::render::sampler::{SampleStream, SOBOL_PAIRS};
-use crate::render::world::{Surface, SurfaceHit, World, RAY_OFFSET};
+use crate::render::render_scene::{
+    is_rough, power_heuristic, shadow_reach, RenderScene, MATERIAL_ID_GROUND, MAX_LIGHT_SAMPLES,
+    TEXTURE_UNITS_PER_SCENE_UNIT,
+};
+use crate::render::sampler::SampleStream;
+use crate::render::world::{Surface, SurfaceHit, RAY_OFFSET};
 use crate::sampling::{cosine_hemisphere, Rng};
-
-/// Length in texture space of one scene unit: recipes write cell sizes in
-/// centimetres of stone (a 10 mm stone is one texture unit long), scenes
-/// write stones in millimetres.
-pub(crate) const TEXTURE_UNITS_PER_SCENE_UNIT: f64 = 0.1;
 
 /// Stream of the generator that draws a vertex's glitter facets (seeded by
 /// a number of the path's sample stream).
@@ -55,48 +51,6 @@ fn sky_part_numbers(stream: &SampleStream, pairs_ahead: u32) -> [f64; 2] {
     let mut side = stream.side_stream_ahead(pairs_ahead, SKY_PART_STREAM);
     [side.next_f64(), side.next_f64()]
 }
-
-/// Everything the integrator reads.
-pub struct RenderScene {
-    /// Stones and ground.
-    pub world: World,
-    /// Gems, indexed by [`crate::render::world::StoneInstance::gem`].
-    pub gems: Vec<Gem>,
-    /// `material_id` AOV value of each gem's material 0: each gem its own
-    /// run after [`MATERIAL_ID_FIRST_STONE`] (see
-    /// [`RenderScene::material_id_bases`]).
-    pub material_id_bases: Vec<u32>,
-    /// The ground's BRDF (used when the world has a ground).
-    pub ground_brdf: Option<LayeredBrdf>,
-    /// Lights placed in the scene.
-    pub lights: Vec<Light>,
-    /// Light from infinitely far away.
-    pub environment: Environment,
-    /// Bounces after the first hit (0: direct light only).
-    pub max_bounces: u32,
-    /// `Some(distance)`: estimate ambient occlusion at the first hit with one
-    /// cosine-distributed ray of that length per sample, as the appendix
-    /// shader's `gather` does (written to the `ao` AOV).
-    pub ambient_occlusion: Option<f64>,
-    /// Light reaches flakes and scattering vertices inside smooth
-    /// translucent bodies by manifold next-event estimation through the
-    /// surface (see `refracted_light`), as well as by path sampling. True
-    /// for every render; false leaves those paths to sampling alone, which
-    /// converges far more slowly under small lights (for comparisons).
-    pub connect_through_surfaces: bool,
-    /// Per gem, per flake population of its translucent body, the lobe that
-    /// shades a flake when the pixel's footprint holds many, and the
-    /// glitter facets of an opaque one to draw there (see
-    /// `render::footprint` and [`RenderScene::shade_flakes_by_footprint`]);
-    /// [`FlakeLobes::default`], as prepared: every flake and facet by its
-    /// own normal.
-    pub flake_lobes: FlakeLobes,
-}
-
-/// The most light samples a vertex's next-event estimation draws (see
-/// [`RenderScene::for_each_light_sample`]): every emitter of a scene with
-/// a light and an environment map, as many as that of a scene with more.
-const MAX_LIGHT_SAMPLES: usize = 3;
 
 // A vertex's light samples and its BRDF sample fill one call of the
 // BRDF's lanes (see `RenderScene::evaluate_vertex`).
@@ -163,12 +117,6 @@ const MAX_SCATTERINGS: u32 = 1024;
 /// Scattering events before Russian roulette (survival = the largest
 /// channel of the throughput, at most 0.95) may end a path.
 const SCATTERINGS_BEFORE_ROULETTE: u32 = 4;
-
-/// `material_id` AOV values: 0 is the background, 1 the ground, stones'
-/// materials count from 2.
-pub(crate) const MATERIAL_ID_GROUND: u32 = 1;
-/// See `MATERIAL_ID_GROUND`.
-pub const MATERIAL_ID_FIRST_STONE: u32 = 2;
 
 /// What the camera ray met first (the AOVs of one sample).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -250,26 +198,6 @@ pub struct RayCounts {
     pub traced: u64,
     /// Shadow rays.
     pub shadow: u64,
-}
-
-/// Whether a body's surface of index `ior` and polish `roughness_deg` is
-/// rough micro-facets (else a smooth interface; at IOR 1 there is no
-/// interface to be rough).
-fn is_rough(ior: f64, roughness_deg: f64) -> bool {
-    roughness_deg > 0.0 && ior > 1.0
-}
-
-/// The power heuristic with exponent 2 for a strategy of density `pdf_a`
-/// against one of density `pdf_b` (Veach 1997, eq. 9.13).
-#[inline(always)]
-pub(crate) fn power_heuristic(pdf_a: f64, pdf_b: f64) -> f64 {
-    let a = pdf_a * pdf_a;
-    let b = pdf_b * pdf_b;
-    if a + b <= 0.0 {
-        0.0
-    } else {
-        a / (a + b)
-    }
 }
 
 /// An orthonormal frame whose z axis is a surface normal.
@@ -369,19 +297,6 @@ struct MaterialPick {
 }
 
 impl RenderScene {
-    /// The `material_id` AOV value of each gem's material 0: the stones'
-    /// materials count from [`MATERIAL_ID_FIRST_STONE`], each gem its own
-    /// run of [`Gem::brdfs`]`.len()` values.
-    pub fn material_id_bases(gems: &[Gem]) -> Vec<u32> {
-        gems.iter()
-            .scan(MATERIAL_ID_FIRST_STONE, |next, gem| {
-                let base = *next;
-                *next += gem.brdfs.len() as u32;
-                Some(base)
-            })
-            .collect()
-    }
-
     /// Picks the material at a hit seen from direction `wo` (world, unit,
     /// pointing away from the surface) by a footprint `footprint_width_mm`
     /// wide: at a point of a glitter facet where the footprint holds many
@@ -1174,18 +1089,6 @@ impl RenderScene {
         }
     }
 
-    /// The IOR of stone `stone`'s translucent body when its surface is
-    /// smooth (as [`RenderScene::translucent_body`] decides), where lights
-    /// are connected through it; None for an opaque or rough one.
-    pub(crate) fn smooth_body_ior(&self, stone: usize) -> Option<f64> {
-        match &self.gems[self.world.stones()[stone].gem].body {
-            Body::Translucent {
-                ior, roughness_deg, ..
-            } if !is_rough(*ior, *roughness_deg) => Some(*ior),
-            _ => None,
-        }
-    }
-
     /// Starts loading the environment texel that a light sample drawn
     /// after `pairs_before` more pairs of `stream` will read, so that the
     /// work before it (tracing, shading, the lights' samples) runs while
@@ -1288,20 +1191,6 @@ impl RenderScene {
         sum
     }
 
-    /// Shades the flakes inside translucent bodies, and the glitter facets
-    /// of opaque stones, by their pixel's footprint: a flake met where the
-    /// footprint holds many is shaded by its population's aggregate lobe,
-    /// a point of a glitter facet by facets drawn from its map's tilts (as
-    /// `lapidary render` and `lapidary gallery` do unless `--exact-flakes`);
-    /// without it, every flake and facet by its own normal. The glitter
-    /// facets' tables (`render::glitter_aggregate`) are looked up in and
-    /// kept by `tables` when given (in memory and on disk, as the
-    /// compensation tables): the same pictures, without building a table
-    /// again in the next render.
-    pub fn shade_flakes_by_footprint(&mut self, tables: Option<Arc<TableCache>>) {
-        self.flake_lobes = FlakeLobes::of_gems_keeping_tables(&self.gems, tables);
-    }
-
     /// The aggregate lobe of flake population `population` of stone
     /// `stone`'s body, when it has one.
     fn flake_lobe(&self, stone: usize, population: usize) -> Option<&FlakeLobe> {
@@ -1315,13 +1204,6 @@ impl RenderScene {
         hit.stone_index().map_or(0, |index| {
             self.material_id_bases[self.world.stones()[index].gem]
         })
-    }
-
-    /// The emitters next-event estimation samples (and a translucent
-    /// body's connections choose from): the lights, then the environment
-    /// when [`RenderScene::samples_environment`].
-    pub(crate) fn sampled_emitters(&self) -> usize {
-        self.lights.len() + usize::from(self.samples_environment())
     }
 
     /// How many samples of emitter `emitter` (as
@@ -1484,73 +1366,6 @@ impl RenderScene {
             }
         }
         total
-    }
-
-    /// The index in [`RenderScene::lights`] of emitter number `emitter`
-    /// (as [`RenderScene::sampled_emitters`] counts them: the lights, then
-    /// the environment); None for the environment.
-    #[inline(always)]
-    pub(crate) fn light_of_emitter(&self, emitter: usize) -> Option<usize> {
-        (emitter < self.lights.len()).then_some(emitter)
-    }
-
-    /// Whether a light other than the sampled one (`sampled`, an index of
-    /// [`RenderScene::lights`]; None for the environment) lies on a shadow
-    /// ray within `reach`. A light's surface stops the rays that BRDF
-    /// sampling follows ([`RenderScene::nearest_light`]), so it must stop
-    /// light samples too: else the light behind it would count by its
-    /// samples' MIS weight where BRDF sampling never sees it. The sun,
-    /// which BRDF-sampled rays pass on to the sky, blocks nothing, nor
-    /// does a point light.
-    #[inline(always)]
-    pub(crate) fn another_light_blocks(
-        &self,
-        point: DVec3,
-        direction: DVec3,
-        reach: f64,
-        sampled: Option<usize>,
-    ) -> bool {
-        self.lights
-            .iter()
-            .enumerate()
-            .any(|(index, light)| Some(index) != sampled && light.blocks(point, direction, reach))
-    }
-
-    /// Whether next-event estimation may sample each part of the
-    /// environment ([`Environment::parts`]) with a sample of its own
-    /// instead of the whole map with one: when the map has two parts and
-    /// the scene's lights and both parts are at most [`MAX_LIGHT_SAMPLES`]
-    /// emitters. A vertex does so where a pixel sees it sharply (its
-    /// footprint is bounded: the camera's vertices, and those past smooth
-    /// reflections and refractions). There the skylight that a sun leaves
-    /// to BRDF sampling shows as grain; past a glossy or diffuse bounce a
-    /// pixel averages it, and one sample of the whole map costs less.
-    pub(crate) fn environment_parts_apart(&self) -> bool {
-        self.samples_environment()
-            && self.environment.parts() == 2
-            && self.lights.len() + 2 <= MAX_LIGHT_SAMPLES
-    }
-
-    /// Whether next-event estimation samples the environment. A constant
-    /// environment is left to BRDF sampling alone: for uniform incident
-    /// radiance the BRDF's own importance (cosine-weighted for the diffuse
-    /// base, the lobe for the coats) is already the ideal density, while a
-    /// light sample would spend a BRDF evaluation and a shadow ray on
-    /// directions half of which point below the surface.
-    pub(crate) fn samples_environment(&self) -> bool {
-        !matches!(self.environment, Environment::Constant(_))
-    }
-
-    /// How many 2-D pairs of its stream a path draws at its first vertex
-    /// (in [`RenderScene::radiance`]'s order: the footprint, one per light,
-    /// the environment's sample if it takes one, the BRDF sample), at most
-    /// [`SOBOL_PAIRS`]: the pairs worth making for every sample of a batch
-    /// ahead of time (see [`PixelSampler::refill`]).
-    ///
-    /// [`PixelSampler::refill`]: crate::render::sampler::PixelSampler::refill
-    pub(crate) fn first_vertex_pairs(&self) -> u32 {
-        let pairs = 2 + self.sampled_emitters().min(MAX_LIGHT_SAMPLES);
-        pairs.min(SOBOL_PAIRS as usize) as u32
     }
 
     /// One ambient-occlusion ray of length `distance` around the geometric
@@ -1720,18 +1535,6 @@ impl RenderScene {
     }
 }
 
-/// How far a shadow ray towards a light point at `distance` may run before
-/// it counts as blocked: short of the light by a relative 10⁻⁷ and the ray
-/// offset (everything, for a light at infinity).
-#[inline(always)]
-pub(crate) fn shadow_reach(distance: f64) -> f64 {
-    if distance.is_finite() {
-        distance * (1.0 - 1e-7) - RAY_OFFSET
-    } else {
-        f64::INFINITY
-    }
-}
-
 /// A light sample's cosθ·w/pdf at a vertex whose BSDF would pick the
 /// direction with density `bsdf_pdf`: the power heuristic
 /// w = pdf²/(pdf² + pdf_bsdf²) (eq. 9.13) folds into cosθ·pdf/(pdf² +
@@ -1749,6 +1552,7 @@ fn light_sample_scale(cos_theta: f64, pdf: f64, bsdf_pdf: f64, is_delta: bool) -
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::render_scene::MATERIAL_ID_FIRST_STONE;
 
     #[test]
     fn first_hit_sums_count_hits_only_and_keep_the_first_samples_ids() {

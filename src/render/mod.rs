@@ -27,6 +27,7 @@ pub(crate) mod medium;
 pub mod overlaps;
 pub mod prepare;
 pub(crate) mod refracted_light;
+pub mod render_scene;
 pub(crate) mod sampler;
 pub(crate) mod shared_exponent;
 pub(crate) mod stone_grid;

@@ -10,7 +10,7 @@ use crate::recipe::gem::{compile_gems, GemSource};
 use crate::recipe::Tables;
 use crate::render::camera::PinholeCamera;
 use crate::render::environment::Environment;
-use crate::render::integrator::RenderScene;
+use crate::render::render_scene::RenderScene;
 use crate::render::world::{StoneInstance, World};
 use crate::scene::{EnvironmentSpec, Scene};
 
@@ -170,7 +170,7 @@ mod tests {
     use super::*;
     use crate::recipe::gem::compile_gem;
     use crate::recipe::TableCache;
-    use crate::render::integrator::MATERIAL_ID_FIRST_STONE;
+    use crate::render::render_scene::MATERIAL_ID_FIRST_STONE;
     use crate::scene::parse_scene;
     use glam::DVec3;
     use std::sync::Arc;

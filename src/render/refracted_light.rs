@@ -24,10 +24,10 @@ use glam::DVec3;
 use crate::brdf::Rgb;
 use crate::recipe::gem::Body;
 use crate::render::flake_medium::FlakeView;
-use crate::render::integrator::{power_heuristic, shadow_reach, RenderScene};
 use crate::render::lights::Light;
 use crate::render::manifold::{self, Boundary, Connection, Exit, Mirror, Start, Target};
 use crate::render::medium::beer_lambert;
+use crate::render::render_scene::{power_heuristic, shadow_reach, RenderScene};
 use crate::render::sampler::SampleStream;
 use crate::render::world::{World, RAY_OFFSET};
 

@@ -25,8 +25,8 @@ use crate::recipe::Tables;
 use crate::render::camera::PinholeCamera;
 use crate::render::environment::Environment;
 use crate::render::film::{render, Film, FilmSettings};
-use crate::render::integrator::RenderScene;
 use crate::render::lights::Light;
+use crate::render::render_scene::RenderScene;
 use crate::render::world::{StoneInstance, World};
 
 /// Refractive index of the stone.

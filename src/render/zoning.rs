@@ -12,7 +12,7 @@ use glam::DVec3;
 
 use crate::brdf::Rgb;
 use crate::recipe::gem::{Body, Zoning};
-use crate::render::integrator::{RenderScene, TEXTURE_UNITS_PER_SCENE_UNIT};
+use crate::render::render_scene::{RenderScene, TEXTURE_UNITS_PER_SCENE_UNIT};
 
 /// Ratio tracking's estimate of exp(−∫σr dt) per channel along the segment
 /// `origin + t·direction`, 0 < t < `length_mm` (object space, mm, unit
