@@ -132,9 +132,59 @@ pub fn direction_from_degrees(theta_deg: f64, phi_deg: f64) -> DVec3 {
     DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
 }
 
+/// The unit vector along `v`, for any finite non-zero `v` (a direction a
+/// user wrote): `v.normalize()` where its squared length is a normal
+/// number, else `v` scaled by its largest component first, so that
+/// (1e-300, 0, 1e-300) and (0.1, −1e300, 1) have their directions too
+/// (their squared lengths underflow to 0 or overflow to ∞). None for a
+/// zero, infinite or NaN `v`.
+pub(crate) fn unit_direction(v: DVec3) -> Option<DVec3> {
+    if !v.is_finite() {
+        return None;
+    }
+    let length_squared = v.length_squared();
+    if length_squared.is_finite() && length_squared >= f64::MIN_POSITIVE {
+        return Some(v.normalize());
+    }
+    let largest = v.abs().max_element();
+    (largest > 0.0).then(|| (v / largest).normalize())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_direction_of_any_finite_size_has_its_unit_vector() {
+        let close = |a: DVec3, b: DVec3| (a - b).length() < 1e-15;
+        let diagonal = DVec3::new(1.0, 0.0, 1.0) / 2f64.sqrt();
+        assert!(close(
+            unit_direction(DVec3::new(1e-300, 0.0, 1e-300)).unwrap(),
+            diagonal
+        ));
+        assert!(close(
+            unit_direction(DVec3::new(1e300, 0.0, 1e300)).unwrap(),
+            diagonal
+        ));
+        assert!(close(
+            unit_direction(DVec3::new(0.1, -1e300, 1.0)).unwrap(),
+            DVec3::NEG_Y
+        ));
+        assert!(close(
+            unit_direction(DVec3::new(5e-324, 0.0, 0.0)).unwrap(),
+            DVec3::X
+        ));
+        // An ordinary direction: `normalize`'s own bits.
+        let v = DVec3::new(0.1, -0.6, 1.0);
+        assert_eq!(unit_direction(v), Some(v.normalize()));
+        for bad in [
+            DVec3::ZERO,
+            DVec3::new(f64::NAN, 0.0, 1.0),
+            DVec3::new(f64::INFINITY, 0.0, 0.0),
+        ] {
+            assert_eq!(unit_direction(bad), None, "{bad}");
+        }
+    }
 
     #[test]
     fn turn_sines_match_libm_everywhere_within_3e_14() {

@@ -678,3 +678,34 @@ fn a_flake_in_a_body_reflects_with_its_index_relative_to_the_body() {
     }
     assert!(blue[1] < 0.85 * blue[0], "{blue:?}");
 }
+
+#[test]
+fn a_flake_axis_of_any_finite_size_is_its_direction_and_zero_is_refused() {
+    // The same axis written tiny or huge compiles to the same gem: the
+    // squared length of (1e-300, …) underflowed to 0 and was refused as
+    // zero, that of (1e300, …) overflowed and gave no axis at all.
+    let body = |direction: &str| {
+        let text = GOOD.replacen(
+            r#"surface: "veins","#,
+            &format!(
+                "surface: \"veins\",\n    body: Translucent(ior: 1.5, inclusions: [Inclusions(shape: Disc, \
+                 size_mm: 0.1, density_per_mm3: 10.0, material: \"silver\",\n        \
+                 orientation: Aligned(direction: {direction}, spread_deg: 5.0))]),"
+            ),
+            1,
+        );
+        parse_gem("good.ron", &text).map(|gem| format!("{:?}", gem.body))
+    };
+    let plain = body("(1.0, -2.0, 4.0)").unwrap_or_else(|e| panic!("{e}"));
+    for scaled in ["(1e-300, -2e-300, 4e-300)", "(1e300, -2e300, 4e300)"] {
+        assert_eq!(
+            body(scaled).unwrap_or_else(|e| panic!("{e}")),
+            plain,
+            "{scaled}"
+        );
+    }
+    let message = body("(0.0, 0.0, 0.0)")
+        .expect_err("a zero axis")
+        .to_string();
+    assert!(message.contains("`direction` is zero"), "{message}");
+}

@@ -715,7 +715,22 @@ fn negative_radiance_is_refused() {
         "radiance: (5.0, -1.0",
         &[
             "`radiance` = (5, -1, 5)",
-            "allowed: radiance >= 0 per channel",
+            "allowed: 0 <= radiance <= 1e12 per channel",
+        ],
+    );
+}
+
+#[test]
+fn radiance_beyond_1e12_is_refused() {
+    // 1e308 overflowed to infinity in the light's samples, which the film
+    // then dropped: a picture without the light, and exit code 0.
+    expect_error(
+        "radiance: (5.0, 5.0, 5.0)",
+        "radiance: (5.0, 1e308, 5.0)",
+        "radiance: (5.0, 1e308",
+        &[
+            "`radiance` = (5, 1e308, 5)",
+            "allowed: 0 <= radiance <= 1e12 per channel",
         ],
     );
 }

@@ -53,6 +53,7 @@ use crate::recipe::library::{builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
 use crate::recipe::ranges;
 use crate::recipe::table_cache::Tables;
+use crate::sampling::unit_direction;
 use crate::texture::hash::{derive_stream, hash_prefix, seed_key};
 use crate::texture::noise_fns::{Fbm, Marble, PerlinNoise, PerlinSource, Turbulence};
 use crate::texture::pattern::{
@@ -1078,15 +1079,14 @@ impl<'a> Compiler<'a> {
                 octaves,
                 turbulence_frequency,
             } => {
-                let d = DVec3::from_array(direction);
-                if d.length() == 0.0 {
+                let Some(direction) = unit_direction(DVec3::from_array(direction)) else {
                     return Err(self.error_at_map(
                         owner,
                         format!("marble `direction` of `{owner}` is (0, 0, 0); allowed: any non-zero vector"),
                     ));
-                }
+                };
                 SwitchFunction::Marble(Marble {
-                    direction: d.normalize(),
+                    direction,
                     frequency,
                     amplitude,
                     turbulence: Turbulence {
@@ -1281,14 +1281,13 @@ impl<'a> Compiler<'a> {
                     direction,
                     spread_deg,
                 } => {
-                    let axis = DVec3::from_array(*direction);
-                    if axis.length_squared() == 0.0 {
+                    let Some(axis) = unit_direction(DVec3::from_array(*direction)) else {
                         return Err(self.error_at(
                             "Aligned",
                             format!("inclusions {}: `direction` is zero; allowed: any non-zero direction", k + 1),
                         ));
-                    }
-                    Some((axis.normalize(), spread_deg.to_radians().cos()))
+                    };
+                    Some((axis, spread_deg.to_radians().cos()))
                 }
             };
             let density_modulation = match &inclusion.density_modulation {

@@ -5,6 +5,17 @@
 use serde::de::Error;
 use serde::{Deserialize, Deserializer};
 
+/// `v` as a message writes it: as Rust prints it, or in exponent form
+/// where that is shorter than the digits (`1e308`, not 309 digits;
+/// `1e-300`, not 300 zeros).
+pub(crate) fn number(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-6..1e16).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
 /// Parse a finite f64 and check `ok`, else an error naming `field` and `allowed`.
 /// Public so that other RON schemas (the scene) report ranges the same way.
 pub fn checked<'de, D: Deserializer<'de>>(
@@ -16,7 +27,8 @@ pub fn checked<'de, D: Deserializer<'de>>(
     let v = f64::deserialize(d)?;
     if !v.is_finite() || !ok(v) {
         return Err(D::Error::custom(format!(
-            "`{field}` = {v} is out of range; allowed: {allowed}"
+            "`{field}` = {} is out of range; allowed: {allowed}",
+            number(v)
         )));
     }
     Ok(v)
@@ -34,7 +46,9 @@ pub(crate) fn checked_rgb<'de, D: Deserializer<'de>>(
         if !c.is_finite() || !ok(c) {
             return Err(D::Error::custom(format!(
                 "`{field}` = ({}, {}, {}) has a component out of range; allowed: {allowed} per channel",
-                v.0, v.1, v.2
+                number(v.0),
+                number(v.1),
+                number(v.2)
             )));
         }
     }

@@ -26,7 +26,7 @@
 //! World space: z is up, lengths in scene units (millimetres, like the gem
 //! recipes' object space).
 
-use crate::recipe::ranges::{checked, checked_rgb};
+use crate::recipe::ranges::{checked, checked_rgb, number};
 use serde::de::Error;
 use serde::{Deserialize, Deserializer};
 
@@ -358,6 +358,12 @@ pub enum EnvironmentKind {
 /// stays within what an environment map stores.
 const MAX_ENVIRONMENT_INTENSITY: f64 = 1e6;
 
+/// The largest radiance, intensity or irradiance of a light (per
+/// channel): a 0.01 mm sphere 100 m away at this radiance still gives
+/// finite samples, where 1e308 overflowed to infinity and its samples
+/// were dropped from the image. Far above any exposure a scene needs.
+const MAX_EMISSION: f64 = 1e12;
+
 /// Largest coordinate of a point in a scene, mm (100 m). The stones' BVH
 /// is built in f32 (obvhs), where 1e300 is infinite and its build panics;
 /// and a light's solid angle from this far stays representable.
@@ -381,7 +387,9 @@ fn finite_vec3<'de, D: Deserializer<'de>>(
         };
         return Err(D::Error::custom(format!(
             "`{field}` = ({}, {}, {}) is out of range; allowed: {allowed}",
-            v.0, v.1, v.2
+            number(v.0),
+            number(v.1),
+            number(v.2)
         )));
     }
     Ok([v.0, v.1, v.2])
@@ -478,6 +486,12 @@ scalar_field!(
     "any finite rotation_deg (degrees)",
     |_| true
 );
-rgb_field!(radiance, "radiance", "radiance >= 0", |v| v >= 0.0);
-rgb_field!(intensity_rgb, "intensity", "intensity >= 0", |v| v >= 0.0);
-rgb_field!(irradiance, "irradiance", "irradiance >= 0", |v| v >= 0.0);
+rgb_field!(radiance, "radiance", "0 <= radiance <= 1e12", |v| (0.0
+    ..=MAX_EMISSION)
+    .contains(&v));
+rgb_field!(intensity_rgb, "intensity", "0 <= intensity <= 1e12", |v| {
+    (0.0..=MAX_EMISSION).contains(&v)
+});
+rgb_field!(irradiance, "irradiance", "0 <= irradiance <= 1e12", |v| {
+    (0.0..=MAX_EMISSION).contains(&v)
+});

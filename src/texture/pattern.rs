@@ -60,6 +60,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use super::hash::{derive_stream, unit_f64};
 use super::noise_fns::{Fbm, Marble, PerlinNoise, Turbulence};
 use super::voronoi::{floor_fast, CertifiedNearest, Voronoi, VoronoiNearest, VoronoiSite};
+use crate::sampling::unit_direction;
 
 /// Stream of a surface-map cell's entry choice.
 pub const STREAM_ENTRY: u64 = 1;
@@ -582,14 +583,15 @@ impl FacetBumpMap {
             _ => {}
         }
         let around = match around {
-            Around::Direction(d) => {
-                if !(d.is_finite() && d.length() > 0.0) {
+            Around::Direction(d) => match unit_direction(d) {
+                Some(unit) => Around::Direction(unit),
+                None => {
                     return Err(PatternError(format!(
-                        "facet direction {d} must be finite and non-zero"
-                    )));
+                    "facet direction ({:?}, {:?}, {:?}); allowed: any finite non-zero direction",
+                    d.x, d.y, d.z
+                )))
                 }
-                Around::Direction(d.normalize())
-            }
+            },
             a => a,
         };
         Ok(FacetBumpMap {
