@@ -173,7 +173,7 @@ pub enum EnvironmentError {
     /// A texel brighter than [`MAX_TEXEL_RADIANCE`] (before `intensity`).
     #[error(
         "environment map {origin}: texel at x = {x}, y = {y} (column, row from the top-left) has \
-         a channel of {value}, above the {MAX_TEXEL_RADIANCE} a texel can hold; scale the map \
+         a channel of {value:.4e}, above the {MAX_TEXEL_RADIANCE:.4e} a texel can hold; scale the map \
          down and raise `intensity` instead"
     )]
     TooBright {
