@@ -4,9 +4,12 @@
 //! and the two strategies are combined with the power heuristic (Veach
 //! 1997, §9.2).
 //!
-//! Stones are opaque surfaces (the layered BRDF models what happens under
-//! the varnish), so a path bounces between stones and the ground until it
-//! escapes to the environment, meets a light, or reaches `max_bounces`.
+//! An opaque stone is a surface (the layered BRDF models what happens
+//! under the varnish); a translucent one refracts the path into its body,
+//! where it is absorbed, scatters and meets flakes (`flake_medium`,
+//! `inclusions`), and lights reach it through the smooth surface
+//! (`refracted_light`). A path bounces until it escapes to the
+//! environment, meets a light, or reaches `max_bounces`.
 
 use glam::DVec3;
 

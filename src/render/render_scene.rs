@@ -27,7 +27,6 @@ pub(crate) const TEXTURE_UNITS_PER_SCENE_UNIT: f64 = 0.1;
 /// `material_id` AOV values: 0 is the background, 1 the ground, stones'
 /// materials count from 2.
 pub(crate) const MATERIAL_ID_GROUND: u32 = 1;
-
 /// See `MATERIAL_ID_GROUND`.
 pub const MATERIAL_ID_FIRST_STONE: u32 = 2;
 
