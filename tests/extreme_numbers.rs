@@ -5,19 +5,19 @@
 //! NaN, infinite or negative. (A light's radiance of 1e308 was accepted and
 //! its samples dropped: a picture without the light.)
 
+mod common;
+
 use std::path::Path;
-use std::sync::OnceLock;
 
 use lapidary::recipe::gem::{compile_gem, GemSource};
 use lapidary::recipe::library::{builtin_gem_names, builtin_gem_source};
 use lapidary::recipe::Tables;
-use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, FilmSettings};
-use lapidary::render::flake_lobe::FlakeLobes;
-use lapidary::render::prepare::{camera_for, prepare_scene, stone_instances};
+use lapidary::render::prepare::{camera_for, prepare_scene};
 use lapidary::render::render_scene::RenderScene;
-use lapidary::render::world::World;
-use lapidary::scene::{default_scene, parse_scene, EnvironmentSpec, DEFAULT_SCENE_SOURCE};
+use lapidary::scene::{parse_scene, DEFAULT_SCENE_SOURCE};
+
+use common::scenes::default_scene_without_ground;
 
 const EXTREMES: [&str; 3] = ["1e308", "-1e308", "1e-300"];
 const SIDE: u32 = 8;
@@ -98,21 +98,8 @@ fn render_checks(render_scene: &RenderScene, scene: &lapidary::scene::Scene, wha
     assert_eq!(film.stats.bad_samples, 0, "{what}: samples dropped");
 }
 
-/// The studio's environment, baked once.
-fn studio() -> &'static Environment {
-    static STUDIO: OnceLock<Environment> = OnceLock::new();
-    STUDIO.get_or_init(|| match default_scene().environment {
-        EnvironmentSpec::Studio {
-            intensity,
-            rotation_deg,
-        } => Environment::try_studio(intensity, rotation_deg).expect("the studio builds"),
-        other => panic!("the default scene's environment changed: {other:?}"),
-    })
-}
-
 #[test]
 fn extreme_numbers_in_the_built_in_gems_are_refused_or_render_finite() {
-    let scene = default_scene();
     let (mut refused, mut rendered) = (0, 0);
     for name in builtin_gem_names() {
         let text = builtin_gem_source(name).expect("a built-in gem");
@@ -131,20 +118,7 @@ fn extreme_numbers_in_the_built_in_gems_are_refused_or_render_finite() {
                     refused += 1;
                 }
                 Ok(gem) => {
-                    let render_scene = RenderScene {
-                        world: World::new(stone_instances(&scene).expect("valid stones"), None),
-                        material_id_bases: RenderScene::material_id_bases(std::slice::from_ref(
-                            &gem,
-                        )),
-                        gems: vec![gem],
-                        ground_brdf: None,
-                        lights: scene.lights.clone(),
-                        environment: studio().clone(),
-                        max_bounces: 4,
-                        ambient_occlusion: None,
-                        connect_through_surfaces: true,
-                        flake_lobes: FlakeLobes::default(),
-                    };
+                    let (scene, render_scene) = default_scene_without_ground(gem);
                     render_checks(&render_scene, &scene, &what);
                     rendered += 1;
                 }

@@ -12,20 +12,17 @@
 //! than its cells. Every material has `multiple_scattering: false`: the
 //! compensation tables cost 0.1–1 s per material and are not input handling.
 
-use std::sync::OnceLock;
+mod common;
 
 use lapidary::recipe::gem::{compile_gem, Gem, GemSource};
 use lapidary::recipe::TableCache;
 use lapidary::recipe::Tables;
-use lapidary::render::environment::Environment;
 use lapidary::render::film::{render, FilmSettings};
-use lapidary::render::flake_lobe::FlakeLobes;
-use lapidary::render::prepare::{camera_for, stone_instances};
-use lapidary::render::render_scene::RenderScene;
-use lapidary::render::world::World;
-use lapidary::scene::{default_scene, EnvironmentSpec, Scene};
+use lapidary::render::prepare::camera_for;
 use proptest::prelude::*;
 use proptest::test_runner::RngSeed;
+
+use common::scenes::default_scene_without_ground;
 
 /// One layer as RON.
 fn layer() -> impl Strategy<Value = String> {
@@ -227,18 +224,6 @@ fn recipe_text(r: &Recipe) -> String {
     )
 }
 
-/// The studio scene's environment, built once (it is the same every case).
-fn studio() -> &'static Environment {
-    static STUDIO: OnceLock<Environment> = OnceLock::new();
-    STUDIO.get_or_init(|| match default_scene().environment {
-        EnvironmentSpec::Studio {
-            intensity,
-            rotation_deg,
-        } => Environment::try_studio(intensity, rotation_deg).expect("the studio builds"),
-        other => panic!("the default scene's environment changed: {other:?}"),
-    })
-}
-
 const SIDE: u32 = 4;
 
 proptest! {
@@ -318,27 +303,6 @@ fn the_generator_writes_what_it_was_asked_for() {
 fn compile_text(path: &str, text: &str) -> Result<Gem, lapidary::recipe::RecipeError> {
     let cache = TableCache::in_memory();
     compile_gem(&GemSource::new(path, text), None, Tables::Computed(&cache))
-}
-
-/// The default scene without its ground (its BRDF would tabulate the
-/// compensation every case): the stone shaded by `gem`, the lights, the
-/// studio.
-fn default_scene_without_ground(gem: Gem) -> (Scene, RenderScene) {
-    let scene = default_scene();
-    let stones = stone_instances(&scene).expect("the built-in stones are valid");
-    let render_scene = RenderScene {
-        world: World::new(stones, None),
-        material_id_bases: RenderScene::material_id_bases(std::slice::from_ref(&gem)),
-        gems: vec![gem],
-        ground_brdf: None,
-        lights: scene.lights.clone(),
-        environment: studio().clone(),
-        max_bounces: 4,
-        ambient_occlusion: None,
-        connect_through_surfaces: true,
-        flake_lobes: FlakeLobes::default(),
-    };
-    (scene, render_scene)
 }
 
 /// Renders `text` (a valid gem) like the property above and returns the
