@@ -33,6 +33,7 @@ pub mod brdf;
 pub mod farm;
 pub mod gallery;
 pub mod geometry;
+mod message;
 pub mod output;
 pub mod recipe;
 pub mod render;

@@ -557,6 +557,106 @@ fn a_map_that_contains_itself_through_another() {
 }
 
 #[test]
+fn maps_nested_deeper_than_the_pattern_can_evaluate() {
+    // A chain of SurfaceMaps m0 → m1 → … → mN → a material: N + 1 maps.
+    let chain = |maps: usize| {
+        let mut text = String::from("Gem(\n    maps: {\n");
+        for k in 0..maps - 1 {
+            text += &format!(
+                "        \"m{k}\": SurfaceMap(cell_size: 0.1, entries: [(map: \"m{}\")]),\n",
+                k + 1
+            );
+        }
+        text += &format!(
+            "        \"m{}\": SurfaceMap(cell_size: 0.1, entries: [(material: \"gold\")]),\n",
+            maps - 1
+        );
+        text + "    },\n    surface: \"m0\",\n)\n"
+    };
+    let dir = scratch("deep-maps");
+    let (deepest, too_deep, far_too_deep) = (
+        dir.join("deepest.ron"),
+        dir.join("too-deep.ron"),
+        dir.join("far-too-deep.ron"),
+    );
+    std::fs::write(&deepest, chain(64)).unwrap();
+    let out = lapidary(&[OsString::from("validate"), deepest.into()]);
+    assert!(
+        out.status.success(),
+        "64 maps deep is allowed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // Twenty thousand overflowed the render threads' stacks (an abort).
+    for (path, maps) in [(&too_deep, 65), (&far_too_deep, 20_000)] {
+        std::fs::write(path, chain(maps)).unwrap();
+        let out = lapidary(&[OsString::from("validate"), path.into()]);
+        assert_refused(
+            "deep maps",
+            &out,
+            &[
+                format!("{}:3:", path.display()),
+                "map `m0` nests more than 64 maps deep".to_string(),
+            ],
+        );
+    }
+}
+
+#[test]
+fn a_map_and_a_material_of_one_name() {
+    bad_gem(
+        "map-and-material",
+        "\"tiles\": SurfaceMap(",
+        "\"foil\": SurfaceMap(",
+        "\"foil\": Material(",
+        &["`foil` names both a map and a material"],
+    );
+}
+
+#[test]
+fn more_layers_than_allowed() {
+    let layer = "Layer(ior: 1.5, roughness_deg: 5.0, thickness: 0.1, absorption: (0.1, 0.2, 0.3)),";
+    bad_gem(
+        "seventeen-layers",
+        layer,
+        &format!(
+            "{}\n                Layer(ior: 1.4), // the 17th",
+            layer.repeat(16)
+        ),
+        "the 17th",
+        &["`layers` has 17 layers; allowed: at most 16"],
+    );
+}
+
+#[test]
+fn a_glitter_map_on_a_translucent_body() {
+    bad_gem(
+        "translucent-glitter",
+        "surface: \"veins\",",
+        "surface: \"veins\",\n    body: Translucent(ior: 1.5),",
+        "glitter: Some(",
+        &["`glitter` on a translucent body", "inclusions"],
+    );
+}
+
+#[test]
+fn a_misspelt_variant_and_library_material_have_a_suggestion() {
+    bad_gem(
+        "variant-typo",
+        "base: Diffuse(colour: (0.4, 0.3, 0.5)),",
+        "base: Difuse(colour: (0.4, 0.3, 0.5)),",
+        "Difuse",
+        &["field `base`: unknown variant `Difuse` (did you mean `Diffuse`?)"],
+    );
+    bad_gem(
+        "library-typo",
+        "surface: \"veins\",",
+        "surface: \"silvr\",",
+        "surface: \"silvr\"",
+        &["did you mean `silver`?"],
+    );
+}
+
+#[test]
 fn an_unknown_material_name() {
     bad_gem(
         "unknown-material",
@@ -945,6 +1045,31 @@ fn bad_scene(case: &str, from: &str, to: &str, marker: &str, needles: &[&str]) {
 }
 
 #[test]
+fn a_stone_too_high_names_its_dome() {
+    bad_scene(
+        "stone-too-high",
+        "width: 8.0,",
+        "width: 8.0,\n                dome_height: 1e300,",
+        "dome_height: 1e300",
+        &["`dome_height` = 1e300 is out of range", "at most 100000 mm"],
+    );
+}
+
+#[test]
+fn a_value_where_an_option_belongs_says_what_to_write() {
+    bad_scene(
+        "seed-not-option",
+        "position: (0.0, 0.0, 0.5),",
+        "position: (0.0, 0.0, 0.5),\n            seed: 5,",
+        "seed: 5",
+        &[
+            "field `seed`: Expected option",
+            "`Some(…)` around the value",
+        ],
+    );
+}
+
+#[test]
 fn scene_with_a_misspelt_field() {
     bad_scene(
         "scene-typo",
@@ -995,8 +1120,12 @@ fn scene_with_a_stone_of_astronomical_size() {
         "scene-huge-stone",
         "length: 10.0",
         "length: 1e300",
-        "shape: Cabochon",
-        &["stone 1", "at most 100000"],
+        "length: 1e300",
+        &[
+            "stone 1",
+            "`length` = 1e300 is out of range",
+            "at most 100000 mm",
+        ],
     );
 }
 

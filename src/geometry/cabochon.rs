@@ -224,10 +224,22 @@ impl Cabochon {
         let flat_oval = ellipsoidal && params.base == Base::Flat;
         let size = params.length.max(params.width).max(z_top - z_bottom);
         if size.is_nan() || size > MAX_SIZE {
+            // The field that makes it too large: the first above the bound
+            // itself (each is finite by now), else the dome, which the girdle
+            // and base add to.
+            let (name, value) = [
+                ("length", params.length),
+                ("width", params.width),
+                ("girdle_height", g),
+                ("base.height", base_depth),
+            ]
+            .into_iter()
+            .find(|(_, value)| *value > MAX_SIZE)
+            .unwrap_or(("dome_height", h));
             return Err(GeometryError::new(
-                "size",
-                size,
-                format!("the stone's length, width and height must each be at most {MAX_SIZE} (the scene's bounding boxes are f32)"),
+                name,
+                value,
+                format!("the stone's length, width and height (dome, girdle and base together) must each be at most {} mm (the scene's bounding boxes are f32)", crate::message::number(MAX_SIZE)),
             ));
         }
         Ok(Self {

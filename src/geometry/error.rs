@@ -1,8 +1,10 @@
 //! Parameter errors of the geometry module.
 
+use crate::message::number;
+
 /// A parameter that is out of its allowed range, named for a person.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("cabochon parameter `{name}` = {value} is out of range: {allowed}")]
+#[error("cabochon parameter `{name}` = {} is out of range: {allowed}", number(*.value))]
 pub struct GeometryError {
     /// The parameter's name as written in [`super::CabochonParams`] or
     /// [`super::Outline`] (`length`, `dome_height`, `exponent`, ...).

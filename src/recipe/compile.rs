@@ -56,6 +56,20 @@ pub(crate) fn ron_error(path: &str, source: &str, e: ron::error::SpannedError) -
                 expected.join(", ")
             )
         }
+        E::NoSuchEnumVariant {
+            expected, found, ..
+        } => {
+            let hint = did_you_mean(found, expected.iter().copied())
+                .map(|s| format!(" (did you mean `{s}`?)"))
+                .unwrap_or_default();
+            let field = field_before(source, line, col)
+                .map(|field| format!("field `{field}`: "))
+                .unwrap_or_default();
+            format!(
+                "{field}unknown variant `{found}`{hint}; expected one of: {}",
+                expected.join(", ")
+            )
+        }
         E::MissingStructField { field, outer } => format!(
             "missing field `{field}` in {}",
             outer.as_deref().unwrap_or("this item")
@@ -254,6 +268,11 @@ pub(crate) fn compile_material_without_table(
     compile_material_seen_from(source, m, 1.0)
 }
 
+/// The most varnish layers a material may have: far more than any
+/// material of the course notes (at most two), few enough that the
+/// layer-by-layer evaluation and its compensation tables stay quick.
+pub(crate) const MAX_LAYERS: usize = 16;
+
 /// [`compile_material_without_table`] for a material seen from a medium of
 /// index `ior_outside` instead of air (a flake inside a translucent body):
 /// its top interface refracts with η = n / `ior_outside` and a bare metal
@@ -270,6 +289,15 @@ pub(crate) fn compile_material_seen_from(
         Some((l, c)) => RecipeError::at(path, l, c, message),
         None => RecipeError::whole_file(path, message),
     };
+    if m.layers.len() > MAX_LAYERS {
+        return Err(layer_error(
+            MAX_LAYERS,
+            format!(
+                "`layers` has {} layers; allowed: at most {MAX_LAYERS}",
+                m.layers.len()
+            ),
+        ));
+    }
     let mut interfaces = Vec::with_capacity(m.layers.len());
     let mut ior_above = ior_outside;
     let mut roughness_above_deg = 0.0;

@@ -261,6 +261,7 @@ pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col
             "a whole number such as 4, without quotes",
         ),
         ("Expected string", "a name in double quotes"),
+        ("Expected option", "`Some(…)` around the value, or `None`"),
     ] {
         if message.ends_with(ron_says) {
             message.push_str(&format!("; allowed: {allowed}"));

@@ -794,6 +794,11 @@ fn named_seed(seed: u64, name: &str, purpose: u64) -> u64 {
     derive_stream(h, purpose)
 }
 
+/// The most maps on a way from a map down to a material: far more than a
+/// recipe nests, few enough that evaluating the pattern (by recursion)
+/// stays within a render thread's stack.
+const MAX_MAP_DEPTH: usize = 64;
+
 const PURPOSE_CELLS: u64 = 0;
 const PURPOSE_NOISE: u64 = 1;
 const PURPOSE_PER_CELL: u64 = 2;
@@ -985,49 +990,87 @@ impl<'a> Compiler<'a> {
         }
     }
 
-    /// Cycle detection over the name graph, with the cycle in the message.
+    /// Cycle detection over the name graph, with the cycle in the message,
+    /// and the nesting's depth: at most [`MAX_MAP_DEPTH`] maps on the way
+    /// from any map to a material (the pattern is evaluated by recursion).
     fn check_cycles(&self) -> Result<(), RecipeError> {
-        fn visit<'s>(
+        /// A nesting that is refused: a cycle, or a chain too deep.
+        enum Refused<'s> {
+            Cycle(Vec<&'s str>),
+            TooDeep(Vec<&'s str>),
+        }
+        /// The most maps on a way down from `name` to a material (0 for a
+        /// name that is no map), every map on `path` above it.
+        fn height<'s>(
             name: &'s str,
             maps: &'s BTreeMap<String, MapSpec>,
             path: &mut Vec<&'s str>,
-            done: &mut Vec<&'s str>,
-        ) -> Option<Vec<&'s str>> {
+            heights: &mut BTreeMap<&'s str, usize>,
+        ) -> Result<usize, Refused<'s>> {
             if let Some(k) = path.iter().position(|n| *n == name) {
                 let mut cycle = path[k..].to_vec();
                 cycle.push(name);
-                return Some(cycle);
+                return Err(Refused::Cycle(cycle));
             }
-            if done.contains(&name) {
-                return None;
+            let Some(spec) = maps.get(name) else {
+                return Ok(0); // a material; unknown names are reported later
+            };
+            let known = heights.get(name).copied();
+            if path.len() + known.unwrap_or(1) > MAX_MAP_DEPTH {
+                let mut chain = path.clone();
+                chain.push(name);
+                return Err(Refused::TooDeep(chain));
             }
-            let spec = maps.get(name)?; // unknown names are reported later
+            if let Some(known) = known {
+                return Ok(known);
+            }
             path.push(name);
+            let mut below = 0;
             for child in Compiler::children(spec) {
-                if let Some(c) = visit(child, maps, path, done) {
-                    return Some(c);
-                }
+                below = below.max(height(child, maps, path, heights)?);
             }
             path.pop();
-            done.push(name);
-            None
+            heights.insert(name, below + 1);
+            Ok(below + 1)
         }
-        let mut done = Vec::new();
+        let mut heights = BTreeMap::new();
         for name in self.spec.maps.keys() {
-            if let Some(cycle) = visit(name, &self.spec.maps, &mut Vec::new(), &mut done) {
-                let first = cycle[0];
-                let how = if cycle.len() == 2 {
-                    "directly".to_string()
-                } else {
-                    format!("through {}", cycle[1..cycle.len() - 1].join(" → "))
-                };
-                return Err(self.error_at_map(
-                    first,
-                    format!(
-                        "map `{first}` contains itself {how} ({}); allowed: maps that nest without cycles",
-                        cycle.join(" → ")
-                    ),
-                ));
+            match height(name, &self.spec.maps, &mut Vec::new(), &mut heights) {
+                Ok(_) => {}
+                Err(Refused::Cycle(cycle)) => {
+                    let first = cycle[0];
+                    let how = if cycle.len() == 2 {
+                        "directly".to_string()
+                    } else {
+                        format!("through {}", cycle[1..cycle.len() - 1].join(" → "))
+                    };
+                    return Err(self.error_at_map(
+                        first,
+                        format!(
+                            "map `{first}` contains itself {how} ({}); allowed: maps that nest without cycles",
+                            cycle.join(" → ")
+                        ),
+                    ));
+                }
+                Err(Refused::TooDeep(chain)) => {
+                    let first = chain[0];
+                    let shown = if chain.len() > 4 {
+                        format!(
+                            "{} → {} → … → {}",
+                            chain[0],
+                            chain[1],
+                            chain[chain.len() - 1]
+                        )
+                    } else {
+                        chain.join(" → ")
+                    };
+                    return Err(self.error_at_map(
+                        first,
+                        format!(
+                            "map `{first}` nests more than {MAX_MAP_DEPTH} maps deep ({shown} → …); allowed: at most {MAX_MAP_DEPTH} maps from a map down to its materials"
+                        ),
+                    ));
+                }
             }
         }
         Ok(())
@@ -1337,6 +1380,17 @@ impl<'a> Compiler<'a> {
                 .push((name.clone(), self.spec.materials[name].clone()));
             self.seen_from_ior.push(None);
         }
+        if let Some(name) = self
+            .spec
+            .maps
+            .keys()
+            .find(|name| self.spec.materials.contains_key(*name))
+        {
+            return Err(self.error_at_map(
+                name,
+                format!("`{name}` names both a map and a material; allowed: a name for one of them only"),
+            ));
+        }
         self.check_cycles()?;
         let mut nodes = Vec::with_capacity(self.spec.maps.len());
         for (name, map) in &self.spec.maps {
@@ -1355,7 +1409,8 @@ impl<'a> Compiler<'a> {
                 self.map_names
                     .iter()
                     .map(String::as_str)
-                    .chain(self.spec.materials.keys().map(String::as_str)),
+                    .chain(self.spec.materials.keys().map(String::as_str))
+                    .chain(builtin_material_names().map(|name| -> &str { name })),
             )
             .map(|s| format!(" (did you mean `{s}`?)"))
             .unwrap_or_default();
@@ -1363,7 +1418,11 @@ impl<'a> Compiler<'a> {
                 "surface",
                 format!(
                     "`surface` names `{surface}`, which is neither a map nor a material{hint}; allowed: a name from `maps` ({}) or a material",
-                    self.map_names.join(", ")
+                    if self.map_names.is_empty() {
+                        "none here".to_string()
+                    } else {
+                        self.map_names.join(", ")
+                    }
                 ),
             ));
         };
@@ -1371,6 +1430,12 @@ impl<'a> Compiler<'a> {
             Some(g) => Some(self.glitter(g)?),
             None => None,
         };
+        if glitter.is_some() && matches!(spec.body, BodySpec::Translucent { .. }) {
+            return Err(self.error_at(
+                "glitter",
+                "`glitter` on a translucent body would not be shaded (its surface's materials are not: the look comes from inside); allowed: a glitter map with `body: Opaque`, or flakes at depth as the body's `inclusions`".to_string(),
+            ));
+        }
         let body = self.body(&spec)?;
         let pattern = Pattern::new(nodes, root, glitter, self.materials.len() as u32)
             .map_err(|e| RecipeError::whole_file(self.path, e.to_string()))?;

@@ -5,16 +5,7 @@
 use serde::de::Error;
 use serde::{Deserialize, Deserializer};
 
-/// `v` as a message writes it: as Rust prints it, or in exponent form
-/// where that is shorter than the digits (`1e308`, not 309 digits;
-/// `1e-300`, not 300 zeros).
-pub(crate) fn number(v: f64) -> String {
-    if v != 0.0 && v.is_finite() && !(1e-6..1e16).contains(&v.abs()) {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
-}
+use crate::message::number;
 
 /// Parse a finite f64 and check `ok`, else an error naming `field` and `allowed`.
 /// Public so that other RON schemas (the scene) report ranges the same way.

@@ -26,7 +26,8 @@
 //! World space: z is up, lengths in scene units (millimetres, like the gem
 //! recipes' object space).
 
-use crate::recipe::ranges::{checked, checked_rgb, number};
+use crate::message::number;
+use crate::recipe::ranges::{checked, checked_rgb};
 use serde::de::Error;
 use serde::{Deserialize, Deserializer};
 
