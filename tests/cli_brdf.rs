@@ -80,6 +80,33 @@ fn plot_writes_a_png() {
 }
 
 #[test]
+fn a_plot_under_another_extension_and_flags_that_do_not_go_together_are_refused() {
+    let dir = scratch_dir("plot-refused");
+    // The plot is a PNG: a name that says otherwise is refused, nothing written.
+    for name in ["gold.jpg", "gold.exr", "gold"] {
+        let path = dir.join(name);
+        let out = lapidary(&["brdf", "gold", "-o", path.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{name}: {stderr}");
+        assert!(stderr.contains("must end in .png"), "{name}: {stderr}");
+        assert!(!path.exists(), "{name} was written");
+    }
+    // Usage errors (exit 2): nothing to show, or a reference --eval has not.
+    for args in [
+        &["brdf", "gold"][..],
+        &["brdf", "gold", "--eval", "30,0,30,180", "--reference"],
+    ] {
+        let out = lapidary(args);
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}
+
+#[test]
 fn classify_names_the_groups_of_section_3_4() {
     for (material, expected) in [
         ("blue-acrylic", "glossy paint"),

@@ -74,6 +74,7 @@ fn every_gem_file_is_built_in() {
 fn maps_refuses_bad_input_with_exit_1_and_writes_nothing() {
     let dir = scratch("bad");
     let png = dir.join("out.png");
+    let exr = dir.join("out.exr");
     let broken = dir.join("broken.ron");
     std::fs::write(
         &broken,
@@ -112,6 +113,10 @@ fn maps_refuses_bad_input_with_exit_1_and_writes_nothing() {
             "does not exist",
         ),
         (
+            vec!["maps", "lavender-lepidolite", "-o", exr.to_str().unwrap()],
+            "must end in .png",
+        ),
+        (
             vec![
                 "maps",
                 broken.to_str().unwrap(),
@@ -130,6 +135,55 @@ fn maps_refuses_bad_input_with_exit_1_and_writes_nothing() {
             "{args:?}: `{fragment}` not in {stderr}"
         );
         assert!(!stderr.contains("panicked"));
-        assert!(!png.exists());
+        assert!(!png.exists() && !exr.exists());
+    }
+}
+
+#[test]
+fn ctrl_c_while_the_sheet_is_written_leaves_no_file() {
+    let dir = scratch("interrupt");
+    let png = dir.join("big.png");
+    let child = Command::new(env!("CARGO_BIN_EXE_lapidary"))
+        .args(["maps", "lavender-lepidolite", "--size", "2048", "-o"])
+        .arg(&png)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Ctrl-C as soon as the temporary file of the PNG appears (the sheet
+    // is being encoded), or after 30 s.
+    let started = std::time::Instant::now();
+    let writing = || {
+        std::fs::read_dir(&dir)
+            .unwrap()
+            .any(|e| e.unwrap().file_name().to_string_lossy().ends_with(".tmp"))
+    };
+    while !writing() && started.elapsed().as_secs() < 30 {
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    let seen_writing = writing();
+    let status = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let left: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    match out.status.code() {
+        // Stopped midway: no temporary file is left, and the sheet only if
+        // its file was renamed into place, whole, before the signal came.
+        Some(1) => {
+            assert!(stderr.contains("interrupted"), "{stderr}");
+            assert!(
+                left.is_empty() || (left == ["big.png"] && image::open(&png).is_ok()),
+                "left behind: {left:?}"
+            );
+        }
+        // Finished before the signal: the sheet alone.
+        Some(0) => assert_eq!(left, ["big.png"], "{stderr}"),
+        other => panic!("exit {other:?} (seen writing: {seen_writing}): {stderr}"),
     }
 }

@@ -365,6 +365,31 @@ fn merge_refuses_every_tile_that_does_not_belong_and_writes_nothing() {
         refused(&args, expected);
         assert_eq!(bytes(&out), b"existing", "{tiles:?} touched the output");
     }
+    // An output that is one of the tiles would replace it.
+    let tile = bytes(&t("a0.exr"));
+    refused(
+        &[
+            "merge",
+            "-o",
+            s(&t("a0.exr")),
+            s(&t("a0.exr")),
+            s(&t("a1.exr")),
+        ],
+        "the output is one of the tiles",
+    );
+    assert_eq!(bytes(&t("a0.exr")), tile, "the tile was changed");
+    refused(
+        &[
+            "merge",
+            "--threads",
+            "0",
+            "-o",
+            s(&out),
+            s(&t("a0.exr")),
+            s(&t("a1.exr")),
+        ],
+        "--threads 0: allowed 1 to 1024",
+    );
     ok(&[
         "merge",
         "-q",

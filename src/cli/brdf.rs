@@ -29,7 +29,7 @@ fn load(args: &BrdfArgs) -> Result<LayeredBrdf, String> {
 /// Run `lapidary brdf`.
 pub fn run(args: BrdfArgs) -> Result<(), String> {
     if let Some(path) = &args.output {
-        lapidary::output::check_writable(path).map_err(|e| e.to_string())?;
+        super::check_png_output(path)?;
     }
     let eval_angles = args.eval.as_deref().map(parse_eval_angles).transpose()?;
     if let Some(theta_i) = args.slice {
@@ -53,11 +53,7 @@ pub fn run(args: BrdfArgs) -> Result<(), String> {
         lapidary::output::write_png(path, &image).map_err(|e| e.to_string())?;
         eprintln!("wrote {}", path.display());
     } else {
-        return Err(
-            "say what to show: --albedo, --slice THETA_I, --eval THETA_I,PHI_I,THETA_O,PHI_O, \
-             or -o PLOT.png"
-                .into(),
-        );
+        unreachable!("clap requires one of --albedo, --slice, --eval or -o");
     }
     Ok(())
 }

@@ -98,9 +98,7 @@ pub fn run(args: GalleryArgs) -> Result<(), String> {
         ..GallerySettings::default()
     };
     settings.check().map_err(|e| e.to_string())?;
-    if let Some(threads) = args.threads.filter(|t| !(1..=1024).contains(t)) {
-        return Err(format!("--threads {threads}: allowed 1 to 1024"));
-    }
+    super::check_threads(args.threads)?;
     let gems: Vec<&str> = builtin_gem_names().collect();
     check_only(&args.only, &gems)?;
     prepare_dir(&args.output)?;

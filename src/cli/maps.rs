@@ -21,7 +21,7 @@ fn material_colours(gem: &Gem) -> Vec<Rgb> {
 
 /// Run `lapidary maps`.
 pub fn run(args: MapsArgs) -> Result<(), String> {
-    lapidary::output::check_writable(&args.output).map_err(|e| e.to_string())?;
+    super::check_png_output(&args.output)?;
     if args.size == 0 || args.size > MAX_PANEL_PX {
         return Err(format!(
             "--size {}: allowed 1 to {MAX_PANEL_PX} pixels per panel",

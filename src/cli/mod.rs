@@ -12,6 +12,8 @@ mod validate;
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, LazyLock};
 
 /// lapidary: procedural gemstones with layered micro-facet BRDFs.
 #[derive(Parser, Debug)]
@@ -82,6 +84,7 @@ struct MapsArgs {
 
 /// Arguments of `lapidary brdf`.
 #[derive(clap::Args, Debug)]
+#[command(group(clap::ArgGroup::new("show").required(true).args(["albedo", "slice", "eval", "output"])))]
 struct BrdfArgs {
     /// A library name (see `lapidary list`) or a RON material file.
     material: String,
@@ -106,11 +109,27 @@ struct BrdfArgs {
     output: Option<PathBuf>,
     /// Overlay the Monte Carlo random-walk reference on the plot, or add its
     /// columns to --albedo or --slice.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "eval")]
     reference: bool,
     /// Use the seed-faithful single-crossing model (no multiple-scattering compensation).
     #[arg(long)]
     single_crossing: bool,
+}
+
+/// Checks, before any work, that `path` names a PNG (what the command
+/// writes) that can be written.
+fn check_png_output(path: &std::path::Path) -> Result<(), String> {
+    let is_png = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    if !is_png {
+        return Err(format!(
+            "{}: the output must end in .png (this command writes PNG)",
+            path.display()
+        ));
+    }
+    lapidary::output::check_writable(path).map_err(|e| e.to_string())
 }
 
 /// `n` and the noun `what`, plural unless n is 1: "1 frame", "4 tiles".
@@ -133,9 +152,20 @@ pub fn emit(line: &str) {
     }
 }
 
+/// Refuses a `--threads` outside 1 to 1024, before any work.
+pub(crate) fn check_threads(threads: Option<usize>) -> Result<(), String> {
+    match threads {
+        Some(threads) if !(1..=1024).contains(&threads) => {
+            Err(format!("--threads {threads}: allowed 1 to 1024"))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// The rayon pool a command renders in: `threads` workers, or one per
 /// core when `None` (`--threads`); the message names what failed.
 pub fn worker_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> {
+    check_threads(threads)?;
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(threads) = threads {
         pool = pool.num_threads(threads);
@@ -176,6 +206,34 @@ pub fn table_cache_from_env() -> lapidary::recipe::TableCache {
     }
 }
 
+/// Set by Ctrl-C; a command that stops on it by itself (a render, after
+/// the rows in flight) reads it through [`interruption`].
+static INTERRUPTED: LazyLock<Arc<AtomicBool>> = LazyLock::new(|| Arc::new(AtomicBool::new(false)));
+/// Whether the running command stops on [`INTERRUPTED`] by itself.
+static STOPS_BY_ITSELF: AtomicBool = AtomicBool::new(false);
+
+/// Ctrl-C for every command: a command that has called [`interruption`]
+/// stops by itself; any other is ended here, its output being written, if
+/// any, removed (existing files stay as they were), with exit status 1.
+/// Without a handler (none could be installed), Ctrl-C keeps its default.
+fn handle_ctrl_c() {
+    let _ = ctrlc::set_handler(|| {
+        INTERRUPTED.store(true, Ordering::SeqCst);
+        if !STOPS_BY_ITSELF.load(Ordering::SeqCst) {
+            lapidary::output::remove_unfinished_outputs();
+            eprintln!("\nerror: interrupted; no output was left half-written");
+            std::process::exit(1);
+        }
+    });
+}
+
+/// The flag Ctrl-C sets, for a command that stops on it by itself: from
+/// this call on, Ctrl-C no longer ends the process.
+pub(crate) fn interruption() -> Arc<AtomicBool> {
+    STOPS_BY_ITSELF.store(true, Ordering::SeqCst);
+    Arc::clone(&INTERRUPTED)
+}
+
 /// Parse the command line and run; returns the process exit code.
 pub fn run() -> i32 {
     let cli = match Cli::try_parse() {
@@ -185,6 +243,7 @@ pub fn run() -> i32 {
             return if e.use_stderr() { 2 } else { 0 };
         }
     };
+    handle_ctrl_c();
     let result = match cli.command {
         Command::Batch(args) => batch::run(args),
         Command::Brdf(args) => brdf::run(args),

@@ -2,7 +2,7 @@
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -264,12 +264,7 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
             args.bounces
         ));
     }
-    if args.threads == Some(0) || args.threads.is_some_and(|t| t > 1024) {
-        return Err(format!(
-            "--threads {}: allowed 1 to 1024",
-            args.threads.unwrap_or(0)
-        ));
-    }
+    super::check_threads(args.threads)?;
     if !args.exposure.is_finite() || args.exposure.abs() > 64.0 {
         return Err(format!(
             "--exposure {}: allowed −64 to 64 stops",
@@ -586,14 +581,9 @@ impl Renderer {
             frame: None,
             inputs_sha256: inputs.sha256,
         };
-        let interrupted = Arc::new(AtomicBool::new(false));
-        {
-            let flag = Arc::clone(&interrupted);
-            // Ctrl-C (from here on) stops the render after the rows in flight; nothing is written;
-            // if a handler cannot be installed, Ctrl-C keeps its default (the
-            // process dies before writing, which also leaves no file).
-            let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
-        }
+        // Ctrl-C (from here on) stops the render after the rows in flight;
+        // nothing is written.
+        let interrupted = super::interruption();
         Ok(Renderer {
             scene: inputs.scene,
             gem: inputs.gem,

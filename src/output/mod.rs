@@ -8,6 +8,21 @@ pub mod tonemap;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// The temporary files being written now, so that a process stopped
+/// midway (Ctrl-C) can remove them: see [`remove_unfinished_outputs`].
+static UNFINISHED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Removes the temporary file of every output being written now; their
+/// targets stay as they were. For a process about to exit midway (the
+/// command line's Ctrl-C handler), so that it leaves no half-written file.
+pub fn remove_unfinished_outputs() {
+    let unfinished = UNFINISHED.lock().unwrap_or_else(|e| e.into_inner());
+    for tmp in unfinished.iter() {
+        let _ = std::fs::remove_file(tmp);
+    }
+}
 
 /// Why an output could not be written, naming the path.
 #[derive(Debug, thiserror::Error)]
@@ -64,6 +79,10 @@ pub(crate) fn write_atomically_with(
 ) -> Result<(), OutputError> {
     check_writable(path)?;
     let tmp = temporary_sibling(path);
+    UNFINISHED
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push(tmp.clone());
     let result = std::fs::File::create(&tmp)
         .map_err(|e| format!("cannot write: {e}"))
         .and_then(|mut f| {
@@ -71,12 +90,16 @@ pub(crate) fn write_atomically_with(
             f.sync_all().map_err(|e| format!("cannot write: {e}"))
         })
         .and_then(|_| std::fs::rename(&tmp, path).map_err(|e| format!("cannot write: {e}")));
-    result.map_err(|message| {
+    if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
-        OutputError {
-            path: path.display().to_string(),
-            message,
-        }
+    }
+    UNFINISHED
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .retain(|pending| *pending != tmp);
+    result.map_err(|message| OutputError {
+        path: path.display().to_string(),
+        message,
     })
 }
 
