@@ -1308,6 +1308,35 @@ fn a_corrupt_environment_map() {
 }
 
 #[test]
+fn validate_reads_a_scene_s_environment_map() {
+    // `validate` (and with it a batch job's check) reads the map as the
+    // render would: a damaged one is refused there, at its `path`, not by
+    // every task of a farm array.
+    let dir = scratch("validate-env");
+    std::fs::write(
+        dir.join("sky.hdr"),
+        b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 64 +X 128\n\x02\x02",
+    )
+    .unwrap();
+    let text = GOOD_SCENE.replace(
+        "environment: Constant(radiance: (0.5, 0.5, 0.5)),",
+        "environment: File(path: \"sky.hdr\"),",
+    );
+    let scene = dir.join("scene.ron");
+    std::fs::write(&scene, &text).unwrap();
+    let out = lapidary(&[OsString::from("validate"), scene.clone().into()]);
+    assert_refused(
+        "validate-env",
+        &out,
+        &[
+            at_line(&scene, &text, "sky.hdr"),
+            "environment map".to_string(),
+            "corrupt".to_string(),
+        ],
+    );
+}
+
+#[test]
 fn a_missing_environment_map_names_the_flag_and_what_it_takes() {
     // `--env studio` (the built-in scene's light is called so) is not a
     // file: the message says what --env takes and where the studio is.
@@ -1357,6 +1386,57 @@ fn an_image_over_the_memory_limit() {
         &render,
         "big.exr",
         &["GiB".to_string(), "--max-memory".to_string()],
+    );
+}
+
+#[test]
+fn a_tile_needs_the_memory_of_its_own_rows() {
+    // The whole 20 000² film is far above 1 GiB, a tile of 2 of its 20 000
+    // rows far below: the tile renders (the check once took the whole film).
+    let dir = scratch("tile-memory");
+    let tile = dir.join("tile.exr");
+    let out = lapidary(&[
+        "render",
+        "--size",
+        "20000",
+        "--spp",
+        "1",
+        "--max-memory",
+        "1",
+        "--tile",
+        "0/10000",
+        "-q",
+        "--scene",
+        "bench/peer-scene.ron",
+        "-o",
+        tile.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(tile.exists());
+    // Half of the film is still too much, and the message says to split more.
+    let render = os(&[
+        "render",
+        "--size",
+        "20000",
+        "--spp",
+        "1",
+        "--max-memory",
+        "1",
+        "--tile",
+        "0/2",
+    ]);
+    assert_refused_writing(
+        "tile-memory",
+        &render,
+        "half.exr",
+        &[
+            "tile 0/2 of a 20000 × 20000 render".to_string(),
+            "more --tile".to_string(),
+        ],
     );
 }
 

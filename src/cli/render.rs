@@ -284,10 +284,24 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
             args.max_memory
         ));
     }
-    let needed = memory_needed(width, height);
+    // A tile's film holds its own rows only (a tile count out of range is
+    // refused later, with its own message).
+    let (rows, what) = match args.tile.map(|(i, n)| (i, n, TileSplit::new(i, n, height))) {
+        Some((i, n, Ok(split))) => (
+            split.rows().len() as u32,
+            format!("tile {i}/{n} of a {width} × {height} render"),
+        ),
+        _ => (height, format!("a {width} × {height} render")),
+    };
+    let needed = memory_needed(width, rows);
+    let more_tiles = if args.tile.is_some() {
+        "more --tile"
+    } else {
+        "--tile"
+    };
     if gib(needed) > args.max_memory {
         return Err(format!(
-            "a {width} × {height} render needs {:.2} GiB of memory for its film, above the --max-memory limit of {} GiB; raise it or use a smaller --size",
+            "{what} needs {:.2} GiB of memory for its film, above the --max-memory limit of {} GiB; raise it, use a smaller --size or split it with {more_tiles}",
             gib(needed),
             args.max_memory
         ));
@@ -295,7 +309,7 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
     let available = memory_available();
     if needed > available {
         return Err(format!(
-            "a {width} × {height} render needs {:.1} GiB of memory for its film, but only {:.1} GiB is available; use a smaller --size",
+            "{what} needs {:.1} GiB of memory for its film, but only {:.1} GiB is available; use a smaller --size or split it with {more_tiles}",
             gib(needed),
             gib(available)
         ));

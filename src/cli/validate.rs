@@ -23,11 +23,12 @@ use lapidary::recipe::library::{
     builtin_gem_names, builtin_gem_source, builtin_material_names, builtin_material_source,
 };
 use lapidary::recipe::material::BaseSpec;
+use lapidary::render::environment::Environment;
 use lapidary::render::overlaps::placement_problems;
 use lapidary::render::prepare::stone_instances;
 use lapidary::render::world::World;
-use lapidary::scene::spec::SceneSpec;
-use lapidary::scene::{parse_scene, DEFAULT_SCENE_SOURCE};
+use lapidary::scene::spec::{EnvironmentKind, SceneSpec};
+use lapidary::scene::{parse_scene, EnvironmentSpec, DEFAULT_SCENE_SOURCE};
 use std::path::Path;
 
 /// Name under which `validate` accepts the built-in studio scene.
@@ -195,6 +196,26 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<String,
         };
         check()
             .map_err(|e| reference_error(path, text, &written.material, "ground material", e))?;
+    }
+    // The map is read as a render reads it: a damaged file is found here,
+    // not by every task of a farm array.
+    if let (
+        EnvironmentSpec::File {
+            path: map,
+            rotation_deg,
+            intensity,
+        },
+        EnvironmentKind::File { path: written, .. },
+    ) = (&scene.environment, &spec.environment)
+    {
+        Environment::from_file(map, *rotation_deg, *intensity).map_err(|e| {
+            RecipeError::at_text(
+                path,
+                text,
+                &format!("\"{written}\""),
+                format!("environment: {e}"),
+            )
+        })?;
     }
     let n = scene.stones.len();
     let l = scene.lights.len();
