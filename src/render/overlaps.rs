@@ -117,7 +117,9 @@ pub fn placement_problems(world: &World) -> Vec<PlacementProblem> {
 }
 
 /// Points of stone `stone`'s surface, world space: where rays from the
-/// middle of its axis (inside every cabochon: base to top) leave it.
+/// middle of its axis (inside every cabochon: base to top) leave it; then
+/// that middle itself, which lies inside another stone in the same place
+/// (whose surface points lie on its surface, at no depth).
 fn surface_points(world: &World, stone: usize) -> Vec<DVec3> {
     let instance = &world.stones()[stone];
     let (lo, hi) = instance.cabochon.bounds();
@@ -130,6 +132,7 @@ fn surface_points(world: &World, stone: usize) -> Vec<DVec3> {
                 .stone_exit(stone, middle, direction)
                 .map(|hit| hit.point)
         })
+        .chain([middle])
         .collect()
 }
 
@@ -220,6 +223,23 @@ mod tests {
                 .next(),
             Some("stones 1 and 3 overlap")
         );
+        // Two stones in one place, and one turned about its axis in the
+        // other's place: every surface point of either lies on the other.
+        let turned_in_place = StoneInstance {
+            rotation: DQuat::from_rotation_z(0.5),
+            ..stone.clone()
+        };
+        for twin in [stone.clone(), turned_in_place] {
+            let twins = World::new(vec![stone.clone(), twin], None);
+            assert!(matches!(
+                placement_problems(&twins)[..],
+                [PlacementProblem::Overlap {
+                    first: 0,
+                    second: 1,
+                    ..
+                }]
+            ));
+        }
         // A turned stone whose lowest corner dips below the ground.
         let turned = StoneInstance {
             rotation: DQuat::from_rotation_x(0.3),
