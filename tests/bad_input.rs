@@ -1390,6 +1390,30 @@ fn an_image_over_the_memory_limit() {
 }
 
 #[test]
+fn a_render_beyond_the_address_space_limit_is_refused_up_front() {
+    // Under `ulimit -v` (1 GB here) the film of a 4000² render (2 GB) could
+    // not be allocated: the process aborted with a backtrace midway.
+    let dir = scratch("ulimit");
+    let output = dir.join("big.png");
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -v 1000000 && exec \"$0\" render --size 4000 --spp 1 --threads 1 -q -o \"$1\"")
+        .arg(env!("CARGO_BIN_EXE_lapidary"))
+        .arg(&output)
+        .output()
+        .expect("sh runs");
+    assert_refused(
+        "ulimit",
+        &out,
+        &[
+            "a 4000 × 4000 render needs 2.0 GiB".to_string(),
+            "available".to_string(),
+        ],
+    );
+    assert!(!output.exists());
+}
+
+#[test]
 fn a_tile_needs_the_memory_of_its_own_rows() {
     // The whole 20 000² film is far above 1 GiB, a tile of 2 of its 20 000
     // rows far below: the tile renders (the check once took the whole film).

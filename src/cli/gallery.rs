@@ -99,6 +99,19 @@ pub fn run(args: GalleryArgs) -> Result<(), String> {
     };
     settings.check().map_err(|e| e.to_string())?;
     super::check_threads(args.threads)?;
+    // Its largest film is a gem's, --size on a side.
+    let (needed, available) = (
+        super::memory::render_needs(args.size, args.size),
+        super::memory::available_bytes(),
+    );
+    if needed > available {
+        return Err(format!(
+            "--size {}: a gem's render needs {:.1} GiB of memory, but only {:.1} GiB is available; use a smaller --size",
+            args.size,
+            super::memory::gib(needed),
+            super::memory::gib(available)
+        ));
+    }
     let gems: Vec<&str> = builtin_gem_names().collect();
     check_only(&args.only, &gems)?;
     prepare_dir(&args.output)?;

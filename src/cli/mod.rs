@@ -5,6 +5,7 @@ mod brdf;
 mod catalogue;
 mod gallery;
 mod maps;
+mod memory;
 mod merge;
 mod new;
 mod render;

@@ -18,9 +18,7 @@ use lapidary::output::tonemap::ToneCurve;
 use lapidary::recipe::gem::GemSource;
 use lapidary::recipe::library::DEFAULT_GEM;
 use lapidary::recipe::Tables;
-use lapidary::render::film::{
-    render_rows_cancellable, FilmSettings, PixelFilter, FILM_BYTES_PER_PIXEL,
-};
+use lapidary::render::film::{render_rows_cancellable, FilmSettings, PixelFilter};
 use lapidary::render::overlaps::placement_problems;
 use lapidary::render::prepare::{camera_for, prepare_scene};
 use lapidary::render::render_scene::RenderScene;
@@ -215,30 +213,6 @@ pub(super) fn is_png_output(path: &Path) -> Result<bool, String> {
     Ok(matches!(output_format(path)?, Format::Png))
 }
 
-/// Memory the render needs, in bytes: the film, and as much again for the
-/// output encoder's buffers at the end.
-fn memory_needed(width: u32, height: u32) -> u64 {
-    2 * u64::from(width) * u64::from(height) * FILM_BYTES_PER_PIXEL
-}
-
-/// Memory available for a render: MemAvailable from /proc/meminfo, or
-/// 4 GiB where that cannot be read.
-fn memory_available() -> u64 {
-    std::fs::read_to_string("/proc/meminfo")
-        .ok()
-        .and_then(|text| {
-            text.lines()
-                .find(|l| l.starts_with("MemAvailable:"))
-                .and_then(|l| l.split_whitespace().nth(1))
-                .and_then(|kib| kib.parse::<u64>().ok())
-        })
-        .map_or(4 << 30, |kib| kib * 1024)
-}
-
-fn gib(bytes: u64) -> f64 {
-    bytes as f64 / f64::from(1u32 << 30)
-}
-
 fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
     let width = args.size.or(args.width).unwrap_or(512);
     let height = args.size.or(args.height).unwrap_or(512);
@@ -293,25 +267,25 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
         ),
         _ => (height, format!("a {width} × {height} render")),
     };
-    let needed = memory_needed(width, rows);
+    let needed = super::memory::render_needs(width, rows);
     let more_tiles = if args.tile.is_some() {
         "more --tile"
     } else {
         "--tile"
     };
-    if gib(needed) > args.max_memory {
+    if super::memory::gib(needed) > args.max_memory {
         return Err(format!(
             "{what} needs {:.2} GiB of memory for its film, above the --max-memory limit of {} GiB; raise it, use a smaller --size or split it with {more_tiles}",
-            gib(needed),
+            super::memory::gib(needed),
             args.max_memory
         ));
     }
-    let available = memory_available();
+    let available = super::memory::available_bytes();
     if needed > available {
         return Err(format!(
             "{what} needs {:.1} GiB of memory for its film, but only {:.1} GiB is available; use a smaller --size or split it with {more_tiles}",
-            gib(needed),
-            gib(available)
+            super::memory::gib(needed),
+            super::memory::gib(available)
         ));
     }
     Ok((width, height))
