@@ -1414,6 +1414,46 @@ fn a_render_beyond_the_address_space_limit_is_refused_up_front() {
 }
 
 #[test]
+fn an_output_that_cannot_be_made_is_refused_before_the_render() {
+    // /proc takes no new files, whoever runs this. The refusal comes before
+    // the gem is compiled (it came after the render).
+    let out = lapidary(&[
+        "render",
+        "--size",
+        "8",
+        "--spp",
+        "1",
+        "-o",
+        "/proc/lapidary.png",
+    ]);
+    assert_refused(
+        "unwritable",
+        &out,
+        &["/proc/lapidary.png: cannot write".to_string()],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("compiling"), "{stderr}");
+    // A turntable's animated PNG at a folder's name is refused up front too.
+    let dir = scratch("animation-folder");
+    let folder = dir.join("spin.png");
+    std::fs::create_dir(&folder).unwrap();
+    let out = lapidary(&[
+        "render",
+        "--size",
+        "8",
+        "--spp",
+        "1",
+        "--frames",
+        "2",
+        "-o",
+        folder.to_str().unwrap(),
+    ]);
+    assert_refused("animation-folder", &out, &["is a directory".to_string()]);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("compiling"));
+    assert_eq!(files_in(&dir), ["spin.png"], "frames were written");
+}
+
+#[test]
 fn a_tile_needs_the_memory_of_its_own_rows() {
     // The whole 20 000² film is far above 1 GiB, a tile of 2 of its 20 000
     // rows far below: the tile renders (the check once took the whole film).

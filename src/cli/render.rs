@@ -337,6 +337,9 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         && split.is_none()
         && matches!(format, Format::Png))
     .then(|| args.output.clone());
+    if let Some(path) = &animation {
+        lapidary::output::check_writable(path).map_err(|e| e.to_string())?;
+    }
     let mut renderer = Renderer::prepare(&args, inputs, width, height, turntable)?;
     let mut pictures = Vec::new();
     for (frame, path) in frames.iter().zip(&outputs) {

@@ -42,8 +42,9 @@ fn temporary_sibling(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
 }
 
-/// Check that `path` can be written: its directory exists and it is not a
-/// directory. Called before long work so that errors come first.
+/// Check that `path` can be written: its directory exists, it is not a
+/// directory, and a file can be made beside it (its temporary file is
+/// made and removed). Called before long work so that errors come first.
 pub fn check_writable(path: &Path) -> Result<(), OutputError> {
     let err = |message: String| OutputError {
         path: path.display().to_string(),
@@ -55,8 +56,18 @@ pub fn check_writable(path: &Path) -> Result<(), OutputError> {
     let parent = path.parent().filter(|p| !p.as_os_str().is_empty());
     if let Some(dir) = parent {
         if !dir.is_dir() {
-            return Err(err(format!("directory {} does not exist", dir.display())));
+            let what = if dir.exists() {
+                "is not a directory"
+            } else {
+                "does not exist"
+            };
+            return Err(err(format!("directory {} {what}", dir.display())));
         }
+    }
+    let probe = temporary_sibling(path);
+    if !probe.exists() {
+        std::fs::File::create(&probe).map_err(|e| err(format!("cannot write: {e}")))?;
+        let _ = std::fs::remove_file(&probe);
     }
     Ok(())
 }
