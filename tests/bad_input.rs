@@ -825,6 +825,34 @@ fn a_file_of_another_kind() {
 // ---- files that are not recipes ------------------------------------------
 
 #[test]
+fn a_byte_order_mark_is_read_past() {
+    // Some editors start a UTF-8 file with U+FEFF; it is not RON.
+    let dir = scratch("bom");
+    let path = dir.join("bom.ron");
+    std::fs::write(&path, format!("\u{feff}{GOOD_MATERIAL}")).unwrap();
+    let out = lapidary(&[OsString::from("validate"), path.into()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn a_fraction_where_a_whole_number_belongs() {
+    bad_scene(
+        "fraction-frames",
+        "environment: Constant",
+        "turntable: Some(Turntable(frames: 4.5)),\n    environment: Constant",
+        "frames: 4.5",
+        &[
+            "field `frames`",
+            "a whole number such as 4, without a fraction",
+        ],
+    );
+}
+
+#[test]
 fn non_utf8_bytes() {
     let dir = scratch("non-utf8");
     let path = dir.join("latin1.ron");
@@ -833,7 +861,11 @@ fn non_utf8_bytes() {
     bytes.push(0xfc);
     bytes.extend_from_slice(b"ner\", surface: \"gold\")\n");
     std::fs::write(&path, &bytes).unwrap();
-    let needles = [path.display().to_string(), "UTF-8".to_string()];
+    // Placed at the byte, as line:col (`Gr` ends at column 14).
+    let needles = [format!(
+        "{}:1:14: not UTF-8 text: byte 0xfc",
+        path.display()
+    )];
     let out = lapidary(&[OsString::from("validate"), path.clone().into()]);
     assert_refused("non-utf8", &out, &needles);
     let render = [

@@ -5,7 +5,7 @@
 use crate::brdf::fresnel;
 use crate::brdf::{Base, Interface, LayeredBrdf, Microfacet, Rgb};
 use crate::recipe::error::{
-    did_you_mean, field_before, find_position, with_ron_hints, RecipeError,
+    did_you_mean, field_before, find_position, line_col_of_offset, with_ron_hints, RecipeError,
 };
 use crate::recipe::library::{builtin_gem_source, builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
@@ -134,8 +134,27 @@ pub fn read_ron_file(spec: &str, what: &str) -> Result<String, RecipeError> {
     }
     let bytes = std::fs::read(path)
         .map_err(|e| RecipeError::whole_file(spec, format!("cannot read: {e}")))?;
-    String::from_utf8(bytes)
-        .map_err(|e| RecipeError::whole_file(spec, format!("not UTF-8 text: {e}")))
+    let text = String::from_utf8(bytes).map_err(|e| {
+        // Where the first byte that is not UTF-8 stands, as line:col of the
+        // valid text before it.
+        let valid = e.utf8_error().valid_up_to();
+        let before = String::from_utf8_lossy(&e.as_bytes()[..valid]);
+        let (line, col) = line_col_of_offset(&before, before.len());
+        RecipeError::at(
+            spec,
+            line,
+            col,
+            format!(
+                "not UTF-8 text: byte 0x{:02x} is not a character; allowed: a text file in UTF-8",
+                e.as_bytes()[valid]
+            ),
+        )
+    })?;
+    // A byte-order mark some editors write first is not RON: it is left out.
+    Ok(match text.strip_prefix('\u{feff}') {
+        Some(rest) => rest.to_string(),
+        None => text,
+    })
 }
 
 /// Find MATERIAL as a file (if it names one or ends in `.ron`) or as a

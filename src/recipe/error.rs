@@ -286,6 +286,15 @@ pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col
             " (is this `{c}` one too many, or the wrong kind of bracket?)"
         ));
     }
+    // A whole number's field given a fraction: RON reads the whole part
+    // and then stops at the point.
+    let mut after = rest.chars();
+    if message.ends_with("Expected comma")
+        && after.next() == Some('.')
+        && after.next().is_some_and(|c| c.is_ascii_digit())
+    {
+        message.push_str("; allowed: a whole number such as 4, without a fraction");
+    }
     if message == "Non-whitespace trailing characters" {
         message.push_str(
             " after the end of the recipe (is a closing bracket before it one too many?)",
