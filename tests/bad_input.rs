@@ -1340,6 +1340,40 @@ fn a_corrupt_environment_map() {
 }
 
 #[test]
+fn a_grey_exr_environment_is_refused_for_its_channels_not_as_corrupt() {
+    use exr::prelude::*;
+    let dir = scratch("grey-env");
+    let env = dir.join("grey.exr");
+    let luminance = AnyChannel::new("Y", FlatSamples::F32(vec![0.5; 8 * 4]));
+    let layer = Layer::new(
+        (8, 4),
+        LayerAttributes::default(),
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(vec![luminance].into()),
+    );
+    Image::from_layer(layer).write().to_file(&env).unwrap();
+    let render = [
+        OsString::from("render"),
+        "--env".into(),
+        env.clone().into(),
+        "--size".into(),
+        "8".into(),
+        "--spp".into(),
+        "1".into(),
+        "-q".into(),
+    ];
+    assert_refused_writing(
+        "grey-env",
+        &render,
+        "gem.png",
+        &[
+            env.display().to_string(),
+            "no layer has R, G and B channels (its channels: Y)".to_string(),
+        ],
+    );
+}
+
+#[test]
 fn validate_reads_a_scene_s_environment_map() {
     // `validate` (and with it a batch job's check) reads the map as the
     // render would: a damaged one is refused there, at its `path`, not by

@@ -332,7 +332,7 @@ fn merge_refuses_every_tile_that_does_not_belong_and_writes_nothing() {
 
     let out = t("out.png");
     std::fs::write(&out, "existing").unwrap();
-    let cases: [(&[&str], &str); 15] = [
+    let cases: [(&[&str], &str); 16] = [
         (
             &["a0.exr", "spp.exr"],
             "spp.exr belongs to another render than",
@@ -357,6 +357,7 @@ fn merge_refuses_every_tile_that_does_not_belong_and_writes_nothing() {
         (&["version.exr", "a1.exr"], "its version is"),
         (&["plain.exr", "a1.exr"], "plain.exr: not a lapidary tile"),
         (&["text.exr", "a1.exr"], "text.exr"),
+        (&["gone.exr", "a1.exr"], "gone.exr: no such tile file"),
     ];
     for (tiles, expected) in cases {
         let paths: Vec<PathBuf> = tiles.iter().map(|n| t(n)).collect();

@@ -37,8 +37,9 @@ enum Command {
         /// A library name (see `lapidary list`) or a RON file.
         material: String,
     },
-    /// Re-render every built-in gem, the contact sheet gallery.png and the
-    /// figures 4.11, 3.2 and 4.3 of the course notes into a folder.
+    /// Re-render every built-in gem, the contact sheet gallery.png, the
+    /// figures 4.11, 3.2, 4.3 and 4.5 b of the course notes and a turntable
+    /// strip into a folder.
     Gallery(gallery::GalleryArgs),
     /// List the built-in materials with their classes.
     List,

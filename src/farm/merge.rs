@@ -28,6 +28,9 @@ pub struct Tile {
 /// them. Errors name the file and what is wrong.
 pub fn read_tile(path: &Path) -> Result<Tile, String> {
     let name = path.display();
+    if !path.exists() {
+        return Err(format!("{name}: no such tile file"));
+    }
     let image = read_exr(path).map_err(|e| format!("{e} (a damaged or unfinished tile?)"))?;
     let Some((_, text)) = image.notes.iter().find(|(k, _)| k == TILE_NOTE) else {
         return Err(format!(

@@ -117,13 +117,13 @@ optional_rgb_field!(conductor_k, "k", "0 <= k <= 20", |v| (0.0..=20.0)
 scalar_field!(
     cell_size,
     "cell_size",
-    "cell_size > 0 (object-space units)",
+    "cell_size > 0 (texture units)",
     |v| v > 0.0
 );
 optional_scalar_field!(
     per_cell_size,
     "per_cell_size",
-    "per_cell_size > 0 (object-space units)",
+    "per_cell_size > 0 (texture units)",
     |v| v > 0.0
 );
 scalar_field!(jitter, "jitter", "0 <= jitter <= 1", |v| (0.0..=1.0)

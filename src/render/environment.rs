@@ -94,6 +94,14 @@ pub enum EnvironmentError {
         /// The operating system's reason.
         message: String,
     },
+    /// A valid OpenEXR image without the colour an environment needs.
+    #[error("environment map {}: no layer has R, G and B channels (its channels: {channels}); allowed: a colour map", .path.display())]
+    NotColour {
+        /// The path as given.
+        path: PathBuf,
+        /// The channels it has, comma separated.
+        channels: String,
+    },
     /// The bytes are not a valid image of the format its extension claims.
     #[error("environment map {}: corrupt or unreadable {format} data: {message}", .path.display())]
     Decode {
@@ -1942,7 +1950,15 @@ fn read_exr(path: &Path, intensity: f64) -> Result<PackedTexels, EnvironmentErro
         .headers
         .iter()
         .find(|h| has(h, "R") && has(h, "G") && has(h, "B"))
-        .ok_or_else(|| decode_error("no layer has R, G and B channels".to_string()))?;
+        .ok_or_else(|| EnvironmentError::NotColour {
+            path: path.to_path_buf(),
+            channels: meta
+                .headers
+                .iter()
+                .flat_map(|h| h.channels.list.iter().map(|c| c.name.to_string()))
+                .collect::<Vec<_>>()
+                .join(", "),
+        })?;
     let (width, height) = (header.layer_size.width(), header.layer_size.height());
     let origin = path.display().to_string();
     check_size(&origin, width, height)?;
