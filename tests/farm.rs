@@ -441,8 +441,9 @@ fn a_batch_task_re_run_gives_the_same_tile_and_a_complete_one_is_skipped() {
     std::fs::write(&job, JOB.replace("spp: 2", "spp: 3")).unwrap();
     refused(
         &["batch", s(&job), "--merge"],
-        "its spp is 2, not 3): run its task again",
+        "its spp is 2, not 3): run its task again (`lapidary batch",
     );
+    refused(&["batch", s(&job), "--merge"], "--task 0`)");
     let log = ok(&["batch", s(&job), "--task", "3"]);
     assert!(!log.contains("skipped"), "{log}");
     assert_ne!(bytes(&tile), first);

@@ -177,7 +177,7 @@ fn merge_all(job: &Job, args: &BatchArgs) -> Result<(), String> {
             let output = job.image_path(image, *frame);
             let wanted = render_args(job, image, output.clone(), args);
             let expected = super::render::expected_record(&wanted, job.turntable, *frame)?;
-            for tile in &tiles {
+            for (task, tile) in (first..).zip(&tiles) {
                 let found = &tile.record.render_lines;
                 if let Some(((key, theirs), (_, ours))) = found
                     .iter()
@@ -185,8 +185,9 @@ fn merge_all(job: &Job, args: &BatchArgs) -> Result<(), String> {
                     .find(|(a, b)| *a != b)
                 {
                     return Err(format!(
-                        "{} is a tile of another render than {} asks for now (its {key} is {theirs}, not {ours}): run its task again",
+                        "{} is a tile of another render than {} asks for now (its {key} is {theirs}, not {ours}): run its task again (`lapidary batch {} --task {task}`)",
                         tile.path.display(),
+                        args.job.display(),
                         args.job.display()
                     ));
                 }

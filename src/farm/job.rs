@@ -359,8 +359,18 @@ impl Job {
                 }
             }
         }
+        let output = resolve(&spec.output);
+        if output.exists() && !output.is_dir() {
+            return Err((
+                "output",
+                format!(
+                    "`output` {} is a file; allowed: a folder (made if missing) for the tiles and images",
+                    output.display()
+                ),
+            ));
+        }
         Ok(Job {
-            output: resolve(&spec.output),
+            output,
             images,
             turntable: spec.turntable.as_ref().map(|t| Turntable {
                 frames: t.frames,
@@ -499,5 +509,12 @@ mod tests {
         );
         let e = job(r#"Job(output: "o", recipes: ["goldstone"], scenes: ["tray"])"#).unwrap_err();
         assert!(e.contains("allowed `studio`"), "{e}");
+        // An output that is a file (this crate's manifest) holds no tiles.
+        let manifest = concat!(env!("CARGO_MANIFEST_DIR"), "/Cargo.toml");
+        let e = job(&format!(
+            r#"Job(output: "{manifest}", recipes: ["goldstone"])"#
+        ))
+        .unwrap_err();
+        assert!(e.contains("is a file; allowed: a folder"), "{e}");
     }
 }
