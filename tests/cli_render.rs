@@ -182,6 +182,61 @@ fn scene_studio_is_the_built_in_scene_and_a_gem_is_no_scene() {
 }
 
 #[test]
+fn switches_in_the_environment_are_read_in_any_case_and_others_are_said_to_be_ignored() {
+    let dir = scratch("switches");
+    let png = dir.join("gem.png");
+    let render = |name: &str, value: &str| {
+        Command::new(env!("CARGO_BIN_EXE_lapidary"))
+            .args(["render", "--size", "8", "--spp", "1", "-o"])
+            .arg(&png)
+            .env(name, value)
+            .output()
+            .unwrap()
+    };
+    let out = render("LAPIDARY_SIMD", "OFF");
+    assert!(stderr(&out).contains("portable code"), "{}", stderr(&out));
+    for (name, value) in [("LAPIDARY_SIMD", "0"), ("LAPIDARY_CACHE", "false")] {
+        let out = render(name, value);
+        assert!(out.status.success(), "{}", stderr(&out));
+        assert!(
+            stderr(&out).contains(&format!("warning: {name}={value} is ignored; allowed: off")),
+            "{}",
+            stderr(&out)
+        );
+    }
+    let out = render("LAPIDARY_CACHE_DIR", png.to_str().unwrap());
+    assert!(
+        stderr(&out).contains("is not a folder: tables are kept in memory only"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+#[test]
+fn a_recipe_no_stone_takes_is_said_to_be_unused() {
+    // Every stone of the peer scene names its own recipe.
+    let dir = scratch("unused-recipe");
+    let png = dir.join("peer.png");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/bench/peer-scene.ron");
+    let args = ["--scene", scene, "--size", "8", "--spp", "1", "-q", "-o"];
+    let mut with_recipe = vec!["render", "goldstone"];
+    with_recipe.extend(args);
+    with_recipe.push(png.to_str().unwrap());
+    let out = lapidary(&with_recipe);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("names its own recipe: goldstone is not used"),
+        "{}",
+        stderr(&out)
+    );
+    let mut without = vec!["render"];
+    without.extend(args);
+    without.push(png.to_str().unwrap());
+    let out = lapidary(&without);
+    assert!(!stderr(&out).contains("warning"), "{}", stderr(&out));
+}
+
+#[test]
 fn footprints_by_default_and_exact_flakes_on_request_and_neither_with_the_thread_count() {
     // Goldstone's copper at 32 px: about a hundred flakes to a pixel, and
     // any met after a flake's reflection, so by default some are shaded by

@@ -181,10 +181,32 @@ pub fn worker_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> 
 /// same bytes, or to rule the vector code out when chasing a problem).
 pub fn code_path_from_env() -> lapidary::render::cpu::CodePath {
     use lapidary::render::cpu::CodePath;
-    match std::env::var("LAPIDARY_SIMD").as_deref() {
-        Ok("off") => CodePath::Portable,
-        _ => CodePath::best_available(),
+    if switched_off("LAPIDARY_SIMD") {
+        CodePath::Portable
+    } else {
+        CodePath::best_available()
     }
+}
+
+/// Whether the environment variable `name` is `off` (in any case); any
+/// other value is said to be ignored, once per run.
+pub(crate) fn switched_off(name: &str) -> bool {
+    static WARNED: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+    let Some(value) = std::env::var_os(name).filter(|v| !v.is_empty()) else {
+        return false;
+    };
+    if value.eq_ignore_ascii_case("off") {
+        return true;
+    }
+    let mut warned = WARNED.lock().unwrap_or_else(|e| e.into_inner());
+    if !warned.iter().any(|n| n == name) {
+        warned.push(name.to_string());
+        eprintln!(
+            "warning: {name}={} is ignored; allowed: off, or leave it unset",
+            value.to_string_lossy()
+        );
+    }
+    false
 }
 
 /// The compensation-table cache of this run: in memory, and on disk in
@@ -195,7 +217,7 @@ pub fn table_cache_from_env() -> lapidary::recipe::TableCache {
     use lapidary::recipe::TableCache;
     use std::path::PathBuf;
     let set = |name: &str| std::env::var_os(name).filter(|v| !v.is_empty());
-    if std::env::var("LAPIDARY_CACHE").is_ok_and(|v| v == "off") {
+    if switched_off("LAPIDARY_CACHE") {
         return TableCache::in_memory();
     }
     let folder = set("LAPIDARY_CACHE_DIR")
@@ -203,6 +225,13 @@ pub fn table_cache_from_env() -> lapidary::recipe::TableCache {
         .or_else(|| set("XDG_CACHE_HOME").map(|xdg| PathBuf::from(xdg).join("lapidary")))
         .or_else(|| set("HOME").map(|home| PathBuf::from(home).join(".cache").join("lapidary")));
     match folder {
+        Some(folder) if folder.exists() && !folder.is_dir() => {
+            eprintln!(
+                "warning: the table cache {} is not a folder: tables are kept in memory only",
+                folder.display()
+            );
+            TableCache::in_memory()
+        }
         Some(folder) => TableCache::with_folder(folder),
         None => TableCache::in_memory(),
     }

@@ -495,6 +495,13 @@ impl Inputs {
         };
         let gem = GemSource::load(args.recipe.as_deref().unwrap_or(DEFAULT_GEM))
             .map_err(|e| e.to_string())?;
+        if let Some(recipe) = &args.recipe {
+            if !scene.stones.is_empty() && scene.stones.iter().all(|s| s.recipe.is_some()) {
+                eprintln!(
+                    "warning: every stone of the scene names its own recipe: {recipe} is not used"
+                );
+            }
+        }
         if let Some(env) = args.env.as_deref().filter(|path| !path.exists()) {
             return Err(format!(
                 "--env {}: no such file; --env takes an equirectangular .hdr or .exr map (the procedural studio light is a scene's `environment: Studio(…)`, the built-in scene's own: leave --env out for it)",
@@ -543,7 +550,7 @@ impl Renderer {
     ) -> Result<Renderer, String> {
         // `LAPIDARY_MNEE=off` leaves light through smooth translucent surfaces
         // to path sampling alone, to measure what the connections gain.
-        let connections = std::env::var("LAPIDARY_MNEE").as_deref() != Ok("off");
+        let connections = !super::switched_off("LAPIDARY_MNEE");
         let record = RenderRecord {
             version: env!("CARGO_PKG_VERSION").to_string(),
             recipe: args
