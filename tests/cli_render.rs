@@ -213,6 +213,27 @@ fn switches_in_the_environment_are_read_in_any_case_and_others_are_said_to_be_ig
 }
 
 #[test]
+fn an_output_through_a_symbolic_link_replaces_the_file_it_points_to() {
+    let dir = scratch("symlink");
+    let (target, link) = (dir.join("target.png"), dir.join("link.png"));
+    std::fs::write(&target, "old").unwrap();
+    std::os::unix::fs::symlink("target.png", &link).unwrap();
+    let out = lapidary(&[
+        "render",
+        "--size",
+        "8",
+        "--spp",
+        "1",
+        "-q",
+        "-o",
+        link.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(link.is_symlink(), "the link was replaced by a file");
+    assert_eq!(&std::fs::read(&target).unwrap()[1..4], b"PNG");
+}
+
+#[test]
 fn a_recipe_no_stone_takes_is_said_to_be_unused() {
     // Every stone of the peer scene names its own recipe.
     let dir = scratch("unused-recipe");

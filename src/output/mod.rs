@@ -89,6 +89,13 @@ pub(crate) fn write_atomically_with(
     write: impl FnOnce(&mut std::fs::File) -> Result<(), String>,
 ) -> Result<(), OutputError> {
     check_writable(path)?;
+    // Through a symbolic link, the file it points to is replaced and the
+    // link kept (renaming over the link would replace the link itself).
+    let resolved = path
+        .is_symlink()
+        .then(|| std::fs::canonicalize(path).ok())
+        .flatten();
+    let path = resolved.as_deref().unwrap_or(path);
     let tmp = temporary_sibling(path);
     UNFINISHED
         .lock()
