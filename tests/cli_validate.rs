@@ -433,6 +433,26 @@ fn stones_sunk_into_the_ground_or_crossing_each_other_are_warned_of() {
 }
 
 #[test]
+fn a_camera_or_light_inside_a_stone_is_warned_of() {
+    let dir = scratch("inside");
+    // The orbit's eye 0.001 mm from its target in the stone's dome; a
+    // point light there too, and a sphere light well outside.
+    let scene = GOOD_SCENE.replace("distance: 40.0", "distance: 0.001").replace(
+        "    ground",
+        "    lights: [\n        Sphere(centre: (0.0, 0.0, 30.0), radius: 1.0, radiance: (10.0, 10.0, 10.0)),\n        Point(position: (0.0, 0.0, 1.0), intensity: (10.0, 10.0, 10.0)),\n    ],\n    ground",
+    );
+    let (code, out, err) = validate_file(&dir, "inside.ron", scene.as_bytes());
+    assert_eq!(code, 0, "a warning is not an error: {err}");
+    let warnings: Vec<&str> = out.lines().filter(|l| l.contains("warning")).collect();
+    assert_eq!(warnings.len(), 2, "{out}");
+    assert!(
+        warnings[0].contains("the camera is inside stone 1"),
+        "{out}"
+    );
+    assert!(warnings[1].contains("light 2 is inside stone 1"), "{out}");
+}
+
+#[test]
 fn scenes_are_checked_with_the_gems_and_materials_they_name() {
     let dir = scratch("scene");
     let (code, out, err) = validate_file(&dir, "good-scene.ron", GOOD_SCENE.as_bytes());

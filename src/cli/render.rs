@@ -19,7 +19,7 @@ use lapidary::recipe::gem::GemSource;
 use lapidary::recipe::library::DEFAULT_GEM;
 use lapidary::recipe::Tables;
 use lapidary::render::film::{render_rows_cancellable, FilmSettings, PixelFilter};
-use lapidary::render::overlaps::placement_problems;
+use lapidary::render::overlaps::{placement_problems, viewpoint_problems};
 use lapidary::render::prepare::{camera_for, prepare_scene};
 use lapidary::render::render_scene::RenderScene;
 use lapidary::render::tiles::TileSplit;
@@ -623,7 +623,11 @@ impl Renderer {
             || "the studio scene".to_string(),
             |p| p.display().to_string(),
         );
-        for problem in placement_problems(&traced.world) {
+        let problems = placement_problems(&traced.world);
+        for problem in problems
+            .iter()
+            .chain(&viewpoint_problems(&traced.world, &self.scene))
+        {
             eprintln!("warning: {scene_name}: {problem}");
         }
         traced.ambient_occlusion = args.ao;

@@ -24,7 +24,7 @@ use lapidary::recipe::library::{
 };
 use lapidary::recipe::material::BaseSpec;
 use lapidary::render::environment::Environment;
-use lapidary::render::overlaps::placement_problems;
+use lapidary::render::overlaps::{placement_problems, viewpoint_problems};
 use lapidary::render::prepare::stone_instances;
 use lapidary::render::world::World;
 use lapidary::scene::spec::{EnvironmentKind, SceneSpec};
@@ -224,6 +224,7 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<String,
     let world = World::new(stones, scene.ground.as_ref().map(|g| g.height));
     let warnings: String = placement_problems(&world)
         .iter()
+        .chain(&viewpoint_problems(&world, &scene))
         .map(|problem| format!("\n{path}: warning: {problem}"))
         .collect();
     Ok(format!(

@@ -3,13 +3,15 @@
 //! most resting on the ground. A stone sunk into the ground, or two stones
 //! that cross, still render, but a path inside a translucent body then
 //! meets surfaces it does not expect (another stone, or the ground, inside
-//! it). `lapidary render` and `validate` warn of both.
+//! it). A camera or a light inside a stone sees or lights nothing else.
+//! `lapidary render` and `validate` warn of each.
 
 use std::fmt;
 
 use glam::DVec3;
 
 use crate::render::world::World;
+use crate::scene::{LightSpec, Scene};
 
 /// Directions from a stone's axis to its surface at which it is probed
 /// (a Fibonacci sphere): each crossing deeper than [`DEPTH_TOLERANCE_MM`]
@@ -41,6 +43,19 @@ pub enum PlacementProblem {
         /// A point of the one inside the other, mm.
         point: DVec3,
     },
+    /// The camera lies inside stone `stone` (from 0): the picture is
+    /// that stone's inside.
+    CameraInside {
+        /// The stone, from 0.
+        stone: usize,
+    },
+    /// Light `light` (from 0, in scene order) lies inside stone `stone`.
+    LightInside {
+        /// The light, from 0.
+        light: usize,
+        /// The stone, from 0.
+        stone: usize,
+    },
 }
 
 impl fmt::Display for PlacementProblem {
@@ -67,8 +82,38 @@ impl fmt::Display for PlacementProblem {
                 point.y,
                 point.z
             ),
+            Self::CameraInside { stone } => write!(
+                f,
+                "the camera is inside stone {}: the picture shows nothing else (move it out)",
+                stone + 1
+            ),
+            Self::LightInside { light, stone } => write!(
+                f,
+                "light {} is inside stone {}: it lights nothing (move it out)",
+                light + 1,
+                stone + 1
+            ),
         }
     }
+}
+
+/// The camera of `scene`, then each of its lights with a place (all but a
+/// sun), that lies inside a stone of `world` (the scene's stones, placed).
+pub fn viewpoint_problems(world: &World, scene: &Scene) -> Vec<PlacementProblem> {
+    let inside = |point: DVec3| {
+        (0..world.stones().len()).find(|&stone| depth_inside(world, stone, point) > 0.0)
+    };
+    let camera =
+        inside(scene.camera.position).map(|stone| PlacementProblem::CameraInside { stone });
+    let lights = scene.lights.iter().enumerate().filter_map(|(light, spec)| {
+        let place = match *spec {
+            LightSpec::Point { position, .. } => position,
+            LightSpec::Sphere { centre, .. } | LightSpec::Rect { centre, .. } => centre,
+            LightSpec::Sun { .. } => return None,
+        };
+        inside(place).map(|stone| PlacementProblem::LightInside { light, stone })
+    });
+    camera.into_iter().chain(lights).collect()
 }
 
 /// Every stone of `world` that sinks into its ground, then every pair of
