@@ -187,3 +187,37 @@ fn ctrl_c_while_the_sheet_is_written_leaves_no_file() {
         other => panic!("exit {other:?} (seen writing: {seen_writing}): {stderr}"),
     }
 }
+
+#[test]
+fn narrow_panels_keep_their_labels_apart() {
+    // At 48 px a panel is narrower than "1 surface map": the labels must
+    // shorten rather than run into the margin between panels (they did).
+    let dir = scratch("narrow");
+    let png = dir.join("narrow.png");
+    let out = lapidary(&[
+        "maps",
+        "lavender-lepidolite",
+        "-o",
+        png.to_str().unwrap(),
+        "--size",
+        "48",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let img = image::open(&png).unwrap().to_rgb8();
+    let (panel, margin) = (48, 12);
+    let background = *img.get_pixel(0, img.height() - 1);
+    // The rows above the panels: title and labels.
+    let panels_top = img.height() - margin - panel;
+    for k in 1..4 {
+        let gap = k * (panel + margin);
+        for x in gap..gap + margin {
+            for y in 24..panels_top {
+                assert_eq!(*img.get_pixel(x, y), background, "ink at ({x}, {y})");
+            }
+        }
+    }
+}

@@ -4,7 +4,7 @@ use super::MapsArgs;
 use lapidary::brdf::compensation::single_crossing_albedo;
 use lapidary::brdf::Rgb;
 use lapidary::gallery::plot::maps::{maps_sheet, MapsSheetStyle};
-use lapidary::recipe::gem::{compile_gem, Gem, GemSource};
+use lapidary::recipe::gem::{compile_gem, Body, Gem, GemSource};
 use lapidary::recipe::Tables;
 
 /// Panel sizes beyond this would make a sheet of more than ~200 MB.
@@ -42,6 +42,12 @@ pub fn run(args: MapsArgs) -> Result<(), String> {
         extent: args.extent,
         title: format!("{}: figure 4.6 maps, slice z = 0", gem.name),
     };
+    if matches!(gem.body, Body::Translucent { .. }) {
+        eprintln!(
+            "note: {} is translucent: its look comes from inside the stone, which this sheet of its surface maps does not show",
+            gem.name
+        );
+    }
     let image = maps_sheet(&gem.pattern, &colours, &style);
     lapidary::output::write_png(&args.output, &image).map_err(|e| e.to_string())?;
     eprintln!("wrote {}", args.output.display());

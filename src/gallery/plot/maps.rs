@@ -76,14 +76,26 @@ pub fn maps_sheet(pattern: &Pattern, material_colours: &[Rgb], style: &MapsSheet
     let width = MARGIN + 4 * (n + MARGIN);
     let height = title_h + label_h + n + MARGIN;
     let mut img = RgbImage::from_pixel(width, height, BACKGROUND);
-    draw_text(&mut img, MARGIN as i64, 6, &style.title, LABEL_SCALE, INK);
+    // The title and labels as long as they fit: a narrow sheet gets the
+    // title's first part (up to its colon) and the labels' first words.
+    let fits = |text: &str, room: u32| text_width(text, LABEL_SCALE) <= room;
+    let title = match style.title.split_once(':') {
+        Some((short, _)) if !fits(&style.title, width - MARGIN) => short,
+        _ => style.title.as_str(),
+    };
+    draw_text(&mut img, MARGIN as i64, 6, title, LABEL_SCALE, INK);
     let labels = [
-        "1 surface map",
-        "2 glitter map",
-        "4 facet normals",
-        "5 combined",
+        ["1 surface map", "1 surface", "1"],
+        ["2 glitter map", "2 glitter", "2"],
+        ["4 facet normals", "4 facets", "4"],
+        ["5 combined", "5 both", "5"],
     ];
-    for (k, label) in labels.iter().enumerate() {
+    // One form for all four: the longest in which every label fits.
+    let form = (0..2)
+        .find(|&f| labels.iter().all(|forms| fits(forms[f], n)))
+        .unwrap_or(2);
+    for (k, forms) in labels.iter().enumerate() {
+        let label = forms[form];
         let x0 = MARGIN + k as u32 * (n + MARGIN);
         let w = text_width(label, LABEL_SCALE).min(n);
         draw_text(
