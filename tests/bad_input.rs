@@ -825,6 +825,27 @@ fn a_file_of_another_kind() {
 // ---- files that are not recipes ------------------------------------------
 
 #[test]
+fn a_file_of_another_kind_and_an_output_without_a_name() {
+    // Markdown starts with `#`, which RON reads as an attribute.
+    // (`validate` tells the kinds apart before parsing; `render` parses.)
+    let readme = concat!(env!("CARGO_MANIFEST_DIR"), "/README.md");
+    let render = os(&["render", readme, "--size", "8", "--spp", "1"]);
+    assert_refused_writing(
+        "markdown",
+        &render,
+        "gem.png",
+        &["is this a RON file?".to_string()],
+    );
+    let render = os(&["render", "--size", "8", "--spp", "1"]);
+    assert_refused_writing(
+        "nameless",
+        &render,
+        ".png",
+        &["after a name (`gem.png`)".to_string()],
+    );
+}
+
+#[test]
 fn a_byte_order_mark_is_read_past() {
     // Some editors start a UTF-8 file with U+FEFF; it is not RON.
     let dir = scratch("bom");

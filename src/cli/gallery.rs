@@ -106,10 +106,10 @@ pub fn run(args: GalleryArgs) -> Result<(), String> {
     );
     if needed > available {
         return Err(format!(
-            "--size {}: a gem's render needs {:.1} GiB of memory, but only {:.1} GiB is available; use a smaller --size",
+            "--size {}: a gem's render needs {} of memory, but only {} is available; use a smaller --size",
             args.size,
-            super::memory::gib(needed),
-            super::memory::gib(available)
+            super::memory::amount(needed),
+            super::memory::amount(available)
         ));
     }
     let gems: Vec<&str> = builtin_gem_names().collect();

@@ -24,9 +24,18 @@ pub(crate) fn render_needs(width: u32, height: u32) -> u64 {
     2 * u64::from(width) * u64::from(height) * lapidary::render::film::FILM_BYTES_PER_PIXEL
 }
 
-/// Gibibytes in `bytes`, for messages.
+/// Gibibytes in `bytes`.
 pub(crate) fn gib(bytes: u64) -> f64 {
     bytes as f64 / f64::from(1u32 << 30)
+}
+
+/// `bytes` for a message: in GiB from one GiB, else in MiB.
+pub(crate) fn amount(bytes: u64) -> String {
+    if bytes >= 1 << 30 {
+        format!("{:.1} GiB", gib(bytes))
+    } else {
+        format!("{:.1} MiB", bytes as f64 / f64::from(1u32 << 20))
+    }
 }
 
 /// `MemAvailable` of /proc/meminfo.

@@ -202,8 +202,17 @@ fn output_format(path: &Path) -> Result<Format, String> {
         Some("png") => Ok(Format::Png),
         Some("exr") => Ok(Format::Exr),
         _ => Err(format!(
-            "{}: the output must end in .png or .exr",
-            path.display()
+            "{}: the output must end in .png or .exr{}",
+            path.display(),
+            if path.extension().is_none()
+                && path.file_name().is_some_and(
+                    |n| n.eq_ignore_ascii_case(".png") || n.eq_ignore_ascii_case(".exr")
+                )
+            {
+                ", after a name (`gem.png`)"
+            } else {
+                ""
+            }
         )),
     }
 }
@@ -275,17 +284,17 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
     };
     if super::memory::gib(needed) > args.max_memory {
         return Err(format!(
-            "{what} needs {:.2} GiB of memory for its film, above the --max-memory limit of {} GiB; raise it, use a smaller --size or split it with {more_tiles}",
-            super::memory::gib(needed),
+            "{what} needs {} of memory for its film, above the --max-memory limit of {} GiB; raise it, use a smaller --size or split it with {more_tiles}",
+            super::memory::amount(needed),
             args.max_memory
         ));
     }
     let available = super::memory::available_bytes();
     if needed > available {
         return Err(format!(
-            "{what} needs {:.1} GiB of memory for its film, but only {:.1} GiB is available; use a smaller --size or split it with {more_tiles}",
-            super::memory::gib(needed),
-            super::memory::gib(available)
+            "{what} needs {} of memory for its film, but only {} is available; use a smaller --size or split it with {more_tiles}",
+            super::memory::amount(needed),
+            super::memory::amount(available)
         ));
     }
     Ok((width, height))

@@ -286,6 +286,13 @@ pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col
             " (is this `{c}` one too many, or the wrong kind of bracket?)"
         ));
     }
+    // A `#` opens RON's attributes (`#![enable(…)]`): at a file's start
+    // it is more likely a file of another kind (Markdown, a shell script).
+    if message.contains("#![enable(") && line == 1 {
+        message.push_str(
+            " (is this a RON file? a recipe starts with `Gem(`, `Material(`, `Scene(` or `Job(`)",
+        );
+    }
     // A whole number's field given a fraction: RON reads the whole part
     // and then stops at the point.
     let mut after = rest.chars();

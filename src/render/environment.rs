@@ -64,10 +64,6 @@ pub const MAX_STUDIO_INTENSITY: f64 = MAX_TEXEL_RADIANCE / 12.0;
 /// Height of the baked studio map.
 pub const STUDIO_HEIGHT: usize = 512;
 
-/// Bytes a map holds per texel: radiance and sampling tables (see
-/// [`EnvironmentMap`]); loading adds no copy of the image.
-const BYTES_PER_TEXEL: usize = 8;
-
 /// The brightest channel a map's texel may have in its file (before
 /// `intensity`), 511 × 2²³ ≈ 4.29 × 10⁹.
 pub use super::shared_exponent::MAX_RADIANCE as MAX_TEXEL_RADIANCE;
@@ -136,9 +132,8 @@ pub enum EnvironmentError {
     },
     /// A map beyond `MAX_MAP_WIDTH` × `MAX_MAP_HEIGHT`.
     #[error(
-        "environment map {origin}: image is {width}×{height} texels, larger than the \
-         {MAX_MAP_WIDTH}×{MAX_MAP_HEIGHT} limit; loading it would need about {mebibytes} MiB \
-         of memory (downscale it first)"
+        "environment map {origin}: image is {width}×{height} texels; allowed: at most \
+         {MAX_MAP_WIDTH} wide and {MAX_MAP_HEIGHT} high (downscale it first)"
     )]
     TooLarge {
         /// The file path, or a note that the map came from memory.
@@ -147,8 +142,6 @@ pub enum EnvironmentError {
         width: usize,
         /// Height found.
         height: usize,
-        /// Memory the map and its sampling tables would take.
-        mebibytes: u64,
     },
     /// Texel data whose length is not width × height.
     #[error("environment map {origin}: {len} texels given for a {width}×{height} map")]
@@ -1740,12 +1733,10 @@ fn check_size(origin: &str, width: usize, height: usize) -> Result<(), Environme
         });
     }
     if width > MAX_MAP_WIDTH || height > MAX_MAP_HEIGHT {
-        let bytes = (width as u128) * (height as u128) * BYTES_PER_TEXEL as u128;
         return Err(EnvironmentError::TooLarge {
             origin: origin.to_string(),
             width,
             height,
-            mebibytes: u64::try_from(bytes.div_ceil(1 << 20)).unwrap_or(u64::MAX),
         });
     }
     Ok(())
