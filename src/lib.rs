@@ -10,17 +10,27 @@
 //! as PNG or EXR. A render is a pure function of (recipes, scene, seed,
 //! settings): the same bytes for any thread count.
 //!
+//! The steps of `lapidary render` (the same bytes as `lapidary render
+//! goldstone --size 32 --spp 4`); the recipe language is the
+//! repository's `docs/recipes.md`, the command's built-in default gem
+//! [`recipe::library::DEFAULT_GEM`]:
+//!
 //! ```
+//! use std::sync::Arc;
 //! use lapidary::render::{film, prepare};
 //! use lapidary::{output, scene, GemSource, TableCache, Tables};
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! let gem = GemSource::load("goldstone")?; // a built-in name or a .ron path
 //! let scene = scene::default_scene(); // or scene::load_scene(path)?
-//! let cache = TableCache::in_memory(); // or TableCache::with_folder(dir)
+//! let cache = Arc::new(TableCache::in_memory()); // or TableCache::with_folder(dir)
 //! let tables = Tables::Computed(&cache);
-//! let traced = prepare::prepare_scene(&scene, &gem, None, 4, tables, &|_| {})?;
+//! let bounces = 4; // after the first hit
+//! let mut traced = prepare::prepare_scene(&scene, &gem, None, bounces, tables, &|_| {})?;
+//! // Flakes and glitter shaded by each pixel's footprint, as the command
+//! // does unless `--exact-flakes` (leave it out for that).
+//! traced.shade_flakes_by_footprint(Some(Arc::clone(&cache)));
 //! let camera = prepare::camera_for(&scene, 32, 32);
-//! let settings = film::FilmSettings::new(32, 32, 4, 1); // size, spp, seed
+//! let settings = film::FilmSettings::new(32, 32, 4, 0); // size, spp, seed (`--seed`)
 //! let film = film::render(&traced, &camera, &settings, &|_| {});
 //! let png = output::tonemap::DisplayTransform::default().encode(&film.rgb, 32, 32);
 //! output::write_png(&std::env::temp_dir().join("goldstone.png"), &png)?;
@@ -41,5 +51,10 @@ pub mod sampling;
 pub mod scene;
 pub mod texture;
 
+/// The vector maths of the public API (`DVec3`, `DQuat`), at the version
+/// lapidary is built with.
+pub use glam;
+/// The image type PNG output takes and gives (`RgbImage`).
+pub use image;
 pub use recipe::gem::{compile_gem, compile_gems, Gem, GemSource};
 pub use recipe::{TableCache, Tables};

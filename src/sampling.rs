@@ -1,5 +1,5 @@
 //! Deterministic random numbers and hemisphere warps shared by the BRDF
-//! estimators and (later) the renderer.
+//! estimators and the renderer.
 //!
 //! Every estimator in lapidary is a pure function of its seed: there is no
 //! global RNG. [`Rng`] is SplitMix64 (Steele, Lea & Flood 2014), small,

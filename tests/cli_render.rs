@@ -234,6 +234,47 @@ fn an_output_through_a_symbolic_link_replaces_the_file_it_points_to() {
 }
 
 #[test]
+fn the_crate_docs_steps_render_the_command_s_bytes() {
+    use lapidary::render::{film, prepare};
+    use lapidary::{output, scene, GemSource, TableCache, Tables};
+    use std::sync::Arc;
+    let dir = scratch("library");
+    let (library, command) = (dir.join("library.png"), dir.join("command.png"));
+    // The steps of src/lib.rs's example, for goldstone (footprints matter).
+    let gem = GemSource::load("goldstone").unwrap();
+    let scene = scene::default_scene();
+    let cache = Arc::new(TableCache::in_memory());
+    let mut traced =
+        prepare::prepare_scene(&scene, &gem, None, 4, Tables::Computed(&cache), &|_| {}).unwrap();
+    traced.shade_flakes_by_footprint(Some(Arc::clone(&cache)));
+    let camera = prepare::camera_for(&scene, 24, 24);
+    let settings = film::FilmSettings::new(24, 24, 4, 0);
+    let film = film::render(&traced, &camera, &settings, &|_| {});
+    let png = output::tonemap::DisplayTransform::default().encode(&film.rgb, 24, 24);
+    output::write_png(&library, &png).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_lapidary"))
+        .args([
+            "render",
+            "goldstone",
+            "--size",
+            "24",
+            "--spp",
+            "4",
+            "-q",
+            "-o",
+        ])
+        .arg(&command)
+        .env("LAPIDARY_CACHE", "off")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(
+        std::fs::read(&library).unwrap(),
+        std::fs::read(&command).unwrap()
+    );
+}
+
+#[test]
 fn a_recipe_no_stone_takes_is_said_to_be_unused() {
     // Every stone of the peer scene names its own recipe.
     let dir = scratch("unused-recipe");

@@ -104,7 +104,8 @@ impl LayeredBrdf {
 
     /// The full BRDF f(wi, wo) (no cosine): the single-crossing model plus
     /// the compensation lobe when enabled. wi: towards the light; wo: towards
-    /// the viewer; both in the local frame with z the normal.
+    /// the viewer; both unit vectors (other lengths give wrong values), in
+    /// the local frame with z the normal.
     pub fn eval(&self, wi: DVec3, wo: DVec3) -> Rgb {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return Rgb::ZERO;

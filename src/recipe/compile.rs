@@ -194,7 +194,10 @@ pub fn locate_material(spec: &str) -> Result<MaterialSource, RecipeError> {
     }
 }
 
-/// Load, parse and compile MATERIAL (a library name or a RON file).
+/// Load, parse and compile MATERIAL (a library name or a RON file), with its
+/// compensation table when it asks for one (`multiple_scattering`, the
+/// default), computed here and not cached: see
+/// [`crate::recipe::TableCache`] to keep tables between calls.
 pub fn load_material(spec: &str) -> Result<LayeredBrdf, RecipeError> {
     let source = locate_material(spec)?;
     let material = parse_material(&source.path, &source.text)?;
@@ -203,7 +206,7 @@ pub fn load_material(spec: &str) -> Result<LayeredBrdf, RecipeError> {
 
 /// [`load_material`] without the compensation table, and whether the
 /// material asks for one (`multiple_scattering`), for callers that compute
-/// several tables together (see `compile_material_without_table`).
+/// several tables together.
 pub fn load_material_without_table(spec: &str) -> Result<(LayeredBrdf, bool), RecipeError> {
     let source = locate_material(spec)?;
     let material = parse_material(&source.path, &source.text)?;

@@ -286,6 +286,17 @@ pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col
             " (is this `{c}` one too many, or the wrong kind of bracket?)"
         ));
     }
+    // Whole numbers out of their type's range, or written with a fraction
+    // or an exponent.
+    if message.ends_with("Integer is out of bounds") {
+        message
+            .push_str("; allowed: a whole number from 0, without a sign, within the field's range");
+    }
+    if message.contains("for base 10 integers") {
+        message.push_str(
+            "; allowed: a whole number written in digits only (no point, exponent or sign)",
+        );
+    }
     // A `#` opens RON's attributes (`#![enable(…)]`): at a file's start
     // it is more likely a file of another kind (Markdown, a shell script).
     if message.contains("#![enable(") && line == 1 {

@@ -67,7 +67,16 @@ const GAUSSIAN_RADIUS_PX: f64 = 1.5;
 impl FilmSettings {
     /// `width` × `height` pixels, `samples_per_pixel` samples each, drawn
     /// from `seed`, on the best copy of the pixel loop this CPU runs.
+    ///
+    /// # Panics
+    ///
+    /// If a size or the sample count is 0 (a film of no pixels, or of
+    /// pixels without a sample).
     pub fn new(width: u32, height: u32, samples_per_pixel: u32, seed: u64) -> Self {
+        assert!(
+            width > 0 && height > 0 && samples_per_pixel > 0,
+            "a film needs at least one pixel and one sample per pixel: {width} × {height}, {samples_per_pixel} spp"
+        );
         Self {
             width,
             height,

@@ -1,5 +1,6 @@
-//! Scenes for `lapidary render --scene SCENE.ron`: a camera, stones placed in
-//! the world, a ground plane, lights and an environment.
+//! Scenes: a camera, stones placed in the world, a ground plane, lights and
+//! an environment (the files of `lapidary render --scene SCENE.ron`, or
+//! built in code).
 //!
 //! A scene file ([`spec`], units as written) is parsed and validated into
 //! the plain data below ([`compile`]): angles become directions and
@@ -39,7 +40,7 @@ pub(crate) const MAX_STONES: usize = 1024;
 pub struct Scene {
     /// The pinhole camera.
     pub camera: Camera,
-    /// The stones, 1 to `MAX_STONES`.
+    /// The stones, 1 to 1024 (a scene file with more is refused).
     pub stones: Vec<StonePlacement>,
     /// A horizontal ground plane, if any.
     pub ground: Option<Ground>,
