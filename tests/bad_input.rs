@@ -860,6 +860,24 @@ fn a_byte_order_mark_is_read_past() {
 }
 
 #[test]
+fn a_negative_or_exponent_seed_says_what_a_whole_number_is() {
+    bad_scene(
+        "negative-seed",
+        "position: (0.0, 0.0, 0.5),",
+        "position: (0.0, 0.0, 0.5),\n            seed: Some(-1),",
+        "seed: Some(-1)",
+        &["field `seed`: Integer is out of bounds; allowed: a whole number from 0"],
+    );
+    bad_scene(
+        "exponent-seed",
+        "position: (0.0, 0.0, 0.5),",
+        "position: (0.0, 0.0, 0.5),\n            seed: Some(1e20),",
+        "seed: Some(1e20)",
+        &["allowed: a whole number written in digits only"],
+    );
+}
+
+#[test]
 fn a_fraction_where_a_whole_number_belongs() {
     bad_scene(
         "fraction-frames",
