@@ -997,3 +997,87 @@ fn a_stone_of_the_command_line_gem_names_nothing_to_check() {
     let scene = parse_scene(&text, Some(&reference_dir().join("scene.ron"))).unwrap();
     assert_eq!(scene.stones[0].recipe, None);
 }
+
+#[test]
+fn a_scene_built_in_code_is_checked_before_it_renders() {
+    // Every light kind, as a scene file gives them, passes; so does the studio.
+    let good = scene_with(
+        "Orbit(target: (0.0, 0.0, 0.0), distance: 40.0, elevation_deg: 90.0, azimuth_deg: 0.0, vertical_fov_deg: 25.0)",
+        "Sphere(centre: (1.0, 2.0, 3.0), radius: 2.0, radiance: (4.0, 5.0, 6.0)),
+         Point(position: (-1.0, 0.0, 9.0), intensity: (10.0, 0.0, 1.0)),
+         Rect(centre: (20.0, 0.0, 10.0), aim_at: (0.0, 0.0, 10.0), width: 20.0, height: 10.0, radiance: (7.0, 7.0, 7.0)),
+         Sun(elevation_deg: 40.0, azimuth_deg: 30.0, angular_diameter_deg: 0.53, irradiance: (1.0, 0.9, 0.8))",
+        None,
+    );
+    assert_eq!(good.check(), Ok(()));
+    assert_eq!(default_scene().check(), Ok(()));
+    // What a scene built in code can get wrong, each once (these rendered
+    // black, flat or with dropped samples, without a word).
+    type Spoil = Box<dyn Fn(&mut Scene)>;
+    let broken: Vec<(&str, Spoil)> = vec![
+        ("camera", Box::new(|s| s.camera.position = s.camera.look_at)),
+        (
+            "vertical_fov_deg = 0",
+            Box::new(|s| s.camera.vertical_fov_deg = 0.0),
+        ),
+        ("stone 1", Box::new(|s| s.stones[0].rotation.x = 0.5)),
+        ("stone 1", Box::new(|s| s.stones[0].position.z = f64::NAN)),
+        (
+            "light 1",
+            Box::new(|s| {
+                if let LightSpec::Sphere { radius, .. } = &mut s.lights[0] {
+                    *radius = -1.0;
+                }
+            }),
+        ),
+        (
+            "light 2",
+            Box::new(|s| {
+                if let LightSpec::Point { intensity, .. } = &mut s.lights[1] {
+                    intensity.x = f64::NAN;
+                }
+            }),
+        ),
+        (
+            "light 3",
+            Box::new(|s| {
+                if let LightSpec::Rect { u_axis, normal, .. } = &mut s.lights[2] {
+                    *u_axis = *normal;
+                }
+            }),
+        ),
+        (
+            "environment",
+            Box::new(|s| {
+                s.environment = EnvironmentSpec::Constant(DVec3::new(1.0, -1.0, 1.0));
+            }),
+        ),
+    ];
+    for (named, spoil) in broken {
+        let mut scene = good.clone();
+        spoil(&mut scene);
+        let message = scene.check().expect_err(named);
+        assert!(message.contains(named), "{named}: {message}");
+        assert!(
+            message.contains("allowed") || message.contains("must"),
+            "{message}"
+        );
+    }
+}
+
+#[test]
+fn the_renderer_s_preparation_refuses_an_unchecked_scene() {
+    let mut blind = default_scene();
+    blind.camera.vertical_fov_deg = 180.0;
+    let gem = lapidary::GemSource::load("sunstone").unwrap();
+    let cache = lapidary::TableCache::in_memory();
+    let prepared = lapidary::render::prepare::prepare_scene(
+        &blind,
+        &gem,
+        None,
+        4,
+        lapidary::Tables::Computed(&cache),
+        &|_| {},
+    );
+    assert!(prepared.is_err_and(|e| e.contains("vertical_fov_deg = 180")));
+}

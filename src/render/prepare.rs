@@ -33,6 +33,7 @@ pub fn prepare_scene(
     tables: Tables<'_>,
     report: &dyn Fn(&str),
 ) -> Result<RenderScene, String> {
+    scene.check()?;
     // Each distinct (recipe, seed) is one gem; `None` is `default_gem`.
     let mut keys: Vec<(Option<&str>, Option<u64>)> = Vec::new();
     let mut stones = stone_instances(scene)?;

@@ -55,6 +55,123 @@ pub struct Scene {
     pub path: Option<PathBuf>,
 }
 
+impl Scene {
+    /// Checks what the renderer assumes of a scene built in code (a scene
+    /// file is checked as it is read, each value at its place): a camera
+    /// whose eye is not its target and whose field of view is in (0, 170)
+    /// degrees; finite places within 10⁵ mm and unit rotations; lights of
+    /// at least 0.01 mm (a sun 0.01° to 20°) with unit directions and
+    /// orthonormal axes, emitting finite, non-negative amounts up to 10¹²;
+    /// an environment of finite, non-negative radiance. The message names
+    /// the part and what is allowed. [`crate::render::prepare::prepare_scene`]
+    /// calls it.
+    pub fn check(&self) -> Result<(), String> {
+        use spec::{MAX_COORDINATE_MM, MAX_EMISSION, MAX_ENVIRONMENT_INTENSITY, MIN_LIGHT_SIZE};
+        let place = |v: DVec3| v.is_finite() && v.abs().max_element() <= MAX_COORDINATE_MM;
+        let unit = |v: DVec3| v.is_finite() && (v.length() - 1.0).abs() < 1e-9;
+        let emission =
+            |c: Rgb| c.is_finite() && c.min_element() >= 0.0 && c.max_element() <= MAX_EMISSION;
+        let size = |s: f64| (MIN_LIGHT_SIZE..=MAX_COORDINATE_MM).contains(&s);
+        let fail = |what: String| Err(format!("scene: {what}"));
+        let c = &self.camera;
+        if !(place(c.position) && place(c.look_at) && c.position != c.look_at) {
+            return fail("the camera's position and look_at must be two different finite points within 1e5 mm".into());
+        }
+        if !(c.up.is_finite() && c.up.cross(c.look_at - c.position) != DVec3::ZERO) {
+            return fail("the camera's up must be finite and not along its view".into());
+        }
+        if !(c.vertical_fov_deg > 0.0 && c.vertical_fov_deg < 170.0) {
+            return fail(format!(
+                "the camera's vertical_fov_deg = {} is out of range; allowed: (0, 170) degrees",
+                c.vertical_fov_deg
+            ));
+        }
+        if self.stones.len() > MAX_STONES {
+            return fail(format!(
+                "{} stones; allowed: at most {MAX_STONES}",
+                self.stones.len()
+            ));
+        }
+        for (k, stone) in self.stones.iter().enumerate() {
+            let rotation_is_unit =
+                stone.rotation.is_finite() && (stone.rotation.length() - 1.0).abs() < 1e-9;
+            if !(place(stone.position) && rotation_is_unit) {
+                return fail(format!(
+                    "stone {}: its position must be finite within 1e5 mm and its rotation a unit quaternion",
+                    k + 1
+                ));
+            }
+        }
+        if let Some(ground) = &self.ground {
+            if !(ground.height.is_finite() && ground.height.abs() <= MAX_COORDINATE_MM) {
+                return fail("the ground's height must be finite within 1e5 mm".into());
+            }
+        }
+        for (k, light) in self.lights.iter().enumerate() {
+            let ok = match *light {
+                LightSpec::Point {
+                    position,
+                    intensity,
+                } => place(position) && emission(intensity),
+                LightSpec::Sphere {
+                    centre,
+                    radius,
+                    radiance,
+                } => place(centre) && size(radius) && emission(radiance),
+                LightSpec::Rect {
+                    centre,
+                    normal,
+                    u_axis,
+                    v_axis,
+                    width,
+                    height,
+                    radiance,
+                } => {
+                    place(centre)
+                        && [normal, u_axis, v_axis].into_iter().all(unit)
+                        && normal.dot(u_axis).abs() < 1e-9
+                        && normal.dot(v_axis).abs() < 1e-9
+                        && u_axis.dot(v_axis).abs() < 1e-9
+                        && size(width)
+                        && size(height)
+                        && emission(radiance)
+                }
+                LightSpec::Sun {
+                    direction,
+                    angular_diameter_deg,
+                    irradiance,
+                } => {
+                    unit(direction)
+                        && (MIN_LIGHT_SIZE..=20.0).contains(&angular_diameter_deg)
+                        && emission(irradiance)
+                }
+            };
+            if !ok {
+                return fail(format!(
+                    "light {} is out of range; allowed: finite places within 1e5 mm, sizes from 0.01 mm (a sun 0.01° to 20°), unit directions and orthonormal axes, emission from 0 to 1e12 per channel",
+                    k + 1
+                ));
+            }
+        }
+        let environment_ok = match self.environment {
+            EnvironmentSpec::Constant(radiance) => emission(radiance),
+            EnvironmentSpec::Studio {
+                intensity,
+                rotation_deg,
+            }
+            | EnvironmentSpec::File {
+                intensity,
+                rotation_deg,
+                ..
+            } => (0.0..=MAX_ENVIRONMENT_INTENSITY).contains(&intensity) && rotation_deg.is_finite(),
+        };
+        if !environment_ok {
+            return fail("the environment's radiance or intensity is out of range; allowed: finite, from 0 (radiance up to 1e12, intensity up to 1e6)".into());
+        }
+        Ok(())
+    }
+}
+
 /// A turntable: `frames` pictures evenly over a full turn; frame k is
 /// turned by 360°·k/`frames` ([`Turntable::turn_deg`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

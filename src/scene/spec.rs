@@ -357,13 +357,13 @@ pub enum EnvironmentKind {
 /// The largest multiplier of an environment: far beyond any exposure a
 /// scene needs, and small enough that the brightest studio texel times it
 /// stays within what an environment map stores.
-const MAX_ENVIRONMENT_INTENSITY: f64 = 1e6;
+pub(crate) const MAX_ENVIRONMENT_INTENSITY: f64 = 1e6;
 
 /// The largest radiance, intensity or irradiance of a light (per
 /// channel): a 0.01 mm sphere 100 m away at this radiance still gives
 /// finite samples, where 1e308 overflowed to infinity and its samples
 /// were dropped from the image. Far above any exposure a scene needs.
-const MAX_EMISSION: f64 = 1e12;
+pub(crate) const MAX_EMISSION: f64 = 1e12;
 
 /// Largest coordinate of a point in a scene, mm (100 m). The stones' BVH
 /// is built in f32 (obvhs), where 1e300 is infinite and its build panics;
@@ -454,29 +454,33 @@ scalar_field!(
 scalar_field!(height, "height", "-100000 <= height <= 100000 (mm)", |v| v
     .abs()
     <= MAX_COORDINATE_MM);
+/// The smallest size of a light (a sphere's radius, a soft box's side),
+/// mm, and of a sun's angular diameter, degrees (see the fields below).
+pub(crate) const MIN_LIGHT_SIZE: f64 = 0.01;
+
 // A sphere light smaller than 0.01 mm subtends too small a cone from far
 // away for its pdf 1 / (2π (1 − cos θmax)) to stay finite.
 scalar_field!(
     radius,
     "radius",
     "radius > 0 (mm), from 0.01 to 100000",
-    |v| (0.01..=MAX_COORDINATE_MM).contains(&v)
+    |v| (MIN_LIGHT_SIZE..=MAX_COORDINATE_MM).contains(&v)
 );
 // A soft box below 0.01 mm has an area pdf d² / (cos · w · h) that overflows.
 scalar_field!(width, "width", "width > 0 (mm), from 0.01 to 100000", |v| {
-    (0.01..=MAX_COORDINATE_MM).contains(&v)
+    (MIN_LIGHT_SIZE..=MAX_COORDINATE_MM).contains(&v)
 });
 scalar_field!(
     height_size,
     "height",
     "height > 0 (mm), from 0.01 to 100000",
-    |v| (0.01..=MAX_COORDINATE_MM).contains(&v)
+    |v| (MIN_LIGHT_SIZE..=MAX_COORDINATE_MM).contains(&v)
 );
 scalar_field!(
     angular_diameter_deg,
     "angular_diameter_deg",
     "0 < angular_diameter_deg <= 20 (degrees), at least 0.01",
-    |v| (0.01..=20.0).contains(&v)
+    |v| (MIN_LIGHT_SIZE..=20.0).contains(&v)
 );
 scalar_field!(intensity, "intensity", "0 <= intensity <= 1000000", |v| {
     (0.0..=MAX_ENVIRONMENT_INTENSITY).contains(&v)
