@@ -1474,6 +1474,17 @@ fn an_image_of_a_million_by_a_million_pixels() {
 }
 
 #[test]
+fn a_size_beyond_32_bits_gets_the_same_range_message() {
+    let render = os(&["render", "--size", "99999999999", "--spp", "1"]);
+    assert_refused_writing(
+        "size-u64",
+        &render,
+        "huge.png",
+        &["--size 99999999999: allowed 1 to 32768 pixels".to_string()],
+    );
+}
+
+#[test]
 fn an_image_over_the_memory_limit() {
     // 20 000² pixels is a legal size, but its film alone is far above 1 GiB:
     // the refusal must come before anything is allocated, with the number.

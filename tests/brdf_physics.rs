@@ -228,3 +228,11 @@ fn library_lobes_follow_the_random_walk_in_the_plane_of_incidence() {
         assert!(error < limit, "{name}: L1 error {error:.3} (limit {limit})");
     }
 }
+
+#[test]
+#[should_panic(expected = "theta_deg = NaN; allowed: 0 to 90 degrees")]
+fn directional_albedo_refuses_an_angle_outside_the_hemisphere() {
+    // A NaN angle gave an albedo of 0, silently.
+    let brdf = lapidary::recipe::load_material("gold").unwrap();
+    directional_albedo(&brdf, f64::NAN, 0.01, 4096, 1);
+}

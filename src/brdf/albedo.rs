@@ -17,9 +17,13 @@ pub struct AlbedoEstimate {
 }
 
 /// Directional albedo of the full model at viewing angle `theta_deg`,
-/// importance-sampled with a fixed seed, in batches of 4096 until the
-/// standard error of every channel is below `target_std_error` (or
-/// `max_samples` is reached).
+/// importance-sampled with a fixed seed, in batches of 4096 (one at
+/// least) until the standard error of every channel is below
+/// `target_std_error` (or `max_samples` is reached).
+///
+/// # Panics
+///
+/// If `theta_deg` is not within [0, 90] degrees (NaN included).
 pub fn directional_albedo(
     brdf: &LayeredBrdf,
     theta_deg: f64,
@@ -27,6 +31,10 @@ pub fn directional_albedo(
     max_samples: usize,
     seed: u64,
 ) -> AlbedoEstimate {
+    assert!(
+        (0.0..=90.0).contains(&theta_deg),
+        "directional_albedo: theta_deg = {theta_deg}; allowed: 0 to 90 degrees"
+    );
     let wo = crate::sampling::direction_from_degrees(theta_deg, 0.0);
     let mut rng = Rng::new(seed, theta_deg.to_bits());
     let (mut sum, mut sum_sq, mut n) = (Rgb::ZERO, Rgb::ZERO, 0usize);

@@ -89,13 +89,13 @@ pub struct RenderArgs {
     pub(super) output: PathBuf,
     /// Width and height of a square image in pixels.
     #[arg(long, value_name = "N", conflicts_with_all = ["width", "height"])]
-    pub(super) size: Option<u32>,
+    pub(super) size: Option<u64>,
     /// Image width in pixels (default 512).
     #[arg(long, value_name = "W")]
-    pub(super) width: Option<u32>,
+    pub(super) width: Option<u64>,
     /// Image height in pixels (default 512).
     #[arg(long, value_name = "H")]
-    pub(super) height: Option<u32>,
+    pub(super) height: Option<u64>,
     /// Samples per pixel.
     #[arg(long, value_name = "N", default_value_t = 64)]
     pub(super) spp: u32,
@@ -231,13 +231,15 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
     } else {
         ("width", "height")
     };
+    // Read as u64, so that any whole number gets this message.
     for (name, value) in [(width_flag, width), (height_flag, height)] {
-        if value == 0 || value > MAX_SIDE_PX {
+        if value == 0 || value > u64::from(MAX_SIDE_PX) {
             return Err(format!(
                 "--{name} {value}: allowed 1 to {MAX_SIDE_PX} pixels"
             ));
         }
     }
+    let (width, height) = (width as u32, height as u32);
     if args.spp == 0 || args.spp > MAX_SPP {
         return Err(format!("--spp {}: allowed 1 to {MAX_SPP}", args.spp));
     }
