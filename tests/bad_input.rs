@@ -1474,6 +1474,17 @@ fn an_image_of_a_million_by_a_million_pixels() {
 }
 
 #[test]
+fn a_misspelt_built_in_scene_has_a_suggestion() {
+    let render = os(&["render", "--scene", "studo", "--size", "8", "--spp", "1"]);
+    assert_refused_writing(
+        "scene-typo-name",
+        &render,
+        "gem.png",
+        &["--scene studo: no such file (did you mean `studio`, the built-in scene?)".to_string()],
+    );
+}
+
+#[test]
 fn a_size_beyond_32_bits_gets_the_same_range_message() {
     let render = os(&["render", "--size", "99999999999", "--spp", "1"]);
     assert_refused_writing(

@@ -15,6 +15,7 @@ use lapidary::farm::record::{
 use lapidary::output::animation::write_apng;
 use lapidary::output::exr::{film_channels, write_exr_owned, write_exr_with_note};
 use lapidary::output::tonemap::ToneCurve;
+use lapidary::recipe::error::did_you_mean;
 use lapidary::recipe::gem::GemSource;
 use lapidary::recipe::library::DEFAULT_GEM;
 use lapidary::recipe::Tables;
@@ -494,6 +495,14 @@ impl Inputs {
                 if !path.exists() && GemSource::load(&name).is_ok() {
                     return Err(format!(
                         "--scene {name}: `{name}` is a built-in gem, not a scene: `lapidary render {name}` renders it in the studio, `--scene FILE` takes a `Scene(…)` file or `studio`"
+                    ));
+                }
+                if !path.exists() {
+                    let hint = did_you_mean(&name, ["studio"])
+                        .map(|s| format!(" (did you mean `{s}`, the built-in scene?)"))
+                        .unwrap_or_default();
+                    return Err(format!(
+                        "--scene {name}: no such file{hint}; --scene takes a `Scene(…)` file or `studio`"
                     ));
                 }
                 (
