@@ -275,6 +275,59 @@ fn the_crate_docs_steps_render_the_command_s_bytes() {
 }
 
 #[test]
+fn env_replaces_a_scene_s_map_even_when_its_file_is_missing() {
+    let dir = scratch("env-rescue");
+    // A map to light with: any small EXR render.
+    let sky = dir.join("sky.exr");
+    let out = lapidary(&[
+        "render",
+        "--size",
+        "8",
+        "--spp",
+        "1",
+        "-q",
+        "-o",
+        sky.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let scene_text = |map: &str| {
+        format!(
+            "Scene(camera: Orbit(target: (0.0, 0.0, 1.0), distance: 40.0, elevation_deg: 30.0, azimuth_deg: 0.0, vertical_fov_deg: 25.0), \
+             stones: [Stone(recipe: Some(\"sunstone\"), shape: Cabochon(outline: Oval, length: 10.0, width: 8.0), position: (0.0, 0.0, 0.5))], \
+             environment: File(path: \"{map}\"))"
+        )
+    };
+    let render = |scene: &str, name: &str| {
+        let (file, png) = (
+            dir.join(format!("{name}.ron")),
+            dir.join(format!("{name}.png")),
+        );
+        std::fs::write(&file, scene).unwrap();
+        let out = lapidary(&[
+            "render",
+            "--scene",
+            file.to_str().unwrap(),
+            "--env",
+            sky.to_str().unwrap(),
+            "--size",
+            "8",
+            "--spp",
+            "1",
+            "-q",
+            "-o",
+            png.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{name}: {}", stderr(&out));
+        std::fs::read(&png).unwrap()
+    };
+    // The scene's own map missing, or present: --env lights both the same.
+    assert_eq!(
+        render(&scene_text("gone.hdr"), "missing"),
+        render(&scene_text("sky.exr"), "present")
+    );
+}
+
+#[test]
 fn a_recipe_no_stone_takes_is_said_to_be_unused() {
     // Every stone of the peer scene names its own recipe.
     let dir = scratch("unused-recipe");

@@ -28,7 +28,7 @@ use lapidary::render::turntable::{orbited_camera, turned_stones};
 use lapidary::render::world::{StoneInstance, World};
 use lapidary::scene::spec::MAX_FRAMES;
 use lapidary::scene::{
-    default_scene, load_scene, Scene, TurnSpec, Turntable, DEFAULT_SCENE_SOURCE,
+    default_scene, load_scene, load_scene_under, Scene, TurnSpec, Turntable, DEFAULT_SCENE_SOURCE,
 };
 
 use super::validate::BUILTIN_SCENE_NAME;
@@ -506,7 +506,12 @@ impl Inputs {
                     ));
                 }
                 (
-                    load_scene(path).map_err(|e| e.to_string())?,
+                    // Under --env the scene's own map is not read (nor needed).
+                    match args.env.as_deref() {
+                        Some(map) => load_scene_under(path, map),
+                        None => load_scene(path),
+                    }
+                    .map_err(|e| e.to_string())?,
                     std::fs::read(path)
                         .map_err(|e| format!("{}: cannot read: {e}", path.display()))?,
                 )

@@ -60,6 +60,19 @@ pub fn load_scene(path: &Path) -> Result<Scene, RecipeError> {
     parse_scene(&text, Some(path))
 }
 
+/// [`load_scene`], lit by the equirectangular map `environment` (unturned,
+/// at intensity 1) instead of the scene's own environment, which is then
+/// neither used nor needed: its file may be missing (`render --env`).
+pub fn load_scene_under(path: &Path, environment: &Path) -> Result<Scene, RecipeError> {
+    let text = read_ron_file(&path.display().to_string(), "scene file")?;
+    compile_named(
+        &text,
+        &path.display().to_string(),
+        Some(path),
+        Some(environment),
+    )
+}
+
 /// The built-in studio scene ([`DEFAULT_SCENE_SOURCE`]), parsed.
 ///
 /// It is embedded at build time and pinned by `tests/scene_recipe.rs`, so
@@ -70,11 +83,23 @@ pub fn default_scene() -> Scene {
 }
 
 fn parse_named(text: &str, display: &str, path: Option<&Path>) -> Result<Scene, RecipeError> {
+    compile_named(text, display, path, None)
+}
+
+/// The scene of `text` (shown as `display`, read from `path`), its
+/// environment replaced by the map `environment` when given.
+fn compile_named(
+    text: &str,
+    display: &str,
+    path: Option<&Path>,
+    environment: Option<&Path>,
+) -> Result<Scene, RecipeError> {
     let spec: SceneSpec = parse_ron(text).map_err(|e| scene_ron_error(display, text, e))?;
     Compiler {
         display,
         locator: Locator::new(text),
         dir: path.and_then(Path::parent),
+        environment_given: environment,
     }
     .scene(&spec, path)
 }
@@ -264,6 +289,8 @@ struct Compiler<'a> {
     locator: Locator<'a>,
     /// Folder of the scene file, for relative paths.
     dir: Option<&'a Path>,
+    /// A map that replaces the scene's environment (not read then).
+    environment_given: Option<&'a Path>,
 }
 
 impl Compiler<'_> {
@@ -305,7 +332,14 @@ impl Compiler<'_> {
             .enumerate()
             .map(|(i, l)| self.light(i, l))
             .collect::<Result<Vec<_>, _>>()?;
-        let environment = self.environment(&spec.environment)?;
+        let environment = match self.environment_given {
+            Some(map) => EnvironmentSpec::File {
+                path: map.to_path_buf(),
+                rotation_deg: 0.0,
+                intensity: 1.0,
+            },
+            None => self.environment(&spec.environment)?,
+        };
         Ok(Scene {
             camera,
             stones,

@@ -23,7 +23,7 @@
 pub mod compile;
 pub mod spec;
 
-pub use compile::{default_scene, load_scene, parse_scene, DEFAULT_SCENE_SOURCE};
+pub use compile::{default_scene, load_scene, load_scene_under, parse_scene, DEFAULT_SCENE_SOURCE};
 pub use spec::TurnSpec;
 
 use crate::brdf::Rgb;
