@@ -666,3 +666,25 @@ fn the_htcondor_submit_files_run_the_batch_and_merge_to_the_single_render() {
         16
     );
 }
+
+#[test]
+fn a_stale_tile_stops_the_merge_before_any_image_is_written() {
+    // Two images; the second's recipe file changes after its task ran.
+    let dir = scratch("stale-first");
+    let gem = dir.join("mine.ron");
+    let text = lapidary::recipe::library::builtin_gem_source("sunstone").unwrap();
+    std::fs::write(&gem, text).unwrap();
+    let job = dir.join("job.ron");
+    std::fs::write(
+        &job,
+        r#"Job(output: "out", recipes: ["sunstone", "mine.ron"], settings: [Settings(width: 8, height: 8, spp: 1)])"#,
+    )
+    .unwrap();
+    for task in ["0", "1"] {
+        ok(&["batch", s(&job), "--task", task, "-q"]);
+    }
+    std::fs::write(&gem, format!("{text}\n// edited\n")).unwrap();
+    refused(&["batch", s(&job), "--merge"], "--task 1`)");
+    // The first image's tiles are this job's, but nothing was merged.
+    assert!(!dir.join("out/sunstone-studio.png").exists());
+}

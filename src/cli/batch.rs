@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use lapidary::farm::job::{FilterSpec, FormatSpec, Job, TonemapSpec};
-use lapidary::farm::merge::{merge, read_tile};
+use lapidary::farm::merge::{merge, read_tile, read_tile_record};
 use lapidary::output::animation::write_apng;
 use lapidary::recipe::compile::read_ron_file;
 use lapidary::render::tiles::TileSplit;
@@ -164,6 +164,36 @@ fn merge_all(job: &Job, args: &BatchArgs) -> Result<(), String> {
     };
     let tiles_per_image = u64::from(job.tiles);
     let frame_count = frames.len() as u64;
+    // Tiles of an earlier version of the job (its settings or files changed
+    // since) are not this job's: every tile's record is read from its
+    // header and checked before any image is written; their tasks must
+    // run again.
+    for image in 0..job.images.len() {
+        for (f, frame) in frames.iter().enumerate() {
+            let first = (image as u64 * frame_count + f as u64) * tiles_per_image;
+            let wanted = render_args(job, image, job.image_path(image, *frame), args);
+            let expected = super::render::expected_record(&wanted, job.turntable, *frame)?;
+            for (task, t) in
+                (first..first + tiles_per_image).filter_map(|i| Some((i, job.task(i)?)))
+            {
+                let path = job.tile_path(t);
+                let record = read_tile_record(&path)?;
+                if let Some(((key, theirs), (_, ours))) = record
+                    .render_lines
+                    .iter()
+                    .zip(expected.text_lines())
+                    .find(|(a, b)| *a != b)
+                {
+                    return Err(format!(
+                        "{} is a tile of another render than {} asks for now (its {key} is {theirs}, not {ours}): run its task again (`lapidary batch {} --task {task}`)",
+                        path.display(),
+                        args.job.display(),
+                        args.job.display()
+                    ));
+                }
+            }
+        }
+    }
     for (image, _) in job.images.iter().enumerate() {
         let mut pictures = Vec::new();
         for (f, frame) in frames.iter().enumerate() {
@@ -172,26 +202,7 @@ fn merge_all(job: &Job, args: &BatchArgs) -> Result<(), String> {
                 .filter_map(|i| job.task(i))
                 .map(|t| read_tile(&job.tile_path(t)))
                 .collect::<Result<Vec<_>, _>>()?;
-            // Tiles of an earlier version of the job (its settings or
-            // files changed since) are not this job's: their tasks must run again.
             let output = job.image_path(image, *frame);
-            let wanted = render_args(job, image, output.clone(), args);
-            let expected = super::render::expected_record(&wanted, job.turntable, *frame)?;
-            for (task, tile) in (first..).zip(&tiles) {
-                let found = &tile.record.render_lines;
-                if let Some(((key, theirs), (_, ours))) = found
-                    .iter()
-                    .zip(expected.text_lines())
-                    .find(|(a, b)| *a != b)
-                {
-                    return Err(format!(
-                        "{} is a tile of another render than {} asks for now (its {key} is {theirs}, not {ours}): run its task again (`lapidary batch {} --task {task}`)",
-                        tile.path.display(),
-                        args.job.display(),
-                        args.job.display()
-                    ));
-                }
-            }
             let merged = merge(tiles)?;
             let png = job.images[image].settings.format == FormatSpec::Png;
             let picture = pool.install(|| super::merge::write_merged(&output, merged, png))?;

@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::output::exr::{read_exr, ChannelData, ExrChannel};
+use crate::output::exr::{read_exr, read_exr_notes, ChannelData, ExrChannel};
 use crate::output::tonemap::DisplayTransform;
 use crate::render::tiles::TileSplit;
 
@@ -21,6 +21,20 @@ pub struct Tile {
     pub record: ReadRecord,
     /// Its channels, sorted by name.
     pub channels: Vec<ExrChannel>,
+}
+
+/// The record of the tile EXR at `path`, from its header alone (its pixels
+/// are neither read nor checked: [`read_tile`] does both).
+pub fn read_tile_record(path: &Path) -> Result<ReadRecord, String> {
+    let name = path.display();
+    let notes = read_exr_notes(path).map_err(|e| format!("{e} (a damaged or unfinished tile?)"))?;
+    let Some((_, text)) = notes.iter().find(|(k, _)| k == TILE_NOTE) else {
+        return Err(format!(
+            "{name}: not a lapidary tile (no `{TILE_NOTE}` record; tiles come from `lapidary render --tile I/N`)"
+        ));
+    };
+    ReadRecord::parse(text)
+        .ok_or_else(|| format!("{name}: damaged: its tile record cannot be read"))
 }
 
 /// Read the tile EXR at `path` and check it: a lapidary tile record, the

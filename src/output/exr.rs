@@ -353,6 +353,35 @@ pub fn read_exr(path: &Path) -> Result<ExrImage, OutputError> {
         notes,
     })
 }
+/// The text attributes (name, text) of the first layer of the EXR at
+/// `path`, sorted, as [`read_exr`] gives them, from its header alone.
+pub fn read_exr_notes(path: &Path) -> Result<Vec<(String, String)>, OutputError> {
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| OutputError {
+        path: path.display().to_string(),
+        message: format!("cannot read EXR: {e}"),
+    })?;
+    let mut notes: Vec<(String, String)> = meta
+        .headers
+        .first()
+        .map(|header| {
+            header
+                .own_attributes
+                .other
+                .iter()
+                .filter_map(|(name, value)| match value {
+                    AttributeValue::Text(text) => Some((
+                        name.to_string(),
+                        String::from_utf8_lossy(text.bytes()).into_owned(),
+                    )),
+                    _ => None,
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    notes.sort();
+    Ok(notes)
+}
+
 /// The EXR channels of a film: RGBA and the AOV layers, dotted names, plus
 /// `ao` when `with_ao`. Takes the film so that single-valued buffers move
 /// into the channels and the three-valued ones are freed as soon as split.
