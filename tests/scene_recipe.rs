@@ -1081,3 +1081,10 @@ fn the_renderer_s_preparation_refuses_an_unchecked_scene() {
     );
     assert!(prepared.is_err_and(|e| e.contains("vertical_fov_deg = 180")));
 }
+
+#[test]
+#[should_panic(expected = "a film needs at least one pixel and one sample per pixel")]
+fn a_film_without_samples_is_refused() {
+    // Zero samples per pixel made a film of NaN, encoded as a black PNG.
+    lapidary::render::film::FilmSettings::new(8, 8, 0, 0);
+}
