@@ -26,8 +26,14 @@ pub struct Tile {
 /// The record of the tile EXR at `path`, from its header alone (its pixels
 /// are neither read nor checked: [`read_tile`] does both).
 pub fn read_tile_record(path: &Path) -> Result<ReadRecord, String> {
-    let name = path.display();
     let notes = read_exr_notes(path).map_err(|e| format!("{e} (a damaged or unfinished tile?)"))?;
+    record_in(path, &notes)
+}
+
+/// The tile record among the EXR text attributes `notes` of the file at
+/// `path`; the errors name the file.
+fn record_in(path: &Path, notes: &[(String, String)]) -> Result<ReadRecord, String> {
+    let name = path.display();
     let Some((_, text)) = notes.iter().find(|(k, _)| k == TILE_NOTE) else {
         return Err(format!(
             "{name}: not a lapidary tile (no `{TILE_NOTE}` record; tiles come from `lapidary render --tile I/N`)"
@@ -46,13 +52,7 @@ pub fn read_tile(path: &Path) -> Result<Tile, String> {
         return Err(format!("{name}: no such tile file"));
     }
     let image = read_exr(path).map_err(|e| format!("{e} (a damaged or unfinished tile?)"))?;
-    let Some((_, text)) = image.notes.iter().find(|(k, _)| k == TILE_NOTE) else {
-        return Err(format!(
-            "{name}: not a lapidary tile (no `{TILE_NOTE}` record; tiles come from `lapidary render --tile I/N`)"
-        ));
-    };
-    let record = ReadRecord::parse(text)
-        .ok_or_else(|| format!("{name}: damaged: its tile record cannot be read"))?;
+    let record = record_in(path, &image.notes)?;
     let (width, height) = record.size_px;
     let (index, count) = record.tile;
     let split = TileSplit::new(index, count, height)

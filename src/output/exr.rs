@@ -333,10 +333,21 @@ pub fn read_exr(path: &Path) -> Result<ExrImage, OutputError> {
         })
         .collect();
     channels.sort_by(|a, b| a.name.as_bytes().cmp(b.name.as_bytes()));
-    let mut notes: Vec<(String, String)> = layer
-        .attributes
-        .other
-        .iter()
+    Ok(ExrImage {
+        width,
+        height,
+        channels,
+        notes: text_notes(&layer.attributes.other),
+    })
+}
+
+/// The text attributes among a layer's `other` attributes, as (name,
+/// text), sorted.
+fn text_notes<'a>(
+    attributes: impl IntoIterator<Item = (&'a exr::meta::attribute::Text, &'a AttributeValue)>,
+) -> Vec<(String, String)> {
+    let mut notes: Vec<(String, String)> = attributes
+        .into_iter()
         .filter_map(|(name, value)| match value {
             AttributeValue::Text(text) => Some((
                 name.to_string(),
@@ -346,12 +357,7 @@ pub fn read_exr(path: &Path) -> Result<ExrImage, OutputError> {
         })
         .collect();
     notes.sort();
-    Ok(ExrImage {
-        width,
-        height,
-        channels,
-        notes,
-    })
+    notes
 }
 /// The text attributes (name, text) of the first layer of the EXR at
 /// `path`, sorted, as [`read_exr`] gives them, from its header alone.
@@ -360,26 +366,11 @@ pub fn read_exr_notes(path: &Path) -> Result<Vec<(String, String)>, OutputError>
         path: path.display().to_string(),
         message: format!("cannot read EXR: {e}"),
     })?;
-    let mut notes: Vec<(String, String)> = meta
+    Ok(meta
         .headers
         .first()
-        .map(|header| {
-            header
-                .own_attributes
-                .other
-                .iter()
-                .filter_map(|(name, value)| match value {
-                    AttributeValue::Text(text) => Some((
-                        name.to_string(),
-                        String::from_utf8_lossy(text.bytes()).into_owned(),
-                    )),
-                    _ => None,
-                })
-                .collect()
-        })
-        .unwrap_or_default();
-    notes.sort();
-    Ok(notes)
+        .map(|header| text_notes(&header.own_attributes.other))
+        .unwrap_or_default())
 }
 
 /// The EXR channels of a film: RGBA and the AOV layers, dotted names, plus
