@@ -860,6 +860,33 @@ fn a_byte_order_mark_is_read_past() {
 }
 
 #[test]
+fn an_invisible_character_pasted_into_a_recipe_is_named_at_its_place() {
+    // A zero-width space inside a field name (RON reads `rough` and stops)
+    // and a no-break space before a colon: each named at line 5.
+    for (name, bad, found) in [
+        (
+            "zero-width",
+            "rough\u{200b}ness_deg: 3.0",
+            "line 5 holds a zero-width space (U+200B) at column 18",
+        ),
+        (
+            "no-break",
+            "roughness_deg\u{a0}: 3.0",
+            "line 5 holds a no-break space (U+00A0) at column 26",
+        ),
+    ] {
+        let dir = scratch(name);
+        let path = dir.join("pasted.ron");
+        std::fs::write(&path, GOOD_MATERIAL.replace("roughness_deg: 3.0", bad)).unwrap();
+        let out = lapidary(&[OsString::from("validate"), path.into()]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains("pasted.ron:5:"), "{stderr}");
+        assert!(stderr.contains(found), "{stderr}");
+    }
+}
+
+#[test]
 fn a_negative_or_exponent_seed_says_what_a_whole_number_is() {
     bad_scene(
         "negative-seed",

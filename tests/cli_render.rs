@@ -352,6 +352,35 @@ fn a_recipe_no_stone_takes_is_said_to_be_unused() {
 }
 
 #[test]
+fn too_few_bounces_for_a_translucent_stone_s_inside_are_said() {
+    // Goldstone's glass: its inside takes the refraction in and one more
+    // bounce; an opaque gem shows its surface at 0.
+    let dir = scratch("bounces-inside");
+    let png = dir.join("gem.png");
+    let warned = |gem: &str, bounces: &str| {
+        let out = lapidary(&[
+            "render",
+            gem,
+            "--size",
+            "8",
+            "--spp",
+            "1",
+            "-q",
+            "--bounces",
+            bounces,
+            "-o",
+            png.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        stderr(&out).contains("its body and flakes need --bounces 2 or more")
+    };
+    assert!(warned("goldstone", "0"));
+    assert!(warned("goldstone", "1"));
+    assert!(!warned("goldstone", "2"));
+    assert!(!warned("sunstone", "0"));
+}
+
+#[test]
 fn footprints_by_default_and_exact_flakes_on_request_and_neither_with_the_thread_count() {
     // Goldstone's copper at 32 px: about a hundred flakes to a pixel, and
     // any met after a flake's reflection, so by default some are shaded by

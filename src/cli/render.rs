@@ -16,7 +16,7 @@ use lapidary::output::animation::write_apng;
 use lapidary::output::exr::{film_channels, write_exr_owned, write_exr_with_note};
 use lapidary::output::tonemap::ToneCurve;
 use lapidary::recipe::error::did_you_mean;
-use lapidary::recipe::gem::GemSource;
+use lapidary::recipe::gem::{Body, GemSource};
 use lapidary::recipe::library::DEFAULT_GEM;
 use lapidary::recipe::Tables;
 use lapidary::render::film::{render_rows_cancellable, FilmSettings, PixelFilter};
@@ -120,7 +120,8 @@ pub struct RenderArgs {
     /// Tone curve for PNG output.
     #[arg(long, value_enum, default_value_t = TonemapArg::Filmic)]
     pub(super) tonemap: TonemapArg,
-    /// Bounces after the first hit (0: direct light only).
+    /// Bounces after the first hit (0: direct light only; a translucent
+    /// stone's inside needs 2).
     #[arg(long, value_name = "N", default_value_t = 4)]
     pub(super) bounces: u32,
     /// Pixel (reconstruction) filter.
@@ -655,6 +656,9 @@ impl Renderer {
         {
             eprintln!("warning: {scene_name}: {problem}");
         }
+        if let Some(warning) = inside_needs_bounces(&traced, args.bounces) {
+            eprintln!("warning: {warning}");
+        }
         traced.ambient_occlusion = args.ao;
         traced.connect_through_surfaces = self.record.connections;
         if self.record.flake_footprints {
@@ -827,4 +831,24 @@ impl Renderer {
         ));
         Ok(picture)
     }
+}
+
+/// Bounces a path needs to show a translucent stone's inside: the
+/// refraction in is one, the flake or exit behind it the second.
+const BOUNCES_TO_SEE_INSIDE: u32 = 2;
+
+/// The warning for `--bounces` too few to show the inside of a translucent
+/// stone of the scene (it renders as its surface's reflections over
+/// black), None otherwise.
+fn inside_needs_bounces(traced: &RenderScene, bounces: u32) -> Option<String> {
+    let translucent = traced
+        .gems
+        .iter()
+        .any(|gem| matches!(gem.body, Body::Translucent { .. }));
+    (translucent && bounces < BOUNCES_TO_SEE_INSIDE).then(|| {
+        format!(
+            "--bounces {bounces}: a translucent stone shows only its surface's reflections; \
+             its body and flakes need --bounces {BOUNCES_TO_SEE_INSIDE} or more"
+        )
+    })
 }

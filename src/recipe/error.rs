@@ -318,12 +318,62 @@ pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col
             " after the end of the recipe (is a closing bracket before it one too many?)",
         );
     }
+    if let Some((at_col, c)) = stray_character_on_line(source, line) {
+        message.push_str(&format!(
+            "; line {line} holds {} at column {at_col}, which RON does not read as \
+             part of a recipe: delete it and type the text again",
+            character_name(c)
+        ));
+    }
     if first_code_offset(rest) >= rest.len() {
         message.push_str(
             " (the file ends here: is it cut short, or is a closing `)`, `]` or `}` missing?)",
         );
     }
     message
+}
+
+/// The first character outside the ASCII set on line `line` (1-based) of
+/// `source`, outside comments and string literals, and its column: RON
+/// reads names, numbers and brackets in ASCII only, so such a character
+/// (often invisible, pasted from a web page or a word processor) stops
+/// the parse there or splits a name in two.
+fn stray_character_on_line(source: &str, line: usize) -> Option<(usize, char)> {
+    let code = blank_comments_and_strings(source);
+    let line_start: usize = source
+        .split_inclusive('\n')
+        .take(line.saturating_sub(1))
+        .map(str::len)
+        .sum();
+    let line_end = source[line_start.min(source.len())..]
+        .find('\n')
+        .map_or(source.len(), |end| line_start + end);
+    let offset = (line_start..line_end).find(|&i| !code[i].is_ascii())?;
+    let c = source[offset..].chars().next()?;
+    Some((source[line_start..offset].chars().count() + 1, c))
+}
+
+/// A character as a message names it: the invisible ones and the spaces
+/// that look like a space by name, every one by its code point.
+fn character_name(c: char) -> String {
+    let code = format!("U+{:04X}", u32::from(c));
+    match c {
+        '\u{a0}' | '\u{202f}' => format!("a no-break space ({code})"),
+        '\u{200b}' => format!("a zero-width space ({code})"),
+        '\u{200c}' | '\u{200d}' => format!("a zero-width joiner ({code})"),
+        '\u{2060}' => format!("a word joiner ({code})"),
+        '\u{feff}' => format!("a byte-order mark ({code})"),
+        '\u{2000}'..='\u{200a}' | '\u{205f}' | '\u{3000}' => {
+            format!("a typographic space ({code})")
+        }
+        '\u{2018}' | '\u{2019}' | '\u{201c}' | '\u{201d}' => {
+            format!("a curly quote ({code}, where RON takes `\"`)")
+        }
+        '\u{2212}' | '\u{2013}' | '\u{2014}' => {
+            format!("a typographic minus or dash ({code}, where RON takes `-`)")
+        }
+        _ => format!("`{c}` ({code})"),
+    }
 }
 
 /// The closest of `candidates` to `word` by edit distance, if close enough
@@ -393,6 +443,22 @@ mod tests {
             RecipeError::at_text("f.ron", "", "gold", "m").position,
             None
         );
+    }
+
+    #[test]
+    fn a_character_outside_ascii_in_code_is_named_with_its_column() {
+        let text = "Gem(\n    se\u{200b}ed: 1, // caf\u{e9}\n    name: \"\u{e9}\",\n)";
+        assert_eq!(stray_character_on_line(text, 2), Some((7, '\u{200b}')));
+        // In a comment or a string it is text, not code.
+        assert_eq!(stray_character_on_line(text, 3), None);
+        assert_eq!(stray_character_on_line(text, 1), None);
+        let message = with_ron_hints("Expected colon".into(), text, 2, 5);
+        assert!(
+            message.contains("line 2 holds a zero-width space (U+200B) at column 7"),
+            "{message}"
+        );
+        assert!(character_name('\u{2212}').contains("where RON takes `-`"));
+        assert_eq!(character_name('\u{d7}'), "`\u{d7}` (U+00D7)");
     }
 
     #[test]
