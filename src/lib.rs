@@ -10,6 +10,10 @@
 //! as PNG or EXR. A render is a pure function of (recipes, scene, seed,
 //! settings): the same bytes for any thread count.
 //!
+//! The default feature `cli` builds the `lapidary` command (and its
+//! argument parser, progress bar and Ctrl-C handler); a program that uses
+//! the library alone leaves it out with `default-features = false`.
+//!
 //! The steps of `lapidary render` (the same bytes as `lapidary render
 //! goldstone --size 32 --spp 4`); the recipe language is the
 //! repository's `docs/recipes.md`, the command's built-in default gem
