@@ -887,6 +887,62 @@ fn an_invisible_character_pasted_into_a_recipe_is_named_at_its_place() {
 }
 
 #[test]
+fn an_image_or_utf_16_file_given_as_a_recipe_is_named_for_what_it_is() {
+    let dir = scratch("other-kinds");
+    for (name, bytes, says) in [
+        (
+            "sky.hdr",
+            &b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1 +X 2\n\x80\x80\x80\x81"[..],
+            "this is a Radiance HDR image, not a .ron recipe",
+        ),
+        ("shot.png", &b"\x89PNG\r\n\x1a\n"[..], "this is a PNG image"),
+        (
+            "wide.ron",
+            &b"\xff\xfeG\x00e\x00m\x00(\x00"[..],
+            "this is UTF-16 text",
+        ),
+    ] {
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        let out = lapidary(&[OsString::from("validate"), path.into()]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains(says), "{stderr}");
+    }
+}
+
+#[test]
+fn a_batch_job_given_as_a_material_says_how_to_run_it() {
+    let dir = scratch("job-as-material");
+    let path = dir.join("job.ron");
+    std::fs::write(&path, r#"Job(output: "out", recipes: ["sunstone"])"#).unwrap();
+    let out = lapidary(&[OsString::from("classify"), path.into()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("this is a batch job (`Job(…)`) where a material (`Material(…)`) was expected; list its tasks with `lapidary batch FILE`"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn a_path_written_with_backslashes_gets_a_hint() {
+    for args in [
+        &["render", "gems\\mine.ron", "-o", "x.png"][..],
+        &["render", "--scene", "scenes\\mine.ron", "-o", "x.png"][..],
+        &["validate", "gems\\mine"][..],
+    ] {
+        let out = lapidary(args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains("(write `/` between folders, not `\\`)"),
+            "{args:?}: {stderr}"
+        );
+    }
+}
+
+#[test]
 fn a_negative_or_exponent_seed_says_what_a_whole_number_is() {
     bad_scene(
         "negative-seed",

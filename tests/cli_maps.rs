@@ -109,6 +109,17 @@ fn maps_refuses_bad_input_with_exit_1_and_writes_nothing() {
             "--extent",
         ),
         (
+            vec![
+                "maps",
+                "lavender-lepidolite",
+                "-o",
+                png.to_str().unwrap(),
+                "--extent",
+                "1e300",
+            ],
+            "allowed above 0 up to 1000 texture units",
+        ),
+        (
             vec!["maps", "lavender-lepidolite", "-o", "/no/such/dir/x.png"],
             "does not exist",
         ),

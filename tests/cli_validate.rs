@@ -352,13 +352,28 @@ fn broken_files_name_the_file_and_what_was_expected() {
         Some(2),
         &["found `(`", "`Gem(`"],
     );
-    // A directory.
+    // A folder: each of its .ron files (the broken ones above), in name
+    // order; a folder without any is an error of its own.
     let out = lapidary(&["validate", dir.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1));
     let err = text(&out.stderr);
+    let anonymous = err.find("anonymous.ron:2:1: found `(`");
+    let empty = err.find("empty.ron: the file is empty");
+    assert!(anonymous.is_some() && anonymous < empty, "{err}");
+    let none = dir.join("none");
+    std::fs::create_dir_all(&none).unwrap();
+    std::fs::write(none.join("notes.txt"), "not a recipe").unwrap();
+    let out = lapidary(&["validate", none.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(err.contains("a folder without .ron files"), "{err}");
+    // Any other command is given a folder for a file: said so.
+    let out = lapidary(&["render", dir.to_str().unwrap(), "-o", "x.png"]);
+    assert_eq!(out.status.code(), Some(1));
     assert!(
-        err.contains(dir.to_str().unwrap()) && err.contains("is a directory"),
-        "{err}"
+        text(&out.stderr).contains("is a directory"),
+        "{}",
+        text(&out.stderr)
     );
     // A missing file.
     let missing = dir.join("missing.ron");
@@ -450,6 +465,59 @@ fn a_camera_or_light_inside_a_stone_is_warned_of() {
         "{out}"
     );
     assert!(warnings[1].contains("light 2 is inside stone 1"), "{out}");
+}
+
+#[test]
+fn a_sphere_light_around_the_scene_and_things_below_the_ground_are_warned_of() {
+    let dir = scratch("enclosing");
+    let with_lights = |lights: &str| {
+        GOOD_SCENE.replace(
+            "    ground",
+            &format!("    lights: [\n        {lights}\n    ],\n    ground"),
+        )
+    };
+    let warnings = |name: &str, scene: &str| -> Vec<String> {
+        let (code, out, err) = validate_file(&dir, name, scene.as_bytes());
+        assert_eq!(code, 0, "a warning is not an error: {err}");
+        out.lines()
+            .filter(|l| l.contains("warning"))
+            .map(str::to_string)
+            .collect()
+    };
+    // A light dome centred in the stone: around the camera and the stone,
+    // not inside the stone.
+    let dome =
+        with_lights("Sphere(centre: (0.0, 0.0, 1.0), radius: 100.0, radiance: (1.0, 1.0, 1.0)),");
+    let found = warnings("dome.ron", &dome);
+    assert_eq!(found.len(), 2, "{found:?}");
+    assert!(
+        found[0].contains("the camera is inside light 1"),
+        "{found:?}"
+    );
+    assert!(found[1].contains("stone 1 is inside light 1"), "{found:?}");
+    // A sphere under the ground, a sun below the horizon.
+    let below = with_lights(
+        "Sphere(centre: (0.0, 0.0, -20.0), radius: 2.0, radiance: (1.0, 1.0, 1.0)),\n        \
+         Sun(elevation_deg: -5.0, azimuth_deg: 0.0, angular_diameter_deg: 0.5, irradiance: (1.0, 1.0, 1.0)),",
+    );
+    let found = warnings("below.ron", &below);
+    assert_eq!(found.len(), 2, "{found:?}");
+    assert!(
+        found[0].contains("light 1 is below the ground"),
+        "{found:?}"
+    );
+    assert!(
+        found[1].contains("light 2, a sun, is at or below the horizon"),
+        "{found:?}"
+    );
+    // The camera under the ground.
+    let under = GOOD_SCENE.replace("elevation_deg: 30.0", "elevation_deg: -30.0");
+    let found = warnings("under.ron", &under);
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!(
+        found[0].contains("the camera is below the ground"),
+        "{found:?}"
+    );
 }
 
 #[test]
@@ -599,4 +667,20 @@ fn new_never_overwrites_and_refuses_unknown_templates() {
         "{err}"
     );
     assert!(!other.exists());
+    // A name that would read as an option, and `-o -`, write nothing.
+    let out = lapidary(&["new", "--from", "gold", "--", "-x"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        text(&out.stderr).contains("must not start with `-`"),
+        "{}",
+        text(&out.stderr)
+    );
+    let out = lapidary(&["new", "dash", "--from", "gold", "-o", "-"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        text(&out.stderr).contains("-o -: `lapidary new` writes a file"),
+        "{}",
+        text(&out.stderr)
+    );
+    assert!(!Path::new("-").exists() && !Path::new("-x.ron").exists());
 }

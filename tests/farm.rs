@@ -668,6 +668,35 @@ fn the_htcondor_submit_files_run_the_batch_and_merge_to_the_single_render() {
 }
 
 #[test]
+fn a_job_s_scene_warnings_are_shown_by_validate_and_batch() {
+    // A scene whose stone sinks 3 mm into the ground: rendered, with the
+    // warning `validate SCENE` gives, before a farm array starts.
+    let dir = scratch("job-warnings");
+    let scene = dir.join("sunk.ron");
+    std::fs::write(
+        &scene,
+        r#"Scene(
+    camera: Orbit(target: (0.0, 0.0, 1.0), distance: 40.0, elevation_deg: 30.0, azimuth_deg: 0.0, vertical_fov_deg: 25.0),
+    stones: [Stone(shape: Cabochon(outline: Oval, length: 10.0, width: 8.0), position: (0.0, 0.0, -2.5))],
+    ground: Some(Ground(height: 0.0, material: "teflon")),
+)"#,
+    )
+    .unwrap();
+    let job = dir.join("job.ron");
+    std::fs::write(
+        &job,
+        r#"Job(output: "out", recipes: ["sunstone"], scenes: ["studio", "sunk.ron"], settings: [Settings(width: 8, height: 8, spp: 1)])"#,
+    )
+    .unwrap();
+    let sinks = "sunk.ron: warning: stone 1 sinks 3.000 mm into the ground";
+    let out = lapidary(&["validate", s(&job)]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(text.matches(sinks).count(), 1, "{text}");
+    assert!(ok(&["batch", s(&job)]).contains(sinks));
+}
+
+#[test]
 fn a_stale_tile_stops_the_merge_before_any_image_is_written() {
     // Two images; the second's recipe file changes after its task ran.
     let dir = scratch("stale-first");

@@ -45,7 +45,9 @@ pub fn run(args: BatchArgs) -> Result<(), String> {
             // Every recipe and scene checked before the list a farm submits.
             let display = args.job.display().to_string();
             let text = read_ron_file(&display, "job file").map_err(|e| e.to_string())?;
-            check_job_inputs(&display, &text, &job).map_err(|e| e.to_string())?;
+            for warning in check_job_inputs(&display, &text, &job).map_err(|e| e.to_string())? {
+                eprintln!("{warning}");
+            }
             list_tasks(&job);
             Ok(())
         }

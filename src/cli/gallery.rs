@@ -34,8 +34,8 @@ pub struct GalleryArgs {
         default_value = "renders"
     )]
     output: PathBuf,
-    /// Side of each gem image in pixels; the figures' spheres are a fifth
-    /// of it (figure 4.3's a half), at least 48.
+    /// Side of each gem image in pixels, 1 to 8192; the figures' spheres
+    /// are a fifth of it (figure 4.3's a half), but at least 48.
     #[arg(long, value_name = "N", default_value_t = 768)]
     size: u32,
     /// Samples per pixel.

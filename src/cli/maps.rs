@@ -7,6 +7,10 @@ use lapidary::gallery::plot::maps::{maps_sheet, MapsSheetStyle};
 use lapidary::recipe::gem::{compile_gem, Body, Gem, GemSource};
 use lapidary::recipe::Tables;
 
+/// The widest slice drawn, texture units (10 m of stone): far beyond any
+/// stone, and before the patterns' coordinates lose their precision.
+const MAX_EXTENT: f64 = 1000.0;
+
 /// Panel sizes beyond this would make a sheet of more than ~200 MB.
 const MAX_PANEL_PX: u32 = 4096;
 
@@ -28,9 +32,9 @@ pub fn run(args: MapsArgs) -> Result<(), String> {
             args.size
         ));
     }
-    if !(args.extent.is_finite() && args.extent > 0.0) {
+    if !(args.extent > 0.0 && args.extent <= MAX_EXTENT) {
         return Err(format!(
-            "--extent {}: must be a positive number of object-space units",
+            "--extent {}: allowed above 0 up to {MAX_EXTENT} texture units (one is 10 mm of stone)",
             args.extent
         ));
     }

@@ -53,13 +53,14 @@ enum Command {
     /// (default: the studio scene), to PNG or EXR.
     Render(render::RenderArgs),
     /// Check gem recipes, material files, scene files, batch jobs (with
-    /// every recipe and scene they name) or built-in names: prints
+    /// every recipe and scene they name), folders of them or built-in
+    /// names: prints
     /// `file:line:col: message` per error, `file: ok (…)` per valid input;
     /// exit status 1 when any has an error.
     Validate {
         /// RON files (gem, material, scene or job, told apart by their
-        /// top-level `Gem(`, `Material(`, `Scene(` or `Job(`) or built-in
-        /// names.
+        /// top-level `Gem(`, `Material(`, `Scene(` or `Job(`), folders (their
+        /// `.ron` files) or built-in names.
         #[arg(required = true, value_name = "RECIPE")]
         recipes: Vec<String>,
     },
@@ -79,7 +80,8 @@ struct MapsArgs {
     /// Side of each of the four panels in pixels.
     #[arg(long, default_value_t = 256)]
     size: u32,
-    /// Half-width of the slice in object-space units (x, y ∈ [−E, E]).
+    /// Half-width of the slice in texture units, one per 10 mm of stone
+    /// (x, y ∈ [−E, E]; up to 1000).
     #[arg(long, value_name = "E", default_value_t = 1.0)]
     extent: f64,
 }

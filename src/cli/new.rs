@@ -14,7 +14,8 @@ use std::path::{Path, PathBuf};
 /// Arguments of `lapidary new`.
 #[derive(clap::Args, Debug)]
 pub struct NewArgs {
-    /// Name of the new recipe (letters, digits, `-`, `_`); the file is NAME.ron.
+    /// Name of the new recipe (letters, digits, `-`, `_`, not starting with
+    /// `-`); the file is NAME.ron.
     name: String,
     /// The built-in gem or material to start from (see `lapidary list`).
     #[arg(long = "from", value_name = "TEMPLATE")]
@@ -52,8 +53,14 @@ fn template(name: &str) -> Result<Template, String> {
     ))
 }
 
-/// NAME must be usable both as a file name and inside a RON string.
+/// NAME must be usable both as a file name and inside a RON string, and
+/// as a command's argument (not starting with `-`, an option's mark).
 fn check_name(name: &str) -> Result<(), String> {
+    if name.starts_with('-') {
+        return Err(format!(
+            "NAME `{name}`: must not start with `-` (commands would read the file as an option)"
+        ));
+    }
     let ok = !name.is_empty()
         && name
             .chars()
@@ -178,6 +185,11 @@ pub fn run(args: NewArgs) -> Result<(), String> {
     let path = args
         .output
         .unwrap_or_else(|| PathBuf::from(format!("{name}.ron")));
+    if path.as_os_str() == "-" {
+        return Err(
+            "-o -: `lapidary new` writes a file; give its path (e.g. -o my-gem.ron)".into(),
+        );
+    }
     if path.symlink_metadata().is_ok() {
         return Err(format!(
             "{}: already exists; not overwriting it (choose another NAME or -o PATH)",

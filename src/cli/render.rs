@@ -15,7 +15,7 @@ use lapidary::farm::record::{
 use lapidary::output::animation::write_apng;
 use lapidary::output::exr::{film_channels, write_exr_owned, write_exr_with_note};
 use lapidary::output::tonemap::ToneCurve;
-use lapidary::recipe::error::did_you_mean;
+use lapidary::recipe::error::{did_you_mean, folder_separator_hint};
 use lapidary::recipe::gem::{Body, GemSource};
 use lapidary::recipe::library::DEFAULT_GEM;
 use lapidary::recipe::Tables;
@@ -503,7 +503,8 @@ impl Inputs {
                         .map(|s| format!(" (did you mean `{s}`, the built-in scene?)"))
                         .unwrap_or_default();
                     return Err(format!(
-                        "--scene {name}: no such file{hint}; --scene takes a `Scene(…)` file or `studio`"
+                        "--scene {name}: no such file{}{hint}; --scene takes a `Scene(…)` file or `studio`",
+                        folder_separator_hint(&name)
                     ));
                 }
                 (
@@ -530,8 +531,9 @@ impl Inputs {
         }
         if let Some(env) = args.env.as_deref().filter(|path| !path.exists()) {
             return Err(format!(
-                "--env {}: no such file; --env takes an equirectangular .hdr or .exr map (the procedural studio light is a scene's `environment: Studio(…)`, the built-in scene's own: leave --env out for it)",
-                env.display()
+                "--env {}: no such file{}; --env takes an equirectangular .hdr or .exr map (the procedural studio light is a scene's `environment: Studio(…)`, the built-in scene's own: leave --env out for it)",
+                env.display(),
+                folder_separator_hint(&env.to_string_lossy())
             ));
         }
         let sha256 = inputs_sha256(&scene_bytes, &scene, &gem, args.env.as_deref())?;

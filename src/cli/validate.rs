@@ -17,7 +17,9 @@ use lapidary::farm::job::Job;
 use lapidary::recipe::compile::{
     compile_material, locate_material, names_a_file, parse_material, read_ron_file, MaterialSource,
 };
-use lapidary::recipe::error::{did_you_mean, first_code_offset, line_col_of_offset, RecipeError};
+use lapidary::recipe::error::{
+    did_you_mean, first_code_offset, folder_separator_hint, line_col_of_offset, RecipeError,
+};
 use lapidary::recipe::gem::{parse_gem, Body, GemSource};
 use lapidary::recipe::library::{
     builtin_gem_names, builtin_gem_source, builtin_material_names, builtin_material_source,
@@ -261,9 +263,12 @@ pub fn validate_text(
 /// ([`check_job_inputs`]).
 pub fn validate_job(path: &str, file: &Path, text: &str) -> Result<String, RecipeError> {
     let job = Job::load(file)?;
-    check_job_inputs(path, text, &job)?;
+    let warnings: String = check_job_inputs(path, text, &job)?
+        .iter()
+        .map(|warning| format!("\n{warning}"))
+        .collect();
     Ok(format!(
-        "ok (job, {}: {} × {} × {})",
+        "ok (job, {}: {} × {} × {}){warnings}",
         counted(job.task_count(), "task"),
         counted(job.images.len() as u64, "image"),
         counted(job.turntable.map_or(1, |t| t.frames), "frame"),
@@ -273,8 +278,10 @@ pub fn validate_job(path: &str, file: &Path, text: &str) -> Result<String, Recip
 
 /// Every recipe and scene of `job` (read from `text` at `path`), each as
 /// `validate` checks it, so that a farm array never starts on a broken
-/// input; an input's error is placed where the job names it.
-pub fn check_job_inputs(path: &str, text: &str, job: &Job) -> Result<(), RecipeError> {
+/// input; an input's error is placed where the job names it. Returns the
+/// scenes' warnings (`FILE: warning: …`, a sunk stone, a camera inside a
+/// light), each once.
+pub fn check_job_inputs(path: &str, text: &str, job: &Job) -> Result<Vec<String>, RecipeError> {
     let recipes = job
         .images
         .iter()
@@ -285,17 +292,18 @@ pub fn check_job_inputs(path: &str, text: &str, job: &Job) -> Result<(), RecipeE
         .filter_map(|image| image.scene.as_ref())
         .map(|scene| ("scene", scene.display().to_string()));
     let mut checked = std::collections::HashSet::new();
+    let mut warnings = Vec::new();
     for (what, spec) in recipes.chain(scenes) {
         if !checked.insert(spec.clone()) {
             continue;
         }
-        let loaded = if what == "recipe" {
+        let checked_ok = if what == "recipe" {
             GemSource::load(&spec).and_then(|source| validate_gem(&source.path, &source.text))
         } else {
             read_ron_file(&spec, "scene file")
                 .and_then(|text| validate_scene(&spec, Some(Path::new(&spec)), &text))
         };
-        loaded.map_err(|e| {
+        let summary = checked_ok.map_err(|e| {
             // Where the job names it: a built-in's name in quotes, a
             // file's name (the job may write a folder before it).
             let written = if names_a_file(&spec) {
@@ -312,15 +320,21 @@ pub fn check_job_inputs(path: &str, text: &str, job: &Job) -> Result<(), RecipeE
                 format!("{what} `{spec}` does not load: {e}"),
             )
         })?;
+        warnings.extend(
+            summary
+                .lines()
+                .filter(|line| line.contains(": warning: "))
+                .map(str::to_string),
+        );
     }
-    Ok(())
+    Ok(warnings)
 }
 
 /// Validate one command-line argument (a file or a built-in name); returns
 /// the display path and the success summary, or the error.
 pub fn validate_one(spec: &str) -> Result<(String, String), RecipeError> {
     if names_a_file(spec) {
-        let text = read_ron_file(spec, "recipe (gem, material or scene)")?;
+        let text = read_ron_file(spec, "recipe (gem, material, scene or job)")?;
         let name = Path::new(spec)
             .file_stem()
             .map_or(spec.to_string(), |s| s.to_string_lossy().into_owned());
@@ -350,18 +364,64 @@ pub fn validate_one(spec: &str) -> Result<(String, String), RecipeError> {
     Err(RecipeError::whole_file(
         spec,
         format!(
-            "no such file and no built-in gem, material or scene of that name{hint}; built-in: {}",
+            "no such file and no built-in gem, material or scene of that name{}{hint}; built-in: {}",
+            folder_separator_hint(spec),
             names.join(", ")
         ),
     ))
 }
 
-/// Run `lapidary validate`: one line per input, on stdout for valid ones
-/// and stderr for errors; fails when any input has an error.
+/// The inputs of `validate`: each argument, a folder replaced by its
+/// `.ron` files (not those of its subfolders), in name order; a folder
+/// without any, or unreadable, is an error of its own.
+fn inputs(specs: &[String]) -> Vec<Result<String, RecipeError>> {
+    let mut inputs = Vec::new();
+    for spec in specs {
+        if !Path::new(spec).is_dir() {
+            inputs.push(Ok(spec.clone()));
+            continue;
+        }
+        let files = std::fs::read_dir(spec).map(|entries| {
+            let mut files: Vec<String> = entries
+                .filter_map(|entry| entry.ok().map(|entry| entry.path()))
+                .filter(|path| {
+                    path.is_file()
+                        && path
+                            .extension()
+                            .is_some_and(|e| e.eq_ignore_ascii_case("ron"))
+                })
+                .map(|path| path.display().to_string())
+                .collect();
+            files.sort();
+            files
+        });
+        match files {
+            Ok(files) if !files.is_empty() => inputs.extend(files.into_iter().map(Ok)),
+            Ok(_) => inputs.push(Err(RecipeError::whole_file(
+                spec,
+                "a folder without .ron files (its subfolders are not read)",
+            ))),
+            Err(e) => inputs.push(Err(RecipeError::whole_file(
+                spec,
+                format!("cannot read the folder: {e}"),
+            ))),
+        }
+    }
+    inputs
+}
+
+/// Run `lapidary validate`: one line per input (a folder's `.ron` files
+/// each), on stdout for valid ones and stderr for errors; fails when any
+/// input has an error.
 pub fn run(recipes: &[String]) -> Result<(), String> {
     let mut failed = 0;
-    for spec in recipes {
-        match validate_one(spec) {
+    let inputs = inputs(recipes);
+    for spec in &inputs {
+        match spec
+            .as_ref()
+            .map_err(Clone::clone)
+            .and_then(|spec| validate_one(spec))
+        {
             Ok((path, summary)) => super::emit(&format!("{path}: {summary}")),
             Err(e) => {
                 eprintln!("{e}");
@@ -374,7 +434,7 @@ pub fn run(recipes: &[String]) -> Result<(), String> {
     } else {
         Err(format!(
             "{failed} of {} ha{} errors",
-            counted(recipes.len() as u64, "input"),
+            counted(inputs.len() as u64, "input"),
             if failed == 1 { "s" } else { "ve" }
         ))
     }

@@ -5,7 +5,8 @@
 use crate::brdf::fresnel;
 use crate::brdf::{Base, Interface, LayeredBrdf, Microfacet, Rgb};
 use crate::recipe::error::{
-    did_you_mean, field_before, find_position, line_col_of_offset, with_ron_hints, RecipeError,
+    did_you_mean, field_before, find_position, folder_separator_hint, line_col_of_offset,
+    with_ron_hints, RecipeError,
 };
 use crate::recipe::library::{builtin_gem_source, builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
@@ -80,12 +81,14 @@ pub(crate) fn ron_error(path: &str, source: &str, e: ron::error::SpannedError) -
                 "Gem" => "a gem recipe",
                 "Material" => "a material",
                 "Scene" => "a scene",
+                "Job" => "a batch job",
                 _ => "a file",
             };
             let use_it = match found.as_str() {
                 "Gem" => "; render it with `lapidary render FILE`",
                 "Material" => "; inspect it with `lapidary brdf FILE`",
                 "Scene" => "; render it with `lapidary render --scene FILE`",
+                "Job" => "; list its tasks with `lapidary batch FILE`",
                 _ => "",
             };
             format!(
@@ -132,8 +135,18 @@ pub fn read_ron_file(spec: &str, what: &str) -> Result<String, RecipeError> {
             format!("is a directory, expected a .ron {what}"),
         ));
     }
-    let bytes = std::fs::read(path)
-        .map_err(|e| RecipeError::whole_file(spec, format!("cannot read: {e}")))?;
+    let bytes = std::fs::read(path).map_err(|e| {
+        RecipeError::whole_file(
+            spec,
+            format!("cannot read: {e}{}", folder_separator_hint(spec)),
+        )
+    })?;
+    if let Some((kind, hint)) = file_of_another_kind(&bytes) {
+        return Err(RecipeError::whole_file(
+            spec,
+            format!("this is {kind}, not a .ron {what}{hint}"),
+        ));
+    }
     let text = String::from_utf8(bytes).map_err(|e| {
         // Where the first byte that is not UTF-8 stands, as line:col of the
         // valid text before it.
@@ -155,6 +168,27 @@ pub fn read_ron_file(spec: &str, what: &str) -> Result<String, RecipeError> {
         Some(rest) => rest.to_string(),
         None => text,
     })
+}
+
+/// What a file that is not UTF-8 text is, from its first bytes (an image,
+/// UTF-16 text), and what to do with it.
+fn file_of_another_kind(bytes: &[u8]) -> Option<(&'static str, &'static str)> {
+    const MAP: &str =
+        "; an environment map goes to `render --env FILE` or a scene's `environment: File(path: …)`";
+    const UTF_16: &str = "; save it as UTF-8";
+    let kinds: [(&[u8], &str, &str); 7] = [
+        (b"\x89PNG", "a PNG image", ""),
+        (b"\xff\xd8\xff", "a JPEG image", ""),
+        (b"\x76\x2f\x31\x01", "an OpenEXR image", MAP),
+        (b"#?RADIANCE", "a Radiance HDR image", MAP),
+        (b"#?RGBE", "a Radiance HDR image", MAP),
+        (b"\xff\xfe", "UTF-16 text", UTF_16),
+        (b"\xfe\xff", "UTF-16 text", UTF_16),
+    ];
+    kinds
+        .iter()
+        .find(|(magic, _, _)| bytes.starts_with(magic))
+        .map(|&(_, kind, hint)| (kind, hint))
 }
 
 /// Find MATERIAL as a file (if it names one or ends in `.ron`) or as a
@@ -188,7 +222,10 @@ pub fn locate_material(spec: &str) -> Result<MaterialSource, RecipeError> {
                 .unwrap_or_default();
             Err(RecipeError::whole_file(
                 spec,
-                format!("no such file and no built-in material of that name{hint}; `lapidary list` shows the library"),
+                format!(
+                    "no such file and no built-in material of that name{}{hint}; `lapidary list` shows the library",
+                    folder_separator_hint(spec)
+                ),
             ))
         }
     }

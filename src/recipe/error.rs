@@ -376,6 +376,17 @@ fn character_name(c: char) -> String {
     }
 }
 
+/// A note for a path that was not found and is written with `\\` between
+/// its folders (a Windows habit; lapidary reads `/` on every system), else
+/// nothing.
+pub fn folder_separator_hint(written: &str) -> &'static str {
+    if written.contains('\\') {
+        " (write `/` between folders, not `\\`)"
+    } else {
+        ""
+    }
+}
+
 /// The closest of `candidates` to `word` by edit distance, if close enough
 /// to be a likely typo.
 pub fn did_you_mean<'a>(

@@ -1461,7 +1461,7 @@ impl<'a> Compiler<'a> {
 /// Find RECIPE as a file (if it names one, ends in `.ron` or has a `/`) or
 /// as a built-in gem; returns the display path and the text.
 fn load_gem_source(spec: &str) -> Result<(String, String), RecipeError> {
-    use crate::recipe::error::did_you_mean;
+    use crate::recipe::error::{did_you_mean, folder_separator_hint};
     use crate::recipe::library::{builtin_gem_names, builtin_gem_source};
     if crate::recipe::compile::names_a_file(spec) {
         let text = crate::recipe::compile::read_ron_file(spec, "gem recipe")?;
@@ -1485,7 +1485,8 @@ fn load_gem_source(spec: &str) -> Result<(String, String), RecipeError> {
             Err(RecipeError::whole_file(
                 spec,
                 format!(
-                    "no such file and no built-in gem of that name{hint}; built-in gems: {}",
+                    "no such file and no built-in gem of that name{}{hint}; built-in gems: {}",
+                    folder_separator_hint(spec),
                     builtin_gem_names().collect::<Vec<_>>().join(", ")
                 ),
             ))

@@ -3,8 +3,9 @@
 //! most resting on the ground. A stone sunk into the ground, or two stones
 //! that cross, still render, but a path inside a translucent body then
 //! meets surfaces it does not expect (another stone, or the ground, inside
-//! it). A camera or a light inside a stone sees or lights nothing else.
-//! `lapidary render` and `validate` warn of each.
+//! it). A camera or a light inside a stone sees or lights nothing else,
+//! nor does one inside a sphere light or below the ground. `lapidary
+//! render` and `validate` warn of each.
 
 use std::fmt;
 
@@ -56,6 +57,37 @@ pub enum PlacementProblem {
         /// The stone, from 0.
         stone: usize,
     },
+    /// The camera lies inside sphere light `light` (from 0), which emits
+    /// outwards only: the picture is black.
+    CameraInsideLight {
+        /// The light, from 0.
+        light: usize,
+    },
+    /// Stone `stone` lies inside sphere light `light` (from 0): the light
+    /// hides it and nothing lights it.
+    StoneInsideLight {
+        /// The stone, from 0.
+        stone: usize,
+        /// The light, from 0.
+        light: usize,
+    },
+    /// The camera lies below the ground's plane, at height `z_mm` (the
+    /// ground at `ground_mm`).
+    CameraBelowGround {
+        /// The camera's height, mm.
+        z_mm: f64,
+        /// The ground's height, mm.
+        ground_mm: f64,
+    },
+    /// Light `light` (from 0) lies wholly below the ground's plane (a sun:
+    /// below the horizon): it lights nothing above the ground.
+    LightBelowGround {
+        /// The light, from 0.
+        light: usize,
+        /// Whether the light is a sun (its direction at or below the
+        /// horizon).
+        sun: bool,
+    },
 }
 
 impl fmt::Display for PlacementProblem {
@@ -93,27 +125,99 @@ impl fmt::Display for PlacementProblem {
                 light + 1,
                 stone + 1
             ),
+            Self::CameraInsideLight { light } => write!(
+                f,
+                "the camera is inside light {}, a sphere that emits outwards only: the picture \
+                 is black (make the sphere smaller than its distance to the camera)",
+                light + 1
+            ),
+            Self::StoneInsideLight { stone, light } => write!(
+                f,
+                "stone {} is inside light {}, a sphere that emits outwards only: the light \
+                 hides it and nothing lights it (make the sphere smaller or move it)",
+                stone + 1,
+                light + 1
+            ),
+            Self::CameraBelowGround { z_mm, ground_mm } => write!(
+                f,
+                "the camera is below the ground (z = {z_mm:.3} mm, the ground at {ground_mm:.3} \
+                 mm): the ground is not seen from below (raise the camera)"
+            ),
+            Self::LightBelowGround { light, sun: false } => write!(
+                f,
+                "light {} is below the ground: the ground hides it from everything above \
+                 (raise it)",
+                light + 1
+            ),
+            Self::LightBelowGround { light, sun: true } => write!(
+                f,
+                "light {}, a sun, is at or below the horizon: the ground hides it from \
+                 everything above (give its direction a positive z)",
+                light + 1
+            ),
         }
     }
 }
 
-/// The camera of `scene`, then each of its lights with a place (all but a
-/// sun), that lies inside a stone of `world` (the scene's stones, placed).
+/// What keeps the camera or the lights of `scene` from the stones of
+/// `world` (the scene's stones, placed): the camera inside a stone, inside
+/// a sphere light or below the ground; a light (all but a sun) that fits
+/// inside a stone; a stone inside a sphere light; a light wholly below the
+/// ground (a sun below the horizon).
 pub fn viewpoint_problems(world: &World, scene: &Scene) -> Vec<PlacementProblem> {
-    let inside = |point: DVec3| {
-        (0..world.stones().len()).find(|&stone| depth_inside(world, stone, point) > 0.0)
+    // The stone `point` lies at least `reach` deep inside, if any.
+    let inside = |point: DVec3, reach: f64| {
+        (0..world.stones().len()).find(|&stone| depth_inside(world, stone, point) > reach)
     };
-    let camera =
-        inside(scene.camera.position).map(|stone| PlacementProblem::CameraInside { stone });
-    let lights = scene.lights.iter().enumerate().filter_map(|(light, spec)| {
-        let place = match *spec {
-            LightSpec::Point { position, .. } => position,
-            LightSpec::Sphere { centre, .. } | LightSpec::Rect { centre, .. } => centre,
-            LightSpec::Sun { .. } => return None,
+    let camera = scene.camera.position;
+    let ground = world.ground_height();
+    let mut problems: Vec<PlacementProblem> = inside(camera, 0.0)
+        .map(|stone| PlacementProblem::CameraInside { stone })
+        .into_iter()
+        .collect();
+    if let Some(ground_mm) = ground.filter(|&ground| camera.z < ground) {
+        problems.push(PlacementProblem::CameraBelowGround {
+            z_mm: camera.z,
+            ground_mm,
+        });
+    }
+    for (light, spec) in scene.lights.iter().enumerate() {
+        // The light's middle and how far it reaches from it.
+        let (place, reach) = match *spec {
+            LightSpec::Point { position, .. } => (position, 0.0),
+            LightSpec::Sphere { centre, radius, .. } => (centre, radius),
+            LightSpec::Rect {
+                centre,
+                width,
+                height,
+                ..
+            } => (centre, 0.5 * width.hypot(height)),
+            LightSpec::Sun { direction, .. } => {
+                if ground.is_some() && direction.z <= 0.0 {
+                    problems.push(PlacementProblem::LightBelowGround { light, sun: true });
+                }
+                continue;
+            }
         };
-        inside(place).map(|stone| PlacementProblem::LightInside { light, stone })
-    });
-    camera.into_iter().chain(lights).collect()
+        if let Some(stone) = inside(place, reach) {
+            problems.push(PlacementProblem::LightInside { light, stone });
+        }
+        if let LightSpec::Sphere { centre, radius, .. } = *spec {
+            if camera.distance(centre) < radius {
+                problems.push(PlacementProblem::CameraInsideLight { light });
+            }
+            for (stone, instance) in world.stones().iter().enumerate() {
+                let (lo, hi) = instance.world_bounds();
+                if (0.5 * (lo + hi) - centre).length() < radius {
+                    problems.push(PlacementProblem::StoneInsideLight { stone, light });
+                }
+            }
+        }
+        if ground.is_some_and(|ground| place.z + reach < ground) {
+            problems.push(PlacementProblem::LightBelowGround { light, sun: false });
+        }
+    }
+    problems
 }
 
 /// Every stone of `world` that sinks into its ground, then every pair of

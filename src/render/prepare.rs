@@ -97,8 +97,13 @@ pub fn prepare_scene(
     if let Environment::Map(map) = &environment {
         if let Some((texels, share)) = map.sampled_apart() {
             report(&format!(
-                "environment map: its {texels} brightest texels hold {:.1} % of its power \
-                 (a sun): sampled apart from the rest where the camera sees a surface",
+                "environment map: its {} {:.1} % of its power (a sun): sampled apart from \
+                 the rest where the camera sees a surface",
+                if texels == 1 {
+                    "brightest texel holds".to_string()
+                } else {
+                    format!("{texels} brightest texels hold")
+                },
                 100.0 * share
             ));
         }

@@ -26,7 +26,8 @@ use crate::brdf::Rgb;
 use crate::geometry::{Base, Cabochon, CabochonParams, GeometryError, Outline};
 use crate::recipe::compile::{parse_ron, read_ron_file, ron_error};
 use crate::recipe::error::{
-    blank_comments_and_strings, did_you_mean, line_col_of_offset, RecipeError,
+    blank_comments_and_strings, did_you_mean, folder_separator_hint, line_col_of_offset,
+    RecipeError,
 };
 use crate::recipe::library::{builtin_gem_names, builtin_material_names};
 use glam::{DQuat, DVec3};
@@ -732,7 +733,8 @@ fn file_problem(
                 .map(|s| format!(" (did you mean `{s}`?)"))
                 .or(otherwise)
                 .unwrap_or_default();
-            Some(format!("not found{place}{hint}"))
+            let separator = folder_separator_hint(written);
+            Some(format!("not found{place}{separator}{hint}"))
         }
         Err(e) => Some(format!("cannot be read{place}: {e}")),
     }

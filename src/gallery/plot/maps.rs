@@ -14,7 +14,7 @@ use rayon::prelude::*;
 pub struct MapsSheetStyle {
     /// Side of each square panel in pixels.
     pub panel_px: u32,
-    /// The slice covers x, y ∈ [−extent, extent] object-space units.
+    /// The slice covers x, y ∈ [−extent, extent] texture units.
     pub extent: f64,
     /// Title printed above the panels.
     pub title: String,
