@@ -267,11 +267,7 @@ pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col
             message.push_str(&format!("; allowed: {allowed}"));
         }
     }
-    let line_start: usize = source
-        .split_inclusive('\n')
-        .take(line.saturating_sub(1))
-        .map(str::len)
-        .sum();
+    let line_start = line_start_offset(source, line);
     let offset = source[line_start.min(source.len())..]
         .char_indices()
         .nth(col.saturating_sub(1))
@@ -333,6 +329,16 @@ pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col
     message
 }
 
+/// The byte offset where line `line` (1-based) of `source` starts (the
+/// text's length past its last line).
+fn line_start_offset(source: &str, line: usize) -> usize {
+    source
+        .split_inclusive('\n')
+        .take(line.saturating_sub(1))
+        .map(str::len)
+        .sum()
+}
+
 /// The first character outside the ASCII set on line `line` (1-based) of
 /// `source`, outside comments and string literals, and its column: RON
 /// reads names, numbers and brackets in ASCII only, so such a character
@@ -340,11 +346,7 @@ pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col
 /// the parse there or splits a name in two.
 fn stray_character_on_line(source: &str, line: usize) -> Option<(usize, char)> {
     let code = blank_comments_and_strings(source);
-    let line_start: usize = source
-        .split_inclusive('\n')
-        .take(line.saturating_sub(1))
-        .map(str::len)
-        .sum();
+    let line_start = line_start_offset(source, line);
     let line_end = source[line_start.min(source.len())..]
         .find('\n')
         .map_or(source.len(), |end| line_start + end);
