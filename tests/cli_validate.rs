@@ -405,7 +405,10 @@ fn stones_sunk_into_the_ground_or_crossing_each_other_are_warned_of() {
     let dir = scratch("placement");
     let (code, out, err) = validate_file(&dir, "resting.ron", GOOD_SCENE.as_bytes());
     assert_eq!(code, 0, "{err}");
-    assert!(!out.contains("warning"), "{out}");
+    assert!(
+        !out.contains("warning") && !err.contains("warning"),
+        "{err}"
+    );
     // At the default position the girdle sinks 0.5 mm; a second stone 6 mm
     // along x crosses the first (both are 10 mm long along x).
     let scene = GOOD_SCENE.replace("position: (0.0, 0.0, 0.5)", "position: (0.0, 0.0, 0.0)");
@@ -415,15 +418,16 @@ fn stones_sunk_into_the_ground_or_crossing_each_other_are_warned_of() {
     );
     let (code, out, err) = validate_file(&dir, "placed.ron", scene.as_bytes());
     assert_eq!(code, 0, "a warning is not an error: {err}");
-    let warnings: Vec<&str> = out.lines().filter(|l| l.contains("warning")).collect();
-    assert_eq!(warnings.len(), 2, "{out}");
+    assert!(!out.contains("warning"), "warnings go to stderr: {out}");
+    let warnings: Vec<&str> = err.lines().filter(|l| l.contains("warning")).collect();
+    assert_eq!(warnings.len(), 2, "{err}");
     assert!(
         warnings[0].contains("placed.ron: warning: stone 1 sinks 0.500 mm into the ground"),
-        "{out}"
+        "{err}"
     );
     assert!(
         warnings[1].contains("placed.ron: warning: stones 1 and 2 overlap"),
-        "{out}"
+        "{err}"
     );
     // `render` says the same, even when quiet, and still renders.
     let path = dir.join("placed.ron");
@@ -458,13 +462,14 @@ fn a_camera_or_light_inside_a_stone_is_warned_of() {
     );
     let (code, out, err) = validate_file(&dir, "inside.ron", scene.as_bytes());
     assert_eq!(code, 0, "a warning is not an error: {err}");
-    let warnings: Vec<&str> = out.lines().filter(|l| l.contains("warning")).collect();
-    assert_eq!(warnings.len(), 2, "{out}");
+    assert!(!out.contains("warning"), "warnings go to stderr: {out}");
+    let warnings: Vec<&str> = err.lines().filter(|l| l.contains("warning")).collect();
+    assert_eq!(warnings.len(), 2, "{err}");
     assert!(
         warnings[0].contains("the camera is inside stone 1"),
-        "{out}"
+        "{err}"
     );
-    assert!(warnings[1].contains("light 2 is inside stone 1"), "{out}");
+    assert!(warnings[1].contains("light 2 is inside stone 1"), "{err}");
 }
 
 #[test]
@@ -479,7 +484,8 @@ fn a_sphere_light_around_the_scene_and_things_below_the_ground_are_warned_of() {
     let warnings = |name: &str, scene: &str| -> Vec<String> {
         let (code, out, err) = validate_file(&dir, name, scene.as_bytes());
         assert_eq!(code, 0, "a warning is not an error: {err}");
-        out.lines()
+        assert!(!out.contains("warning"), "warnings go to stderr: {out}");
+        err.lines()
             .filter(|l| l.contains("warning"))
             .map(str::to_string)
             .collect()

@@ -668,6 +668,43 @@ fn the_htcondor_submit_files_run_the_batch_and_merge_to_the_single_render() {
 }
 
 #[test]
+fn a_tile_is_not_written_over_another_tile_of_the_same_render() {
+    // Two tiles of a two-frame turntable given one -o: the second would
+    // replace the first's frames; refused before any work, the first kept.
+    let dir = scratch("tile-over-tile");
+    let out = dir.join("tt.exr");
+    let args = |tile: &'static str| {
+        vec![
+            "render",
+            "sunstone",
+            "--size",
+            "16",
+            "--spp",
+            "1",
+            "--frames",
+            "2",
+            "--tile",
+            tile,
+            "-q",
+            "-o",
+            s(&out),
+        ]
+    };
+    ok(&args("0/2"));
+    let first = std::fs::read(dir.join("tt-0000.exr")).unwrap();
+    refused(
+        &args("1/2"),
+        "holds tile 0 of 2 of this render, which tile 1 would replace",
+    );
+    assert_eq!(std::fs::read(dir.join("tt-0000.exr")).unwrap(), first);
+    // The same tile again, or another render's tile, writes as ever.
+    ok(&args("0/2"));
+    let mut other = args("1/2");
+    other[5] = "2";
+    ok(&other);
+}
+
+#[test]
 fn a_job_s_scene_warnings_are_shown_by_validate_and_batch() {
     // A scene whose stone sinks 3 mm into the ground: rendered, with the
     // warning `validate SCENE` gives, before a farm array starts.
@@ -691,8 +728,7 @@ fn a_job_s_scene_warnings_are_shown_by_validate_and_batch() {
     let sinks = "sunk.ron: warning: stone 1 sinks 3.000 mm into the ground";
     let out = lapidary(&["validate", s(&job)]);
     assert!(out.status.success(), "{}", stderr(&out));
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert_eq!(text.matches(sinks).count(), 1, "{text}");
+    assert_eq!(stderr(&out).matches(sinks).count(), 1, "{}", stderr(&out));
     assert!(ok(&["batch", s(&job)]).contains(sinks));
 }
 

@@ -828,6 +828,11 @@ fn bad_files_give_errors_naming_the_file() {
         let err = error_text(&path);
         assert!(err.contains("x = 3, y = 1"), "{err}");
     }
+    // The texel as in the file, whatever the `intensity`: (1, −1, 1).
+    let err = Environment::from_file(&dir.join("negative.exr"), 0.0, 2.0)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("is (1, -1, 1)"), "{err}");
 
     // A directory with an allowed extension is not a file.
     let subdir = dir.join("folder.hdr");

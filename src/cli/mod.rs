@@ -54,9 +54,9 @@ enum Command {
     Render(render::RenderArgs),
     /// Check gem recipes, material files, scene files, batch jobs (with
     /// every recipe and scene they name), folders of them or built-in
-    /// names: prints
-    /// `file:line:col: message` per error, `file: ok (…)` per valid input;
-    /// exit status 1 when any has an error.
+    /// names: prints `file: ok (…)` per valid input on stdout,
+    /// `file:line:col: message` per error and `file: warning: …` on
+    /// stderr; exit status 1 when any has an error.
     Validate {
         /// RON files (gem, material, scene or job, told apart by their
         /// top-level `Gem(`, `Material(`, `Scene(` or `Job(`), folders (their

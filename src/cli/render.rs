@@ -354,6 +354,11 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         lapidary::output::check_writable(path).map_err(|e| e.to_string())?;
     }
     let mut renderer = Renderer::prepare(&args, inputs, width, height, turntable)?;
+    if let Some(split) = split {
+        for (frame, path) in frames.iter().zip(&outputs) {
+            refuse_over_another_tile(&renderer.record(*frame), split, height, path, &args.output)?;
+        }
+    }
     let mut pictures = Vec::new();
     for (frame, path) in frames.iter().zip(&outputs) {
         let picture = renderer.render_to(*frame, split, path)?;
@@ -370,6 +375,49 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         ));
     }
     Ok(())
+}
+
+/// Refuses to write tile `split` to `path` (a frame's file of `output`)
+/// where `path` holds another tile of the same render (`expected`'s,
+/// `height` rows): two tiles given one `-o` would leave `merge` one short,
+/// silently.
+fn refuse_over_another_tile(
+    expected: &RenderRecord,
+    split: TileSplit,
+    height: u32,
+    path: &Path,
+    output: &Path,
+) -> Result<(), String> {
+    let Ok(tile) = path.exists().then(|| read_tile(path)).transpose() else {
+        return Ok(());
+    };
+    let Some(tile) = tile else {
+        return Ok(());
+    };
+    let (index, count) = tile.record.tile;
+    if index == split.index() || count != split.count() {
+        return Ok(());
+    }
+    let Ok(theirs) = TileSplit::new(index, count, height) else {
+        return Ok(());
+    };
+    let same_render = ReadRecord::parse(
+        &tile_record(expected, theirs, &tile.channels, tile.record.bad_samples).to_text(),
+    )
+    .is_some_and(|record| record.render_lines == tile.record.render_lines);
+    if !same_render {
+        return Ok(());
+    }
+    let stem = output
+        .file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    Err(format!(
+        "{}: holds tile {index} of {count} of this render, which tile {} would replace; \
+         give each tile its own -o (e.g. -o {stem}-t{}.exr)",
+        path.display(),
+        split.index(),
+        split.index()
+    ))
 }
 
 /// What a batch task did.

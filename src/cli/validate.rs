@@ -411,8 +411,8 @@ fn inputs(specs: &[String]) -> Vec<Result<String, RecipeError>> {
 }
 
 /// Run `lapidary validate`: one line per input (a folder's `.ron` files
-/// each), on stdout for valid ones and stderr for errors; fails when any
-/// input has an error.
+/// each), on stdout for valid ones and stderr for errors and warnings;
+/// fails when any input has an error.
 pub fn run(recipes: &[String]) -> Result<(), String> {
     let mut failed = 0;
     let inputs = inputs(recipes);
@@ -422,7 +422,15 @@ pub fn run(recipes: &[String]) -> Result<(), String> {
             .map_err(Clone::clone)
             .and_then(|spec| validate_one(spec))
         {
-            Ok((path, summary)) => super::emit(&format!("{path}: {summary}")),
+            Ok((path, summary)) => {
+                // The ok line on stdout, its warnings on stderr with the
+                // errors (they stay seen under `> /dev/null`).
+                let mut lines = summary.lines();
+                super::emit(&format!("{path}: {}", lines.next().unwrap_or_default()));
+                for warning in lines {
+                    eprintln!("{warning}");
+                }
+            }
             Err(e) => {
                 eprintln!("{e}");
                 failed += 1;

@@ -168,7 +168,7 @@ pub enum EnvironmentError {
         x: usize,
         /// Row of the first bad texel (0 = top = straight up).
         y: usize,
-        /// Its radiance (after `intensity`).
+        /// Its radiance, as in the file (before `intensity`).
         value: Rgb,
     },
     /// A texel brighter than [`MAX_TEXEL_RADIANCE`] (before `intensity`).
@@ -311,7 +311,7 @@ impl Environment {
     ) -> Result<Self, EnvironmentError> {
         check_intensity(intensity)?;
         check_rotation(rotation_deg)?;
-        let (width, height, texels) = read_map_file(path, intensity)?;
+        let (width, height, texels) = read_map_file(path)?;
         let origin = path.display().to_string();
         let map =
             EnvironmentMap::from_packed(origin, width, height, texels, intensity, rotation_deg)?;
@@ -664,7 +664,7 @@ impl EnvironmentMap {
             .enumerate()
             .map(|(i, t)| {
                 pack_texel(t.to_array())
-                    .map_err(|bad| bad.into_error(origin.clone(), i % width, i / width, intensity))
+                    .map_err(|bad| bad.into_error(origin.clone(), i % width, i / width))
             })
             .collect::<Result<Vec<u64>, _>>()?;
         Self::from_packed(origin, width, height, packed, intensity, rotation_deg)
@@ -1297,13 +1297,13 @@ enum BadTexel {
 
 impl BadTexel {
     /// The error for this texel at (`x`, `y`) of `origin`.
-    fn into_error(self, origin: String, x: usize, y: usize, intensity: f64) -> EnvironmentError {
+    fn into_error(self, origin: String, x: usize, y: usize) -> EnvironmentError {
         match self {
             BadTexel::Invalid(rgb) => EnvironmentError::BadTexel {
                 origin,
                 x,
                 y,
-                value: Rgb::from_array(rgb) * intensity,
+                value: Rgb::from_array(rgb),
             },
             BadTexel::TooBright(rgb) => EnvironmentError::TooBright {
                 origin,
@@ -1748,15 +1748,14 @@ type PackedTexels = (usize, usize, Vec<u64>);
 
 /// Reads a map file by extension, turning every failure (a decoder panic
 /// included) into an error naming the path. Texels are packed as they are
-/// decoded: no full-precision copy of the image is ever held. `intensity`
-/// only scales the values that errors report.
-fn read_map_file(path: &Path, intensity: f64) -> Result<PackedTexels, EnvironmentError> {
+/// decoded: no full-precision copy of the image is ever held. A bad
+/// texel's error reports it as in the file.
+fn read_map_file(path: &Path) -> Result<PackedTexels, EnvironmentError> {
     let extension = path
         .extension()
         .map(|e| e.to_string_lossy().to_lowercase())
         .unwrap_or_default();
-    let reader: fn(&Path, f64) -> Result<PackedTexels, EnvironmentError> = match extension.as_str()
-    {
+    let reader: fn(&Path) -> Result<PackedTexels, EnvironmentError> = match extension.as_str() {
         "hdr" => read_hdr,
         "exr" => read_exr,
         _ => {
@@ -1787,7 +1786,7 @@ fn read_map_file(path: &Path, intensity: f64) -> Result<PackedTexels, Environmen
     }
     // Decoders of untrusted files have panicked on malformed input before;
     // a panic here must still come back as an error naming the file.
-    std::panic::catch_unwind(|| reader(path, intensity)).unwrap_or_else(|_| {
+    std::panic::catch_unwind(|| reader(path)).unwrap_or_else(|_| {
         Err(EnvironmentError::Decode {
             path: path.to_path_buf(),
             format: if extension == "hdr" {
@@ -1811,7 +1810,7 @@ fn io_error(path: &Path, e: &std::io::Error) -> EnvironmentError {
 /// crate, then the scanlines read here one at a time and packed, since
 /// `image` 0.25 decodes only into a whole-image `f32` buffer (12 bytes a
 /// texel). A texel is `m × 2^(e − 136)` as `image` reads it (0 for `e = 0`).
-fn read_hdr(path: &Path, intensity: f64) -> Result<PackedTexels, EnvironmentError> {
+fn read_hdr(path: &Path) -> Result<PackedTexels, EnvironmentError> {
     let decode_error = |message: String| EnvironmentError::Decode {
         path: path.to_path_buf(),
         format: "Radiance HDR",
@@ -1839,9 +1838,7 @@ fn read_hdr(path: &Path, intensity: f64) -> Result<PackedTexels, EnvironmentErro
                 2f64.powi(i32::from(e) - 136)
             };
             let rgb = [r, g, b].map(|m| f64::from(m) * scale);
-            texels.push(
-                pack_texel(rgb).map_err(|bad| bad.into_error(origin.clone(), x, y, intensity))?,
-            );
+            texels.push(pack_texel(rgb).map_err(|bad| bad.into_error(origin.clone(), x, y))?);
         }
     }
     Ok((width, height, texels))
@@ -1925,7 +1922,7 @@ fn read_rgbe_scanline(r: &mut impl Read, line: &mut [[u8; 4]]) -> Result<(), Str
 /// channels, largest resolution level; its size is checked from the header
 /// before the texels are decoded, and each texel is packed as the decoder
 /// delivers it (into its place, whatever the file's block order).
-fn read_exr(path: &Path, intensity: f64) -> Result<PackedTexels, EnvironmentError> {
+fn read_exr(path: &Path) -> Result<PackedTexels, EnvironmentError> {
     let decode_error = |message: String| EnvironmentError::Decode {
         path: path.to_path_buf(),
         format: "OpenEXR",
@@ -1982,7 +1979,7 @@ fn read_exr(path: &Path, intensity: f64) -> Result<PackedTexels, EnvironmentErro
     let packing = image.layer_data.channel_data.pixels;
     if let Some((i, bad)) = packing.first_bad {
         let x = i % packing.width.max(1);
-        return Err(bad.into_error(origin, x, i / packing.width.max(1), intensity));
+        return Err(bad.into_error(origin, x, i / packing.width.max(1)));
     }
     let w = packing.width;
     let h = packing.texels.len().checked_div(w).unwrap_or(0);
