@@ -612,6 +612,10 @@ fn new_writes_a_recipe_that_validates_and_names_the_gem() {
     assert!(written.contains("lapidary validate"), "{written}");
     assert!(written.contains("lapidary render"), "{written}");
     assert!(written.contains("name: \"my-stone\""), "{written}");
+    assert!(
+        written.contains("description: \"my-stone, started from lavender-lepidolite: "),
+        "{written}"
+    );
     // The template's own name is gone from the `name:` field only.
     assert!(
         !written.contains("name: \"lavender-lepidolite\""),

@@ -1,8 +1,9 @@
 //! `lapidary new NAME --from TEMPLATE [-o PATH]`: start a recipe from a
 //! built-in gem or material. The template's own text (with its comments)
 //! is copied under a header saying where it came from and how to check and
-//! render it; a gem's `name:` becomes NAME. The result is validated before
-//! it is written, atomically, and an existing file is never overwritten.
+//! render it; a gem's `name:` becomes NAME, its `description:` says where it
+//! started. The result is validated before it is written, atomically, and
+//! an existing file is never overwritten.
 
 use super::validate::validate_text;
 use lapidary::recipe::error::{did_you_mean, line_col_of_offset};
@@ -74,10 +75,11 @@ fn check_name(name: &str) -> Result<(), String> {
     }
 }
 
-/// Byte range of the string value of the top-level `name:` field of the
-/// `Gem(` in `text` (quotes included), skipping comments and strings and
-/// looking only at nesting depth 1; `None` when the gem has no `name`.
-fn gem_name_value(text: &str) -> Option<(usize, usize)> {
+/// Byte range of the string value of the top-level field `field` (`name`,
+/// `description`) of the `Gem(` in `text` (quotes included), skipping
+/// comments and strings and looking only at nesting depth 1; `None` when
+/// the gem has no such field.
+fn gem_field_value(text: &str, field: &str) -> Option<(usize, usize)> {
     let b = text.as_bytes();
     let mut depth = 0usize;
     let mut i = 0;
@@ -100,12 +102,13 @@ fn gem_name_value(text: &str) -> Option<(usize, usize)> {
             }
             b'(' | b'[' | b'{' => depth += 1,
             b')' | b']' | b'}' => depth = depth.saturating_sub(1),
-            b'n' if depth == 1
-                && text[i..].starts_with("name")
+            c if c == field.as_bytes()[0]
+                && depth == 1
+                && text[i..].starts_with(field)
                 && (i == 0 || !is_word(b[i - 1]))
-                && !b.get(i + 4).is_some_and(|c| is_word(*c)) =>
+                && !b.get(i + field.len()).is_some_and(|c| is_word(*c)) =>
             {
-                let after = text[i + 4..].trim_start();
+                let after = text[i + field.len()..].trim_start();
                 if let Some(value) = after.strip_prefix(':') {
                     let value = value.trim_start();
                     if value.starts_with('"') {
@@ -126,9 +129,20 @@ fn gem_name_value(text: &str) -> Option<(usize, usize)> {
 }
 
 /// The template's text with the gem's `name:` set to NAME (inserted after
-/// `Gem(` when the template has none).
-fn rename_gem(text: &str, name: &str) -> String {
-    match gem_name_value(text) {
+/// `Gem(` when the template has none) and its `description:`, if any,
+/// saying it was started from `template` (lists and the gallery show it).
+fn rename_gem(text: &str, name: &str, template: &str) -> String {
+    let text = match gem_field_value(text, "description") {
+        Some((start, end)) => format!(
+            "{}\"{name}, started from {template}: {}\"{}",
+            &text[..start],
+            &text[start + 1..end - 1],
+            &text[end..]
+        ),
+        None => text.to_string(),
+    };
+    let text = text.as_str();
+    match gem_field_value(text, "name") {
         Some((start, end)) => format!("{}\"{name}\"{}", &text[..start], &text[end..]),
         None => match text.find("Gem(") {
             Some(at) => {
@@ -198,7 +212,7 @@ pub fn run(args: NewArgs) -> Result<(), String> {
     }
     lapidary::output::check_writable(&path).map_err(|e| e.to_string())?;
     let (body, kind, is_gem) = match template {
-        Template::Gem(text) => (rename_gem(text, &name), "gem recipe", true),
+        Template::Gem(text) => (rename_gem(text, &name, &args.from), "gem recipe", true),
         Template::Material(text) => (text.to_string(), "material", false),
     };
     let text = format!("{}{body}", header(&name, &args.from, kind, &path, is_gem));
@@ -211,7 +225,7 @@ pub fn run(args: NewArgs) -> Result<(), String> {
         ));
     }
     lapidary::output::write_atomically(&path, text.as_bytes()).map_err(|e| e.to_string())?;
-    let (line, _) = gem_name_value(&text)
+    let (line, _) = gem_field_value(&text, "name")
         .filter(|_| is_gem)
         .map_or((1, 1), |(start, _)| line_col_of_offset(&text, start));
     eprintln!(
@@ -237,18 +251,26 @@ mod tests {
         // A `name:` in a comment, in a string and inside a nested struct
         // must stay; the depth-1 field changes.
         let text = "// name: \"c\"\nGem(\n  description: \"name: x\",\n  maps: {\"m\": S(name: \"inner\")},\n  name: \"old\",\n)";
-        let out = rename_gem(text, "new-one");
+        let out = rename_gem(text, "new-one", "t");
         assert!(out.contains("name: \"new-one\""), "{out}");
         assert!(!out.contains("\"old\""), "{out}");
-        for kept in ["// name: \"c\"", "\"name: x\"", "name: \"inner\""] {
+        for kept in ["// name: \"c\"", "name: \"inner\""] {
             assert!(out.contains(kept), "{kept} lost: {out}");
         }
+        // The description says where the gem came from, and keeps its own.
+        assert!(
+            out.contains("description: \"new-one, started from t: name: x\""),
+            "{out}"
+        );
     }
 
     #[test]
     fn a_gem_without_a_name_gets_one() {
-        let out = rename_gem("Gem(surface: \"gold\")", "g");
-        assert_eq!(gem_name_value(&out).map(|(s, e)| &out[s..e]), Some("\"g\""));
+        let out = rename_gem("Gem(surface: \"gold\")", "g", "t");
+        assert_eq!(
+            gem_field_value(&out, "name").map(|(s, e)| &out[s..e]),
+            Some("\"g\"")
+        );
     }
 
     #[test]
