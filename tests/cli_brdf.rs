@@ -251,9 +251,22 @@ fn plot_into_a_missing_directory_fails_before_work_and_writes_nothing() {
 
 #[test]
 fn bad_eval_angles_are_refused() {
+    // Out of range: bad input (exit 1).
     let out = lapidary(&["brdf", "gold", "--eval", "95,0,10,0"]);
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("[0, 90]"));
+    // Not four numbers: a usage error (exit 2), as clap's own.
+    for (value, says) in [
+        ("30,0,30", "expected four angles"),
+        ("a,0,30,0", "`a` is not a number"),
+    ] {
+        let out = lapidary(&["brdf", "gold", "--eval", value]);
+        assert_eq!(out.status.code(), Some(2), "{value}");
+        assert!(
+            String::from_utf8_lossy(&out.stderr).contains(says),
+            "{value}"
+        );
+    }
 }
 
 #[test]

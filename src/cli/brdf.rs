@@ -31,7 +31,7 @@ pub fn run(args: BrdfArgs) -> Result<(), String> {
     if let Some(path) = &args.output {
         super::check_png_output(path)?;
     }
-    let eval_angles = args.eval.as_deref().map(parse_eval_angles).transpose()?;
+    let eval_angles = args.eval.map(check_eval_angles).transpose()?;
     if let Some(theta_i) = args.slice {
         if !(0.0..=90.0).contains(&theta_i) {
             return Err(format!("--slice {theta_i}: allowed 0 to 90 degrees"));
@@ -58,27 +58,31 @@ pub fn run(args: BrdfArgs) -> Result<(), String> {
     Ok(())
 }
 
-/// Parse "θi,φi,θo,φo" in degrees; θ must lie in [0, 90].
-fn parse_eval_angles(text: &str) -> Result<[f64; 4], String> {
+/// `--eval`'s "θi,φi,θo,φo": four numbers (anything else is a usage
+/// error); their ranges are [`check_eval_angles`]'s.
+pub(super) fn parse_four_numbers(text: &str) -> Result<[f64; 4], String> {
     let parts: Vec<&str> = text.split(',').map(str::trim).collect();
     if parts.len() != 4 {
-        return Err(format!(
-            "--eval {text}: expected four angles THETA_I,PHI_I,THETA_O,PHI_O in degrees"
-        ));
+        return Err("expected four angles THETA_I,PHI_I,THETA_O,PHI_O in degrees".into());
     }
     let mut out = [0.0; 4];
     for (k, p) in parts.iter().enumerate() {
-        let v: f64 = p
-            .parse()
-            .map_err(|_| format!("--eval {text}: `{p}` is not a number"))?;
-        if !v.is_finite() || ((k == 0 || k == 2) && !(0.0..=90.0).contains(&v)) {
-            return Err(format!(
-                "--eval {text}: `{p}` is out of range; θ must be in [0, 90] degrees, φ finite"
-            ));
-        }
-        out[k] = v;
+        out[k] = p.parse().map_err(|_| format!("`{p}` is not a number"))?;
     }
     Ok(out)
+}
+
+/// `--eval`'s angles in degrees, if θ lies in [0, 90] and φ is finite.
+fn check_eval_angles(angles: [f64; 4]) -> Result<[f64; 4], String> {
+    for (k, v) in angles.iter().enumerate() {
+        if !v.is_finite() || ((k == 0 || k == 2) && !(0.0..=90.0).contains(v)) {
+            let [ti, pi, to, po] = angles;
+            return Err(format!(
+                "--eval {ti},{pi},{to},{po}: `{v}` is out of range; θ must be in [0, 90] degrees, φ finite"
+            ));
+        }
+    }
+    Ok(angles)
 }
 
 fn print_albedo(brdf: &LayeredBrdf, with_reference: bool) {

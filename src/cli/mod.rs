@@ -105,9 +105,10 @@ struct BrdfArgs {
         long,
         value_name = "THETA_I,PHI_I,THETA_O,PHI_O",
         conflicts_with = "output",
-        allow_hyphen_values = true
+        allow_hyphen_values = true,
+        value_parser = brdf::parse_four_numbers
     )]
-    eval: Option<String>,
+    eval: Option<[f64; 4]>,
     /// Write polar plots of the in-plane, cosine-weighted BRDF (PNG).
     #[arg(short = 'o', long = "output", value_name = "PLOT.png")]
     output: Option<PathBuf>,
