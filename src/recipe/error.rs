@@ -398,7 +398,9 @@ pub fn did_you_mean<'a>(
     candidates
         .into_iter()
         .map(|c| (strsim::damerau_levenshtein(word, c), c))
-        .filter(|(d, c)| *d <= 2.max(c.len() / 3))
+        // Two edits make another word of a short one (`Foo` → `Job`): one
+        // for names of up to four letters.
+        .filter(|(d, c)| *d <= if c.len() <= 4 { 1 } else { 2.max(c.len() / 3) })
         .min_by_key(|(d, _)| *d)
         .map(|(_, c)| c)
 }
@@ -479,5 +481,8 @@ mod tests {
         let names = ["roughness_deg", "thickness", "absorption"];
         assert_eq!(did_you_mean("rougness_deg", names), Some("roughness_deg"));
         assert_eq!(did_you_mean("colour", names), None);
+        // A short name takes one edit, not two.
+        assert_eq!(did_you_mean("Jbo", ["Job", "Gem"]), Some("Job"));
+        assert_eq!(did_you_mean("Foo", ["Job", "Gem"]), None);
     }
 }
