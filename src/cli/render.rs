@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use lapidary::farm::job::frame_suffix;
-use lapidary::farm::merge::read_tile;
+use lapidary::farm::merge::{read_tile, read_tile_record};
 use lapidary::farm::record::{
     inputs_sha256, tile_record, FrameOf, ReadRecord, RenderRecord, TILE_NOTE,
 };
@@ -356,7 +356,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     let mut renderer = Renderer::prepare(&args, inputs, width, height, turntable)?;
     if let Some(split) = split {
         for (frame, path) in frames.iter().zip(&outputs) {
-            refuse_over_another_tile(&renderer.record(*frame), split, height, path, &args.output)?;
+            refuse_over_another_tile(&renderer.record(*frame), split, path, &args.output)?;
         }
     }
     let mut pictures = Vec::new();
@@ -378,34 +378,23 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
 }
 
 /// Refuses to write tile `split` to `path` (a frame's file of `output`)
-/// where `path` holds another tile of the same render (`expected`'s,
-/// `height` rows): two tiles given one `-o` would leave `merge` one short,
-/// silently.
+/// where `path` holds another tile of the same render (`expected`'s, by
+/// its header's record alone): two tiles given one `-o` would leave
+/// `merge` one short, silently.
 fn refuse_over_another_tile(
     expected: &RenderRecord,
     split: TileSplit,
-    height: u32,
     path: &Path,
     output: &Path,
 ) -> Result<(), String> {
-    let Ok(tile) = path.exists().then(|| read_tile(path)).transpose() else {
+    let Some(record) = path.exists().then(|| read_tile_record(path).ok()).flatten() else {
         return Ok(());
     };
-    let Some(tile) = tile else {
-        return Ok(());
-    };
-    let (index, count) = tile.record.tile;
-    if index == split.index() || count != split.count() {
-        return Ok(());
-    }
-    let Ok(theirs) = TileSplit::new(index, count, height) else {
-        return Ok(());
-    };
-    let same_render = ReadRecord::parse(
-        &tile_record(expected, theirs, &tile.channels, tile.record.bad_samples).to_text(),
-    )
-    .is_some_and(|record| record.render_lines == tile.record.render_lines);
-    if !same_render {
+    let (index, count) = record.tile;
+    if index == split.index()
+        || count != split.count()
+        || record.render_lines != expected.text_lines()
+    {
         return Ok(());
     }
     let stem = output
