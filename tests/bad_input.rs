@@ -1513,15 +1513,64 @@ fn validate_reads_a_scene_s_environment_map() {
     let scene = dir.join("scene.ron");
     std::fs::write(&scene, &text).unwrap();
     let out = lapidary(&[OsString::from("validate"), scene.clone().into()]);
-    assert_refused(
-        "validate-env",
-        &out,
-        &[
-            at_line(&scene, &text, "sky.hdr"),
-            "environment map".to_string(),
-            "corrupt".to_string(),
-        ],
-    );
+    let expected = [
+        at_line(&scene, &text, "sky.hdr"),
+        "environment map".to_string(),
+        "scanline 1 of 64: the file ends early".to_string(),
+    ];
+    assert_refused("validate-env", &out, &expected);
+    // The render names the same place in the scene.
+    let render = [
+        OsString::from("render"),
+        "--scene".into(),
+        scene.into(),
+        "--size".into(),
+        "8".into(),
+        "--spp".into(),
+        "1".into(),
+    ];
+    assert_refused_writing("render-env", &render, "sky.png", &expected);
+}
+
+#[test]
+fn a_map_that_is_not_twice_as_wide_as_high_is_warned_of() {
+    // An equirectangular map is 2:1; a square one (a cropped photo, a
+    // mirror ball) renders, stretched, with a warning from `validate` and
+    // `render` alike. A 2:1 map has none.
+    let dir = scratch("env-proportion");
+    let grey = |_: usize, _: usize| [0.5f32; 3];
+    common::maps::write_hdr(&dir.join("square.hdr"), 8, 8, grey);
+    common::maps::write_hdr(&dir.join("wide.hdr"), 16, 8, grey);
+    for (map, warned) in [("square.hdr", true), ("wide.hdr", false)] {
+        let scene = dir.join(format!("{map}.ron"));
+        let text = GOOD_SCENE.replace(
+            "environment: Constant(radiance: (0.5, 0.5, 0.5)),",
+            &format!("environment: File(path: \"{map}\"),"),
+        );
+        std::fs::write(&scene, text).unwrap();
+        let validate = lapidary(&[OsString::from("validate"), scene.clone().into()]);
+        let out = dir.join("out.png");
+        let render = lapidary(&[
+            OsString::from("render"),
+            "--scene".into(),
+            scene.into(),
+            "--size".into(),
+            "8".into(),
+            "--spp".into(),
+            "1".into(),
+            "-q".into(),
+            "-o".into(),
+            out.into(),
+        ]);
+        for run in [validate, render] {
+            let stderr = String::from_utf8_lossy(&run.stderr);
+            assert!(run.status.success(), "{map}: {stderr}");
+            // `validate` names the map as written, `render` as resolved.
+            let warning = format!("{map}: it is 8×8 texels, not twice as wide as high");
+            assert_eq!(stderr.contains(&warning), warned, "{map}: {stderr}");
+            assert_eq!(stderr.contains("warning"), warned, "{map}: {stderr}");
+        }
+    }
 }
 
 #[test]

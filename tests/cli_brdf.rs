@@ -128,6 +128,42 @@ fn classify_names_the_groups_of_section_3_4() {
 }
 
 #[test]
+fn classify_tells_a_bare_black_base_from_a_varnish() {
+    // A black base alone reflects nothing: not a varnish; a layer over it
+    // is one. A Conductor with `metal` and `n`/`k` both is refused as such.
+    let dir = common::cli::scratch("brdf", "classify-black");
+    for (text, expected) in [
+        ("Material(layers: [], base: Black)", "black"),
+        (
+            "Material(layers: [Layer(ior: 1.5)], base: Black)",
+            "varnish",
+        ),
+    ] {
+        let path = dir.join("m.ron");
+        std::fs::write(&path, text).unwrap();
+        let out = lapidary(&["classify", path.to_str().unwrap()]);
+        let stdout = String::from_utf8(out.stdout).unwrap();
+        assert!(
+            out.status.success() && stdout.starts_with(&format!("m: {expected}\n")),
+            "{text}: {stdout}"
+        );
+    }
+    let path = dir.join("both.ron");
+    std::fs::write(
+        &path,
+        r#"Material(layers: [], base: Conductor(metal: "gold", n: (0.2, 0.4, 1.4), k: (3.0, 2.3, 1.8)))"#,
+    )
+    .unwrap();
+    let out = lapidary(&["classify", path.to_str().unwrap()]);
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("not both ways; found `metal` together with `n` or `k`"),
+        "{stderr}"
+    );
+}
+
+#[test]
 fn list_shows_every_library_material_with_its_class() {
     let out = lapidary(&["list"]);
     assert!(out.status.success());

@@ -781,11 +781,14 @@ fn bad_files_give_errors_naming_the_file() {
     let missing = dir.join("missing.hdr");
     assert!(error_text(&missing).contains("not found"));
 
-    for name in ["corrupt.hdr", "corrupt.exr"] {
+    for (name, format) in [("corrupt.hdr", "Radiance HDR"), ("corrupt.exr", "OpenEXR")] {
         let path = dir.join(name);
         std::fs::write(&path, b"this is not an image at all\n\0\x01\x02").unwrap();
         let err = error_text(&path);
-        assert!(err.contains("corrupt"), "{err}");
+        assert!(
+            err.contains(&format!("does not begin as {format} does")),
+            "{err}"
+        );
     }
     // A valid header promising more scanlines than the file holds.
     let truncated = dir.join("truncated.hdr");
@@ -794,7 +797,37 @@ fn bad_files_give_errors_naming_the_file() {
         b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 4\n\x80\x80",
     )
     .unwrap();
-    assert!(error_text(&truncated).contains("corrupt"));
+    let err = error_text(&truncated);
+    assert!(
+        err.contains("scanline 1 of 4: the file ends early"),
+        "{err}"
+    );
+    // Another kind of file under a map's extension is named as what it is:
+    // a renamed PNG, each map format under the other's name, nothing.
+    let kinds: [(&str, &[u8], &str); 4] = [
+        (
+            "photo.hdr",
+            b"\x89PNG\r\n\x1a\n",
+            "it is a PNG image, not Radiance HDR",
+        ),
+        (
+            "sky.exr",
+            b"#?RADIANCE\n",
+            "it is a Radiance HDR image, not OpenEXR; name it .hdr",
+        ),
+        (
+            "sky2.hdr",
+            b"\x76\x2f\x31\x01\x02\0\0\0",
+            "it is an OpenEXR image, not Radiance HDR; name it .exr",
+        ),
+        ("empty.exr", b"", "the file is empty"),
+    ];
+    for (name, bytes, expected) in kinds {
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        let err = error_text(&path);
+        assert!(err.contains(expected), "{name}: {err}");
+    }
 
     let png = dir.join("sky.png");
     std::fs::write(&png, b"\x89PNG").unwrap();
@@ -833,6 +866,14 @@ fn bad_files_give_errors_naming_the_file() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("is (1, -1, 1)"), "{err}");
+
+    // An EXR cut short in its pixels says so (not the decoder's "reference
+    // to missing bytes").
+    let whole = std::fs::read(dir.join("nan.exr")).unwrap();
+    let cut = dir.join("cut.exr");
+    std::fs::write(&cut, &whole[..whole.len() - 40]).unwrap();
+    let err = error_text(&cut);
+    assert!(err.contains("the file ends early"), "{err}");
 
     // A directory with an allowed extension is not a file.
     let subdir = dir.join("folder.hdr");
@@ -1073,5 +1114,6 @@ fn hdr_scanlines_read_as_the_image_crate_reads_them() {
     let bytes = std::fs::read(&path).unwrap();
     let cut = dir.join("cut.hdr");
     std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
-    assert!(error_text(&cut).contains("corrupt"));
+    let err = error_text(&cut);
+    assert!(err.contains("the file ends early"), "{err}");
 }

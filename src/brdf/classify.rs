@@ -9,7 +9,7 @@ use std::fmt;
 /// for smooth layers and at least 5° for rough ones (sections 4.2.1–4.2.5).
 pub(crate) const SMOOTH_BELOW_DEG: f64 = 5.0;
 
-/// The six basic groups of figure 3.8 (plus bare varnish).
+/// The six basic groups of figure 3.8 (plus bare varnish, and black).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MaterialGroup {
     /// Smooth layer over a diffuse base.
@@ -26,6 +26,8 @@ pub enum MaterialGroup {
     Patina,
     /// A dielectric over nothing (a varnish on its own).
     Varnish,
+    /// No reflecting layer over a black base: it reflects nothing.
+    Black,
 }
 
 impl fmt::Display for MaterialGroup {
@@ -38,6 +40,7 @@ impl fmt::Display for MaterialGroup {
             MaterialGroup::FrostedMetal => "frosted metal",
             MaterialGroup::Patina => "patina",
             MaterialGroup::Varnish => "varnish",
+            MaterialGroup::Black => "black",
         })
     }
 }
@@ -96,7 +99,11 @@ pub fn classify(brdf: &LayeredBrdf) -> Classification {
     let top = reflecting.first().map(|i| i.own_lobe.roughness_deg);
     let mut reason = Vec::new();
     let group = match (&brdf.base, top) {
-        (Base::Black, _) => {
+        (Base::Black, None) => {
+            reason.push("no reflecting layer over a black base: it reflects nothing".to_string());
+            MaterialGroup::Black
+        }
+        (Base::Black, Some(_)) => {
             reason.push("nothing below the varnish reflects".to_string());
             MaterialGroup::Varnish
         }

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use lapidary::farm::job::{FilterSpec, FormatSpec, Job, TonemapSpec};
 use lapidary::farm::merge::{merge, read_tile, read_tile_record};
+use lapidary::farm::record::differing_line;
 use lapidary::output::animation::write_apng;
 use lapidary::recipe::compile::read_ron_file;
 use lapidary::render::tiles::TileSplit;
@@ -180,11 +181,8 @@ fn merge_all(job: &Job, args: &BatchArgs) -> Result<(), String> {
             {
                 let path = job.tile_path(t);
                 let record = read_tile_record(&path)?;
-                if let Some(((key, theirs), (_, ours))) = record
-                    .render_lines
-                    .iter()
-                    .zip(expected.text_lines())
-                    .find(|(a, b)| *a != b)
+                if let Some(((key, theirs), (_, ours))) =
+                    differing_line(&record.render_lines, &expected.text_lines())
                 {
                     return Err(format!(
                         "{} is a tile of another render than {} asks for now (its {key} is {theirs}, not {ours}): run its task again (`lapidary batch {} --task {task}`)",

@@ -51,7 +51,7 @@ pub struct GalleryArgs {
     threads: Option<usize>,
     /// Compile materials without their multiple-scattering compensation
     /// (the single-crossing model): quicker previews, rough layered
-    /// materials a little darker.
+    /// materials darker (by up to about a third).
     #[arg(long)]
     draft: bool,
     /// No progress lines.

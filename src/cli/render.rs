@@ -10,7 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lapidary::farm::job::frame_suffix;
 use lapidary::farm::merge::{read_tile, read_tile_record};
 use lapidary::farm::record::{
-    inputs_sha256, tile_record, FrameOf, ReadRecord, RenderRecord, TILE_NOTE,
+    differing_line, inputs_sha256, tile_record, FrameOf, ReadRecord, RenderRecord, TILE_NOTE,
 };
 use lapidary::output::animation::write_apng;
 use lapidary::output::exr::{film_channels, write_exr_owned, write_exr_with_note};
@@ -28,7 +28,8 @@ use lapidary::render::turntable::{orbited_camera, turned_stones};
 use lapidary::render::world::{StoneInstance, World};
 use lapidary::scene::spec::MAX_FRAMES;
 use lapidary::scene::{
-    default_scene, load_scene, load_scene_under, Scene, TurnSpec, Turntable, DEFAULT_SCENE_SOURCE,
+    default_scene, load_scene, load_scene_under, EnvironmentSpec, Scene, TurnSpec, Turntable,
+    DEFAULT_SCENE_SOURCE,
 };
 
 use super::validate::BUILTIN_SCENE_NAME;
@@ -393,7 +394,7 @@ fn refuse_over_another_tile(
     let (index, count) = record.tile;
     if index == split.index()
         || count != split.count()
-        || record.render_lines != expected.text_lines()
+        || differing_line(&record.render_lines, &expected.text_lines()).is_some()
     {
         return Ok(());
     }
@@ -681,7 +682,22 @@ impl Renderer {
             args.bounces,
             Tables::Computed(&cache),
             &report,
-        )?;
+        )
+        .map_err(|e| match scene_file(args) {
+            Some(scene) if args.env.is_none() && e.starts_with("environment map") => {
+                super::validate::place_environment_error(scene, e)
+            }
+            _ => e,
+        })?;
+        if let Some(warning) = traced.environment.proportion_warning() {
+            let map = match (&args.env, &self.scene.environment) {
+                (Some(path), _) | (None, EnvironmentSpec::File { path, .. }) => {
+                    path.display().to_string()
+                }
+                _ => String::new(),
+            };
+            eprintln!("warning: environment map {map}: {warning}");
+        }
         // A stone sunk into the ground or crossing another renders, but
         // not as the physics assumes: said even when quiet.
         let scene_name = scene_file(args).map_or_else(

@@ -160,6 +160,34 @@ fn reference_error(
     )
 }
 
+/// An environment map's `message` placed at the map's name as `written`
+/// in scene file `path` (whose text is `text`).
+fn environment_error_at(path: &str, text: &str, written: &str, message: String) -> RecipeError {
+    RecipeError::at_text(
+        path,
+        text,
+        &format!("\"{written}\""),
+        format!("environment: {message}"),
+    )
+}
+
+/// `message`, an error of the environment map that scene file `scene`
+/// names, placed at that name in the file (as `validate` reports it); as
+/// it is where the file no longer reads or names no map.
+pub(super) fn place_environment_error(scene: &Path, message: String) -> String {
+    let path = scene.display().to_string();
+    let Ok(text) = std::fs::read_to_string(scene) else {
+        return message;
+    };
+    match ron::from_str::<SceneSpec>(&text) {
+        Ok(SceneSpec {
+            environment: EnvironmentKind::File { path: written, .. },
+            ..
+        }) => environment_error_at(&path, &text, &written, message).to_string(),
+        _ => message,
+    }
+}
+
 /// Validate a scene file: parse and compile it, then check that every gem
 /// and the ground material it names exist and validate.
 fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<String, RecipeError> {
@@ -201,6 +229,7 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<String,
     }
     // The map is read as a render reads it: a damaged file is found here,
     // not by every task of a farm array.
+    let mut map_warning = None;
     if let (
         EnvironmentSpec::File {
             path: map,
@@ -210,14 +239,11 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<String,
         EnvironmentKind::File { path: written, .. },
     ) = (&scene.environment, &spec.environment)
     {
-        Environment::from_file(map, *rotation_deg, *intensity).map_err(|e| {
-            RecipeError::at_text(
-                path,
-                text,
-                &format!("\"{written}\""),
-                format!("environment: {e}"),
-            )
-        })?;
+        let environment = Environment::from_file(map, *rotation_deg, *intensity)
+            .map_err(|e| environment_error_at(path, text, written, e.to_string()))?;
+        map_warning = environment
+            .proportion_warning()
+            .map(|w| format!("\n{path}: warning: environment map {written}: {w}"));
     }
     let n = scene.stones.len();
     let l = scene.lights.len();
@@ -228,6 +254,7 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<String,
         .iter()
         .chain(&viewpoint_problems(&world, &scene))
         .map(|problem| format!("\n{path}: warning: {problem}"))
+        .chain(map_warning)
         .collect();
     Ok(format!(
         "ok (scene, {}, {}{}){warnings}",

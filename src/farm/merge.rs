@@ -10,7 +10,7 @@ use crate::output::exr::{read_exr, read_exr_notes, ChannelData, ExrChannel};
 use crate::output::tonemap::DisplayTransform;
 use crate::render::tiles::TileSplit;
 
-use super::record::{pixels_sha256, ReadRecord, TILE_NOTE};
+use super::record::{differing_line, pixels_sha256, ReadRecord, TILE_NOTE};
 
 /// A tile read from its file and checked against its own record.
 #[derive(Clone, Debug)]
@@ -133,12 +133,8 @@ pub fn merge(mut tiles: Vec<Tile>) -> Result<Merged, String> {
     let (count, names) = (first_record.tile.1, channel_layout(&first.channels));
     for tile in &tiles[1..] {
         let path = tile.path.display();
-        if let Some(((key, theirs), (_, ours))) = tile
-            .record
-            .render_lines
-            .iter()
-            .zip(&first_record.render_lines)
-            .find(|(a, b)| a != b)
+        if let Some(((key, theirs), (_, ours))) =
+            differing_line(&tile.record.render_lines, &first_record.render_lines)
         {
             return Err(format!(
                 "{path} belongs to another render than {first_path}: its {key} is {theirs}, not {ours}"

@@ -137,6 +137,32 @@ impl RenderRecord {
     }
 }
 
+/// One `key: value` line of a record.
+pub type RecordLine = (String, String);
+
+/// The record lines that name the inputs (`recipe`, `scene`,
+/// `environment`: as typed, so relative to the working folder, or a
+/// built-in name). Tiles whose `inputs_sha256` agree read the same bytes
+/// whatever these say.
+const INPUT_NAME_KEYS: [&str; 3] = ["recipe", "scene", "environment"];
+
+/// The first pair of `key: value` lines of two renders' records (as
+/// [`RenderRecord::text_lines`] and [`ReadRecord::render_lines`] hold
+/// them) that tells two renders apart, `ours` first; `None` for one
+/// render. The inputs' names count only where the inputs' bytes differ
+/// too (then the name, the more telling line, is the one given), so the
+/// same files named from another working folder make the same render.
+pub fn differing_line<'a>(
+    ours: &'a [RecordLine],
+    theirs: &'a [RecordLine],
+) -> Option<(&'a RecordLine, &'a RecordLine)> {
+    let inputs = |lines: &'a [(String, String)]| lines.iter().find(|(k, _)| k == "inputs_sha256");
+    let same_inputs = inputs(ours) == inputs(theirs);
+    ours.iter()
+        .zip(theirs)
+        .find(|(a, b)| a != b && !(same_inputs && INPUT_NAME_KEYS.contains(&a.0.as_str())))
+}
+
 /// One tile of a render as its file records it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TileRecord {

@@ -417,12 +417,21 @@ pub(crate) fn compile_material_seen_from(
                     unknown_name(path, text, "metal", name, |n| metal_nk(n).is_some())
                 })?,
                 _ => {
+                    let found = match (n.is_some(), k.is_some(), metal.is_some()) {
+                        (_, _, true) => "`metal` together with `n` or `k`",
+                        (true, false, false) => "`n` without `k`",
+                        (false, true, false) => "`k` without `n`",
+                        _ => "neither",
+                    };
                     return Err(RecipeError::at_text(
                         path,
                         text,
                         "Conductor",
-                        "a Conductor base needs either both `n` and `k`, or `metal`",
-                    ))
+                        format!(
+                            "a Conductor base takes either `metal` (a named metal) or both `n` and `k`, \
+                             not both ways; found {found}"
+                        ),
+                    ));
                 }
             };
             // Complex IOR relative to the varnish above (eq. 3.3).

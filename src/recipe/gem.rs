@@ -698,14 +698,17 @@ pub fn has_conductor_base(m: &Material) -> bool {
 }
 
 /// Read and compile a gem recipe file, without compensation tables
-/// ([`compile_gem`] with [`Tables::Skipped`]).
+/// ([`compile_gem`] with [`Tables::Skipped`]: for checks and patterns; its
+/// rough layered materials are darker than a render's).
 pub fn load_gem(path: &str) -> Result<Gem, RecipeError> {
     let text = crate::recipe::compile::read_ron_file(path, "gem recipe")?;
     parse_gem(path, &text)
 }
 
 /// Parse, validate and compile gem recipe `text` (`path` is for messages),
-/// without compensation tables ([`compile_gem`] with [`Tables::Skipped`]).
+/// without compensation tables ([`compile_gem`] with [`Tables::Skipped`]:
+/// for checks and patterns; its rough layered materials are darker than a
+/// render's).
 pub fn parse_gem(path: &str, text: &str) -> Result<Gem, RecipeError> {
     compile_gem(&GemSource::new(path, text), None, Tables::Skipped)
 }

@@ -44,8 +44,10 @@ use std::sync::{Arc, Mutex, OnceLock};
 pub enum Tables<'a> {
     /// Every material that asks for one gets its table, through the cache.
     Computed(&'a TableCache),
-    /// No tables: several times quicker to compile, a little darker; for
-    /// previews, patterns and tests, never for final pictures.
+    /// No tables: several times quicker to compile, but darker: rough
+    /// layered materials lose their multiple scattering, up to about a
+    /// third of their light (lavender lepidolite). For previews, patterns
+    /// and tests, never for final pictures.
     Skipped,
 }
 
@@ -254,23 +256,39 @@ const VALUES_PREFIX: &str = "values-";
 /// 2 MB a material, so this holds dozens of builds' worth).
 const MAX_FOLDER_BYTES: u64 = 256 << 20;
 
+/// How old a temporary table file must be to count as left by a writer
+/// that was stopped between its write and its rename (Ctrl-C, a killed
+/// farm task): a live writer renames it within milliseconds.
+const ABANDONED_TEMPORARY_AGE: std::time::Duration = std::time::Duration::from_secs(3600);
+
 /// Removes the table files of `dir` used least recently (by modification
-/// time, which a read renews) until the rest take at most `limit` bytes.
-/// Files it cannot read or remove are left (a cache only costs time).
+/// time, which a read renews) until the rest take at most `limit` bytes,
+/// and the temporary files of writers stopped midway (older than
+/// [`ABANDONED_TEMPORARY_AGE`]). Files it cannot read or remove are left
+/// (a cache only costs time).
 fn prune(dir: &Path, limit: u64) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
+    let now = std::time::SystemTime::now();
     let mut files: Vec<(std::time::SystemTime, u64, PathBuf)> = entries
         .flatten()
-        .filter(|entry| {
+        .filter_map(|entry| {
             let name = entry.file_name();
             let name = name.to_string_lossy();
-            name.starts_with(COMPENSATION_PREFIX) || name.starts_with(VALUES_PREFIX)
-        })
-        .filter_map(|entry| {
             let metadata = entry.metadata().ok()?;
-            Some((metadata.modified().ok()?, metadata.len(), entry.path()))
+            let modified = metadata.modified().ok()?;
+            if name.starts_with(".table-") && name.ends_with(".tmp") {
+                if now
+                    .duration_since(modified)
+                    .is_ok_and(|age| age > ABANDONED_TEMPORARY_AGE)
+                {
+                    let _ = std::fs::remove_file(entry.path());
+                }
+                return None;
+            }
+            (name.starts_with(COMPENSATION_PREFIX) || name.starts_with(VALUES_PREFIX))
+                .then(|| (modified, metadata.len(), entry.path()))
         })
         .collect();
     let mut total: u64 = files.iter().map(|(_, size, _)| size).sum();
@@ -476,6 +494,11 @@ mod tests {
         write("compensation-middle.txt", 400, 200);
         write("values-new.bin", 400, 100);
         write("someone-else.txt", 4000, 400);
+        // A writer stopped between its write and its rename left one
+        // temporary file long ago; another writer's is being written now.
+        write(".table-1-0.tmp", 10, 0);
+        let now = folder.join(".table-2-0.tmp");
+        std::fs::write(&now, b"being written").unwrap();
         // Reading a file marks it used: the oldest becomes the newest.
         mark_used(&folder.join("values-old.bin"));
         prune(&folder, 900);
@@ -486,8 +509,14 @@ mod tests {
         left.sort();
         assert_eq!(
             left,
-            ["someone-else.txt", "values-new.bin", "values-old.bin"],
-            "the least recently used table goes first; other files stay"
+            [
+                ".table-2-0.tmp",
+                "someone-else.txt",
+                "values-new.bin",
+                "values-old.bin"
+            ],
+            "the least recently used table goes first, then an abandoned temporary file; \
+             other files stay"
         );
         let _ = std::fs::remove_dir_all(&folder);
     }

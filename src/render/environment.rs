@@ -108,6 +108,19 @@ pub enum EnvironmentError {
         /// The decoder's reason.
         message: String,
     },
+    /// The file's first bytes are not those of the format its extension
+    /// names: another image kind (a PNG, a JPEG, …), the other of the two
+    /// map formats, or not an image at all.
+    #[error("environment map {}: {found}; {advice}", .path.display())]
+    WrongKind {
+        /// The path as given.
+        path: PathBuf,
+        /// What the bytes are, against what the extension says ("it is a
+        /// PNG image, not Radiance HDR").
+        found: String,
+        /// What to do about it.
+        advice: &'static str,
+    },
     /// Neither `.hdr` nor `.exr`.
     #[error(
         "environment map {}: unsupported file type `{extension}`; allowed: .hdr (Radiance RGBE) \
@@ -316,6 +329,22 @@ impl Environment {
         let map =
             EnvironmentMap::from_packed(origin, width, height, texels, intensity, rotation_deg)?;
         Ok(Environment::Map(map))
+    }
+
+    /// For a map that is not twice as wide as high (within 1 %), what a
+    /// user should know: it is read as latitude-longitude all the same,
+    /// so its sky comes out stretched. `None` for a 2:1 map or no map.
+    pub fn proportion_warning(&self) -> Option<String> {
+        let Environment::Map(map) = self else {
+            return None;
+        };
+        let (width, height) = (map.width(), map.height());
+        ((width as f64 / height as f64 - 2.0).abs() > 0.02).then(|| {
+            format!(
+                "it is {width}×{height} texels, not twice as wide as high: it is read as a \
+                 latitude-longitude (equirectangular) map all the same, so its sky is stretched"
+            )
+        })
     }
 
     /// A rough luminance of the irradiance it gives a surface (π · the
@@ -1784,6 +1813,7 @@ fn read_map_file(path: &Path) -> Result<PackedTexels, EnvironmentError> {
         }
         Ok(_) => {}
     }
+    check_kind(path, &extension)?;
     // Decoders of untrusted files have panicked on malformed input before;
     // a panic here must still come back as an error naming the file.
     std::panic::catch_unwind(|| reader(path)).unwrap_or_else(|_| {
@@ -1797,6 +1827,78 @@ fn read_map_file(path: &Path) -> Result<PackedTexels, EnvironmentError> {
             message: "the decoder failed on malformed data".to_string(),
         })
     })
+}
+
+/// Compares the file's first bytes with what its extension (`hdr` or
+/// `exr`) promises, so that a renamed PNG, or an EXR named `.hdr`, is
+/// named as what it is rather than reported by a decoder's "signature not
+/// found".
+fn check_kind(path: &Path, extension: &str) -> Result<(), EnvironmentError> {
+    const HDR: &[u8] = b"#?";
+    const EXR: &[u8] = b"\x76\x2f\x31\x01";
+    const CONVERT: &str = "allowed: .hdr (Radiance RGBE) or .exr (OpenEXR), \
+        equirectangular (convert it to one of them)";
+    let mut start = [0u8; 8];
+    let read = File::open(path)
+        .and_then(|mut f| {
+            let mut n = 0;
+            while n < start.len() {
+                match f.read(&mut start[n..])? {
+                    0 => break,
+                    k => n += k,
+                }
+            }
+            Ok(n)
+        })
+        .map_err(|e| io_error(path, &e))?;
+    let start = &start[..read];
+    let (format, magic) = if extension == "hdr" {
+        ("Radiance HDR", HDR)
+    } else {
+        ("OpenEXR", EXR)
+    };
+    if start.starts_with(magic) {
+        return Ok(());
+    }
+    let kinds: [(&[u8], &str, &str); 8] = [
+        (HDR, "it is a Radiance HDR image", "name it .hdr"),
+        (EXR, "it is an OpenEXR image", "name it .exr"),
+        (b"\x89PNG", "it is a PNG image", CONVERT),
+        (b"\xff\xd8\xff", "it is a JPEG image", CONVERT),
+        (b"II*\0", "it is a TIFF image", CONVERT),
+        (b"MM\0*", "it is a TIFF image", CONVERT),
+        (b"GIF8", "it is a GIF image", CONVERT),
+        (b"RIFF", "it is a RIFF file (WebP?)", CONVERT),
+    ];
+    let (found, advice) = match kinds.iter().find(|(m, ..)| start.starts_with(m)) {
+        Some(&(_, kind, advice)) => (format!("{kind}, not {format}"), advice),
+        None if start.is_empty() => ("the file is empty".to_string(), CONVERT),
+        None => (
+            format!(
+                "it does not begin as {format} does ({}): another kind of file, or damaged",
+                if extension == "hdr" {
+                    "`#?RADIANCE`"
+                } else {
+                    "bytes 76 2f 31 01"
+                }
+            ),
+            CONVERT,
+        ),
+    };
+    Err(EnvironmentError::WrongKind {
+        path: path.to_path_buf(),
+        found,
+        advice,
+    })
+}
+
+/// A read's failure in words; the end of the file met early is said so.
+fn read_failure(e: &std::io::Error) -> String {
+    if e.kind() == std::io::ErrorKind::UnexpectedEof {
+        "the file ends early (cut short?)".to_string()
+    } else {
+        e.to_string()
+    }
 }
 
 fn io_error(path: &Path, e: &std::io::Error) -> EnvironmentError {
@@ -1820,8 +1922,12 @@ fn read_hdr(path: &Path) -> Result<PackedTexels, EnvironmentError> {
     let mut reader = BufReader::new(file);
     let (width, height) = {
         use image::ImageDecoder;
-        let header = image::codecs::hdr::HdrDecoder::new(&mut reader)
-            .map_err(|e| decode_error(e.to_string()))?;
+        let header = image::codecs::hdr::HdrDecoder::new(&mut reader).map_err(|e| match e {
+            image::ImageError::IoError(io) => {
+                decode_error(format!("its header: {}", read_failure(&io)))
+            }
+            other => decode_error(other.to_string()),
+        })?;
         let (w, h) = header.dimensions();
         (w as usize, h as usize)
     };
@@ -1830,7 +1936,8 @@ fn read_hdr(path: &Path) -> Result<PackedTexels, EnvironmentError> {
     let mut texels = Vec::with_capacity(width * height);
     let mut line = vec![[0u8; 4]; width];
     for y in 0..height {
-        read_rgbe_scanline(&mut reader, &mut line).map_err(decode_error)?;
+        read_rgbe_scanline(&mut reader, &mut line)
+            .map_err(|why| decode_error(format!("scanline {} of {height}: {why}", y + 1)))?;
         for (x, &[r, g, b, e]) in line.iter().enumerate() {
             let scale = if e == 0 {
                 0.0
@@ -1852,11 +1959,11 @@ fn read_rgbe_scanline(r: &mut impl Read, line: &mut [[u8; 4]]) -> Result<(), Str
         let mut b = [0u8];
         r.read_exact(&mut b)
             .map(|_| b[0])
-            .map_err(|e| e.to_string())
+            .map_err(|e| read_failure(&e))
     };
     let too_long = |end: usize| format!("a run reaches column {end} of a {width}-texel scanline");
     let mut first = [0u8; 4];
-    r.read_exact(&mut first).map_err(|e| e.to_string())?;
+    r.read_exact(&mut first).map_err(|e| read_failure(&e))?;
     if first[0] == 2 && first[1] == 2 && first[2] < 128 {
         for component in 0..4 {
             let mut x = 0;
@@ -1869,7 +1976,7 @@ fn read_rgbe_scanline(r: &mut impl Read, line: &mut [[u8; 4]]) -> Result<(), Str
                     }
                     let mut values = [0u8; 128];
                     let values = &mut values[..usize::from(count)];
-                    r.read_exact(values).map_err(|e| e.to_string())?;
+                    r.read_exact(values).map_err(|e| read_failure(&e))?;
                     for (pixel, &v) in line[x..end].iter_mut().zip(values.iter()) {
                         pixel[component] = v;
                     }
@@ -1899,7 +2006,7 @@ fn read_rgbe_scanline(r: &mut impl Read, line: &mut [[u8; 4]]) -> Result<(), Str
     let (mut x, mut multiplier, mut previous) = (1usize, 1usize, first);
     while x < width {
         let mut pixel = [0u8; 4];
-        r.read_exact(&mut pixel).map_err(|e| e.to_string())?;
+        r.read_exact(&mut pixel).map_err(|e| read_failure(&e))?;
         if is_marker(pixel) {
             let end = x.saturating_add(usize::from(pixel[3]).saturating_mul(multiplier));
             multiplier = multiplier.saturating_mul(256);
@@ -1975,7 +2082,14 @@ fn read_exr(path: &Path) -> Result<PackedTexels, EnvironmentError> {
             }
         },
     )
-    .map_err(|e| decode_error(e.to_string()))?;
+    .map_err(|e| match e {
+        exr::error::Error::Io(io) => decode_error(read_failure(&io)),
+        // What the `exr` crate says of a file cut short.
+        exr::error::Error::Invalid(why) if why.contains("missing bytes") => {
+            decode_error("the file ends early (cut short?)".to_string())
+        }
+        other => decode_error(other.to_string()),
+    })?;
     let packing = image.layer_data.channel_data.pixels;
     if let Some((i, bad)) = packing.first_bad {
         let x = i % packing.width.max(1);
