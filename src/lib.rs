@@ -14,10 +14,26 @@
 //! argument parser, progress bar and Ctrl-C handler); a program that uses
 //! the library alone leaves it out with `default-features = false`.
 //!
-//! The steps of `lapidary render` (the same bytes as `lapidary render
-//! goldstone --size 32 --spp 4`); the recipe language is the
-//! repository's `docs/recipes.md`, the command's built-in default gem
-//! [`recipe::library::DEFAULT_GEM`]:
+//! A render in one call, [`render::still::render_still`] (the same bytes
+//! as `lapidary render goldstone --size 32 --spp 4`); the recipe language
+//! is the repository's `docs/recipes.md`, the command's built-in default
+//! gem [`recipe::library::DEFAULT_GEM`]:
+//!
+//! ```
+//! use lapidary::render::still::{render_still, StillSettings};
+//! use lapidary::{output, scene, GemSource};
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let gem = GemSource::load("goldstone")?; // a built-in name or a .ron path
+//! let scene = scene::default_scene(); // or scene::load_scene(path)?
+//! let settings = StillSettings { width_px: 32, height_px: 32, samples_per_pixel: 4, ..Default::default() };
+//! let film = render_still(&scene, &gem, &settings)?; // linear radiance and AOVs
+//! let png = output::tonemap::DisplayTransform::default().encode_film(&film);
+//! output::write_png(&std::env::temp_dir().join("goldstone.png"), &png)?;
+//! # Ok(()) }
+//! ```
+//!
+//! The steps it takes, for a program that changes one of them (its own
+//! camera, a compiled gem's fields, another table cache):
 //!
 //! ```
 //! use std::sync::Arc;

@@ -272,6 +272,56 @@ fn the_crate_docs_steps_render_the_command_s_bytes() {
         std::fs::read(&library).unwrap(),
         std::fs::read(&command).unwrap()
     );
+    // The one call gives the same film, hence the same bytes.
+    use lapidary::render::still::{render_still, StillSettings};
+    let settings = StillSettings {
+        width_px: 24,
+        height_px: 24,
+        samples_per_pixel: 4,
+        ..Default::default()
+    };
+    let one_call = render_still(&scene, &gem, &settings).unwrap();
+    assert!(
+        one_call == film,
+        "render_still's film differs from the steps'"
+    );
+    let one_call_png = dir.join("one-call.png");
+    output::write_png(
+        &one_call_png,
+        &output::tonemap::DisplayTransform::default().encode_film(&one_call),
+    )
+    .unwrap();
+    assert_eq!(
+        std::fs::read(&one_call_png).unwrap(),
+        std::fs::read(&command).unwrap()
+    );
+    // Settings out of range are errors naming the field and the range.
+    for (settings, expected) in [
+        (
+            StillSettings {
+                width_px: 0,
+                ..settings.clone()
+            },
+            "width_px 0: allowed 1 to 32768 pixels",
+        ),
+        (
+            StillSettings {
+                samples_per_pixel: 0,
+                ..settings.clone()
+            },
+            "samples_per_pixel 0: allowed 1 to 1048576",
+        ),
+        (
+            StillSettings {
+                bounces: 65,
+                ..settings.clone()
+            },
+            "bounces 65: allowed 0 to 64",
+        ),
+    ] {
+        let error = render_still(&scene, &gem, &settings).unwrap_err();
+        assert_eq!(error.to_string(), expected);
+    }
 }
 
 #[test]

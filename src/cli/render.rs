@@ -34,14 +34,9 @@ use lapidary::scene::{
 
 use super::validate::BUILTIN_SCENE_NAME;
 
-/// Largest image side accepted, in pixels.
-pub const MAX_SIDE_PX: u32 = 32_768;
-/// Most samples per pixel accepted.
-pub const MAX_SPP: u32 = 1 << 20;
+pub use lapidary::render::still::{MAX_BOUNCES, MAX_SIDE_PX, MAX_SPP};
 /// Default of `--max-memory`, GiB.
 pub const DEFAULT_MAX_MEMORY_GIB: f64 = 4.0;
-/// Most bounces accepted.
-pub const MAX_BOUNCES: u32 = 64;
 
 /// How the linear film becomes 8-bit PNG values.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]

@@ -25,15 +25,10 @@ use serde::{Deserialize, Deserializer};
 
 use crate::recipe::compile::{parse_ron, read_ron_file, ron_error};
 use crate::recipe::error::RecipeError;
+use crate::render::still::{MAX_BOUNCES, MAX_SIDE_PX, MAX_SPP};
 use crate::scene::spec::TurntableSpec;
 use crate::scene::Turntable;
 
-/// Largest image side a job may ask for, pixels (as `lapidary render`).
-pub const MAX_SIDE_PX: u32 = 32_768;
-/// Most samples per pixel (as `lapidary render`).
-pub const MAX_SPP: u32 = 1 << 20;
-/// Most bounces (as `lapidary render`).
-pub const MAX_BOUNCES: u32 = 64;
 /// Most tasks one job may have.
 pub const MAX_TASKS: u64 = 1_000_000;
 

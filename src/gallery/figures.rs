@@ -43,6 +43,7 @@ use crate::render::film::{render, FilmSettings};
 use crate::render::flake_lobe::FlakeLobes;
 use crate::render::prepare::{camera_for, environment_for_spec, stone_instances};
 use crate::render::render_scene::RenderScene;
+use crate::render::still::{MAX_BOUNCES, MAX_SPP as MAX_SAMPLES_PER_PIXEL};
 use crate::render::world::World;
 use crate::sampling::direction_from_degrees;
 use crate::scene::{default_scene, Camera, Scene, StonePlacement};
@@ -50,10 +51,6 @@ use crate::scene::{default_scene, Camera, Scene, StonePlacement};
 /// Largest image side accepted, in pixels (a bound on film memory: the
 /// gallery holds every gem's image for the contact sheet).
 pub(crate) const MAX_SIZE_PX: u32 = 8192;
-/// Most samples per pixel accepted.
-pub(crate) const MAX_SAMPLES_PER_PIXEL: u32 = 1 << 20;
-/// Most bounces accepted.
-pub const MAX_BOUNCES: u32 = 64;
 
 /// Radius of the figure spheres in scene units (mm): about the size of the
 /// default scene's 10 × 8 mm stone, so the studio's key light (1.5 mm at
@@ -160,8 +157,9 @@ pub struct GallerySettings {
     pub max_bounces: u32,
     /// Compile every material without its multiple-scattering
     /// compensation (the notes' single-crossing model): several times
-    /// quicker to prepare, rough layered materials a little darker. For
-    /// previews and tests; the committed gallery is not a draft.
+    /// quicker to prepare, rough layered materials darker (by up to about a
+    /// third). For previews and tests; the committed gallery is not a
+    /// draft.
     pub draft: bool,
 }
 

@@ -22,6 +22,7 @@
 
 use rayon::prelude::*;
 
+use crate::render::film::Film;
 use crate::sampling::mix64;
 
 /// Which tone curve maps exposed scene-linear values to display-linear ones.
@@ -91,6 +92,11 @@ impl DisplayTransform {
             });
         image::RgbImage::from_raw(width, height, bytes)
             .expect("the buffer holds width × height RGB pixels")
+    }
+
+    /// [`DisplayTransform::encode`] of a whole film's radiance, at its size.
+    pub fn encode_film(&self, film: &Film) -> image::RgbImage {
+        self.encode(&film.rgb, film.width, film.height)
     }
 
     /// The 8-bit sRGB code of one linear pixel at film position (x, y),

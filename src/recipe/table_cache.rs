@@ -71,6 +71,19 @@ pub struct TableCache {
     folder: Option<PathBuf>,
 }
 
+impl std::fmt::Debug for TableCache {
+    /// Its folder and how many tables it holds (not the tables).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let count = |map: &Mutex<HashMap<String, Option<Compensation>>>| {
+            map.lock().map_or(0, |tables| tables.len())
+        };
+        f.debug_struct("TableCache")
+            .field("folder", &self.folder)
+            .field("tables", &count(&self.tables))
+            .finish_non_exhaustive()
+    }
+}
+
 impl TableCache {
     /// A cache in memory only.
     pub fn in_memory() -> Self {

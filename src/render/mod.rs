@@ -30,6 +30,7 @@ pub(crate) mod refracted_light;
 pub mod render_scene;
 pub(crate) mod sampler;
 pub(crate) mod shared_exponent;
+pub mod still;
 pub(crate) mod stone_grid;
 pub mod tiles;
 pub mod turntable;
