@@ -1593,6 +1593,61 @@ fn a_missing_environment_map_names_the_flag_and_what_it_takes() {
 }
 
 #[test]
+fn negative_and_overflowing_counts_get_the_flag_s_range() {
+    // `--spp -1` reached clap as a stray argument ("tip: use '-- -1'"), and
+    // `--frames=4294967296` was said to be outside `0..=4294967295`: each
+    // now names its flag and its own range, written either way (exit 2,
+    // usage); a count in range of its type but not of the flag stays
+    // exit 1, as do negative distances.
+    let usage: [(&[&str], &str); 6] = [
+        (
+            &["render", "--spp", "-1"],
+            "'--spp <N>': allowed 1 to 1048576",
+        ),
+        (&["render", "--spp=-1"], "'--spp <N>': allowed 1 to 1048576"),
+        (
+            &["render", "--size", "-1"],
+            "'--size <N>': allowed 1 to 32768",
+        ),
+        (
+            &["render", "--frames=4294967296"],
+            "'--frames <N>': allowed 1 to 3600",
+        ),
+        (
+            &["render", "--bounces", "1.5"],
+            "'--bounces <N>': not a whole number; allowed 0 to 64",
+        ),
+        (
+            &["gallery", "--threads", "-2"],
+            "'--threads <N>': allowed 1 to 1024",
+        ),
+    ];
+    let dir = scratch("negative-counts");
+    let out = dir.join("x.png");
+    for (args, expected) in usage {
+        let mut all = os(args);
+        all.extend([OsString::from("-o"), out.clone().into()]);
+        let run = lapidary(&all);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(expected), "{args:?}: {stderr}");
+        assert!(!stderr.contains("tip:"), "{args:?}: {stderr}");
+    }
+    for args in [["render", "--ao", "-1"], ["render", "--max-memory", "-1"]] {
+        let mut all = os(&args);
+        all.extend([OsString::from("-o"), out.clone().into()]);
+        let run = lapidary(&all);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains(&format!("{} -1: must be a positive", args[1])),
+            "{stderr}"
+        );
+    }
+    assert!(files_in(&dir).is_empty());
+}
+
+#[test]
 fn an_image_of_a_million_by_a_million_pixels() {
     let render = os(&[
         "render", "--width", "1000000", "--height", "1000000", "--spp", "1",
@@ -1665,7 +1720,7 @@ fn a_render_beyond_the_address_space_limit_is_refused_up_front() {
         "ulimit",
         &out,
         &[
-            "a 4000 × 4000 render needs 2.0 GiB".to_string(),
+            "a 4000 × 4000 render needs 2.00 GiB".to_string(),
             "available".to_string(),
         ],
     );

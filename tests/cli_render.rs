@@ -760,6 +760,33 @@ fn ambient_occlusion_is_an_extra_layer_that_leaves_the_beauty_alone() {
     assert_eq!(ao[0], 1.0, "top-left corner sees only sky");
     let min = ao.iter().cloned().fold(1.0, f32::min);
     assert!(min < 0.75, "nowhere occluded (min {min})");
+    // Its PNG is the occlusion as it is: --exposure and --tonemap (the
+    // beauty's) leave its bytes alone, and the summary says what it shows.
+    let png = |name: &str, extra: &[&str]| {
+        let path = dir.join(name);
+        let mut args = vec![
+            "render",
+            "-o",
+            path.to_str().unwrap(),
+            "--size",
+            "16",
+            "--spp",
+            "2",
+            "--ao",
+            "6",
+        ];
+        args.extend(extra);
+        let out = lapidary(&args);
+        assert!(out.status.success(), "{}", stderr(&out));
+        (std::fs::read(&path).unwrap(), stderr(&out))
+    };
+    let (plain_png, summary) = png("ao.png", &[]);
+    assert!(
+        summary.contains("ambient occlusion within 6 mm"),
+        "{summary}"
+    );
+    assert_eq!(png("ao-ev.png", &["--exposure", "5"]).0, plain_png);
+    assert_eq!(png("ao-linear.png", &["--tonemap", "linear"]).0, plain_png);
 }
 
 #[test]

@@ -413,6 +413,37 @@ fn merge_refuses_every_tile_that_does_not_belong_and_writes_nothing() {
 }
 
 #[test]
+fn a_tile_s_exr_sits_at_its_rows_of_the_whole_image() {
+    // Other EXR viewers place a tile by its data window within the display
+    // window (the whole image); each tile's starts at its first row, and
+    // the tiles' rows cover the image once.
+    let dir = scratch("data-window");
+    let mut next_row = 0;
+    for index in 0..3 {
+        let path = dir.join(format!("t{index}.exr"));
+        tile(&path, index, 3, "1", &[]);
+        let meta = exr::meta::MetaData::read_from_file(&path, false).unwrap();
+        let header = &meta.headers[0];
+        let display = header.shared_attributes.display_window;
+        assert_eq!(
+            (
+                display.position.x(),
+                display.position.y(),
+                display.size.width(),
+                display.size.height()
+            ),
+            (0, 0, 32, 24),
+            "tile {index}'s display window is the whole image"
+        );
+        let position = header.own_attributes.layer_position;
+        assert_eq!((position.x(), position.y()), (0, next_row), "tile {index}");
+        assert_eq!(header.layer_size.width(), 32);
+        next_row += header.layer_size.height() as i32;
+    }
+    assert_eq!(next_row, 24, "the tiles' rows cover the image");
+}
+
+#[test]
 fn tiles_of_one_render_run_from_different_working_folders_merge() {
     // A farm's tasks name the same scene from different folders
     // (`scene.ron` in its folder, `job/scene.ron` above it): the inputs'

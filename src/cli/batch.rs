@@ -13,6 +13,7 @@ use lapidary::render::tiles::TileSplit;
 
 use super::render::{FilterArg, RenderArgs, TaskOutcome, TonemapArg, ANIMATION_FRAMES_PER_SECOND};
 use super::validate::check_job_inputs;
+use super::{whole, MAX_THREADS};
 
 /// Arguments of `lapidary batch`.
 #[derive(clap::Args, Debug)]
@@ -22,14 +23,16 @@ pub struct BatchArgs {
     job: PathBuf,
     /// Run task I (from 0) of the list; a task whose tile is already
     /// written, complete and of this job, is skipped.
-    #[arg(long, value_name = "I", conflicts_with = "merge")]
+    #[arg(long, value_name = "I", conflicts_with = "merge", allow_negative_numbers = true,
+        value_parser = whole::<u64, 0, { u64::MAX }>)]
     task: Option<u64>,
     /// Merge every task's tiles into the job's images (and animations);
     /// refused while any tile is missing.
     #[arg(long)]
     merge: bool,
     /// Worker threads (default: all cores). The images do not depend on it.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true,
+        value_parser = whole::<usize, 1, MAX_THREADS>)]
     threads: Option<usize>,
     /// No progress lines.
     #[arg(long, short = 'q')]

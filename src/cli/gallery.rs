@@ -12,6 +12,9 @@ use lapidary::gallery::figures::{
 use lapidary::recipe::error::did_you_mean;
 use lapidary::recipe::library::builtin_gem_names;
 use lapidary::recipe::TableCache;
+use lapidary::render::still::MAX_SPP;
+
+use super::{whole, MAX_THREADS};
 
 /// The non-gem outputs, by the name `--only` knows them (file = name.png).
 const FIGURES: [&str; 6] = [
@@ -36,10 +39,12 @@ pub struct GalleryArgs {
     output: PathBuf,
     /// Side of each gem image in pixels, 1 to 8192; the figures' spheres
     /// are a fifth of it (figure 4.3's a half), but at least 48.
-    #[arg(long, value_name = "N", default_value_t = 768)]
+    #[arg(long, value_name = "N", default_value_t = 768, allow_negative_numbers = true,
+        value_parser = whole::<u32, 1, 8192>)]
     size: u32,
     /// Samples per pixel.
-    #[arg(long, value_name = "N", default_value_t = 256)]
+    #[arg(long, value_name = "N", default_value_t = 256, allow_negative_numbers = true,
+        value_parser = whole::<u32, 1, { MAX_SPP as u64 }>)]
     spp: u32,
     /// Write only these outputs: built-in gem names and `gallery`,
     /// `figure-4-11`, `figure-3-2`, `figure-4-3`, `figure-4-5b`,
@@ -47,7 +52,8 @@ pub struct GalleryArgs {
     #[arg(long, value_name = "NAME", num_args = 1..)]
     only: Vec<String>,
     /// Worker threads (default: all cores). The images do not depend on it.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true,
+        value_parser = whole::<usize, 1, MAX_THREADS>)]
     threads: Option<usize>,
     /// Compile materials without their multiple-scattering compensation
     /// (the single-crossing model): quicker previews, rough layered

@@ -12,7 +12,7 @@ use lapidary::recipe::Tables;
 const MAX_EXTENT: f64 = 1000.0;
 
 /// Panel sizes beyond this would make a sheet of more than ~200 MB.
-const MAX_PANEL_PX: u32 = 4096;
+pub(super) const MAX_PANEL_PX: u32 = 4096;
 
 /// Each material's normal-incidence albedo (single-crossing model), the
 /// colour it gets in the surface and glitter panels.

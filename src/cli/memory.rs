@@ -29,13 +29,23 @@ pub(crate) fn gib(bytes: u64) -> f64 {
     bytes as f64 / f64::from(1u32 << 30)
 }
 
-/// `bytes` for a message: in GiB from one GiB, else in MiB.
+/// `bytes` for a message: in GiB from one GiB, else in MiB, else in KiB,
+/// to three significant digits (so that an amount just above a limit
+/// does not read as the limit: 2.01 GiB, not 2.0).
 pub(crate) fn amount(bytes: u64) -> String {
-    if bytes >= 1 << 30 {
-        format!("{:.1} GiB", gib(bytes))
+    let (value, unit) = if bytes >= 1 << 30 {
+        (gib(bytes), "GiB")
+    } else if bytes >= 1 << 20 {
+        (bytes as f64 / f64::from(1u32 << 20), "MiB")
     } else {
-        format!("{:.1} MiB", bytes as f64 / f64::from(1u32 << 20))
-    }
+        (bytes as f64 / 1024.0, "KiB")
+    };
+    let decimals = match value {
+        v if v >= 100.0 => 0,
+        v if v >= 10.0 => 1,
+        _ => 2,
+    };
+    format!("{value:.decimals$} {unit}")
 }
 
 /// `MemAvailable` of /proc/meminfo.

@@ -6,6 +6,8 @@ use std::path::PathBuf;
 use lapidary::farm::merge::{merge, read_tile, Merged};
 use lapidary::output::exr::write_exr_owned;
 
+use super::{whole, MAX_THREADS};
+
 /// Arguments of `lapidary merge`.
 #[derive(clap::Args, Debug)]
 pub struct MergeArgs {
@@ -16,7 +18,8 @@ pub struct MergeArgs {
     #[arg(short = 'o', long = "output", value_name = "OUT.png|OUT.exr")]
     output: PathBuf,
     /// Worker threads for the encoding (default: all cores).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true,
+        value_parser = whole::<usize, 1, MAX_THREADS>)]
     threads: Option<usize>,
     /// No summary.
     #[arg(long, short = 'q')]
@@ -47,7 +50,11 @@ pub fn run(args: MergeArgs) -> Result<(), String> {
     let pool = super::worker_pool(args.threads)?;
     pool.install(|| write_merged(&args.output, merged, png))?;
     if !args.quiet {
-        eprintln!("merged {count} tiles into {}", args.output.display());
+        eprintln!(
+            "merged {count} tile{} into {}",
+            if count == 1 { "" } else { "s" },
+            args.output.display()
+        );
     }
     Ok(())
 }

@@ -78,11 +78,17 @@ struct MapsArgs {
     #[arg(short = 'o', long = "output", value_name = "OUT.png")]
     output: PathBuf,
     /// Side of each of the four panels in pixels.
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = 256, allow_negative_numbers = true,
+        value_parser = whole::<u32, 1, { maps::MAX_PANEL_PX as u64 }>)]
     size: u32,
     /// Half-width of the slice in texture units, one per 10 mm of stone
     /// (x, y ∈ [−E, E]; up to 1000).
-    #[arg(long, value_name = "E", default_value_t = 1.0)]
+    #[arg(
+        long,
+        value_name = "E",
+        default_value_t = 1.0,
+        allow_negative_numbers = true
+    )]
     extent: f64,
 }
 
@@ -157,13 +163,32 @@ pub fn emit(line: &str) {
     }
 }
 
-/// Refuses a `--threads` outside 1 to 1024, before any work.
+/// Most worker threads a command takes (`--threads`).
+pub(crate) const MAX_THREADS: u64 = 1024;
+
+/// Refuses a `--threads` outside 1 to [`MAX_THREADS`], before any work.
 pub(crate) fn check_threads(threads: Option<usize>) -> Result<(), String> {
     match threads {
-        Some(threads) if !(1..=1024).contains(&threads) => {
-            Err(format!("--threads {threads}: allowed 1 to 1024"))
+        Some(threads) if !(1..=MAX_THREADS).contains(&(threads as u64)) => {
+            Err(format!("--threads {threads}: allowed 1 to {MAX_THREADS}"))
         }
         _ => Ok(()),
+    }
+}
+
+/// A flag's whole number, of type `T`. A number that `T` holds passes: its
+/// range, `LO` to `HI`, is checked where the value is used, naming the
+/// flag (exit 1). A negative or too large number, or text that is no
+/// whole number, is refused here with that range (clap's own message
+/// would give the type's, `0..=4294967295`).
+pub(crate) fn whole<T: TryFrom<u64>, const LO: u64, const HI: u64>(
+    text: &str,
+) -> Result<T, String> {
+    let range = format!("allowed {LO} to {HI}");
+    match text.trim().parse::<u64>() {
+        Ok(n) => T::try_from(n).map_err(|_| range),
+        Err(_) if text.trim().parse::<i128>().is_ok() => Err(range),
+        Err(_) => Err(format!("not a whole number; {range}")),
     }
 }
 

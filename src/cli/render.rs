@@ -13,7 +13,7 @@ use lapidary::farm::record::{
     differing_line, inputs_sha256, tile_record, FrameOf, ReadRecord, RenderRecord, TILE_NOTE,
 };
 use lapidary::output::animation::write_apng;
-use lapidary::output::exr::{film_channels, write_exr_owned, write_exr_with_note};
+use lapidary::output::exr::{film_channels, write_exr_owned, write_exr_with_note, Band};
 use lapidary::output::tonemap::ToneCurve;
 use lapidary::recipe::error::{did_you_mean, folder_separator_hint};
 use lapidary::recipe::gem::{Body, GemSource};
@@ -26,13 +26,14 @@ use lapidary::render::render_scene::RenderScene;
 use lapidary::render::tiles::TileSplit;
 use lapidary::render::turntable::{orbited_camera, turned_stones};
 use lapidary::render::world::{StoneInstance, World};
-use lapidary::scene::spec::MAX_FRAMES;
+use lapidary::scene::spec::{MAX_COORDINATE_MM, MAX_FRAMES};
 use lapidary::scene::{
     default_scene, load_scene, load_scene_under, EnvironmentSpec, Scene, TurnSpec, Turntable,
     DEFAULT_SCENE_SOURCE,
 };
 
 use super::validate::BUILTIN_SCENE_NAME;
+use super::{whole, MAX_THREADS};
 
 pub use lapidary::render::still::{MAX_BOUNCES, MAX_SIDE_PX, MAX_SPP};
 /// Default of `--max-memory`, GiB.
@@ -85,22 +86,28 @@ pub struct RenderArgs {
     #[arg(short = 'o', long = "output", value_name = "OUT.png|OUT.exr")]
     pub(super) output: PathBuf,
     /// Width and height of a square image in pixels.
-    #[arg(long, value_name = "N", conflicts_with_all = ["width", "height"])]
+    #[arg(long, value_name = "N", conflicts_with_all = ["width", "height"], allow_negative_numbers = true,
+        value_parser = whole::<u64, 1, { MAX_SIDE_PX as u64 }>)]
     pub(super) size: Option<u64>,
     /// Image width in pixels (default 512).
-    #[arg(long, value_name = "W")]
+    #[arg(long, value_name = "W", allow_negative_numbers = true,
+        value_parser = whole::<u64, 1, { MAX_SIDE_PX as u64 }>)]
     pub(super) width: Option<u64>,
     /// Image height in pixels (default 512).
-    #[arg(long, value_name = "H")]
+    #[arg(long, value_name = "H", allow_negative_numbers = true,
+        value_parser = whole::<u64, 1, { MAX_SIDE_PX as u64 }>)]
     pub(super) height: Option<u64>,
     /// Samples per pixel.
-    #[arg(long, value_name = "N", default_value_t = 64)]
+    #[arg(long, value_name = "N", default_value_t = 64, allow_negative_numbers = true,
+        value_parser = whole::<u32, 1, { MAX_SPP as u64 }>)]
     pub(super) spp: u32,
     /// Seed of the sample pattern (the gems keep their recipe seeds).
-    #[arg(long, value_name = "S", default_value_t = 0)]
+    #[arg(long, value_name = "S", default_value_t = 0, allow_negative_numbers = true,
+        value_parser = whole::<u64, 0, { u64::MAX }>)]
     pub(super) seed: u64,
     /// Worker threads (default: all cores). The image does not depend on it.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true,
+        value_parser = whole::<usize, 1, MAX_THREADS>)]
     pub(super) threads: Option<usize>,
     /// An equirectangular .hdr or .exr environment replacing the scene's.
     #[arg(long, value_name = "FILE")]
@@ -118,15 +125,17 @@ pub struct RenderArgs {
     pub(super) tonemap: TonemapArg,
     /// Bounces after the first hit (0: direct light only; a translucent
     /// stone's inside needs 2).
-    #[arg(long, value_name = "N", default_value_t = 4)]
+    #[arg(long, value_name = "N", default_value_t = 4, allow_negative_numbers = true,
+        value_parser = whole::<u32, 0, { MAX_BOUNCES as u64 }>)]
     pub(super) bounces: u32,
     /// Pixel (reconstruction) filter.
     #[arg(long, value_enum, default_value_t = FilterArg::Tent)]
     pub(super) filter: FilterArg,
     /// Ambient occlusion within DIST scene units (mm), as the appendix
     /// shader gathers it: adds an `ao` layer to EXR output; a PNG shows the
-    /// occlusion itself (white: open, black: enclosed) instead of the beauty.
-    #[arg(long, value_name = "DIST")]
+    /// occlusion itself (white: open, black: enclosed; no exposure or tone
+    /// curve) instead of the beauty.
+    #[arg(long, value_name = "DIST", allow_negative_numbers = true)]
     pub(super) ao: Option<f64>,
     /// Shade every flake inside a translucent stone, and every glitter
     /// facet of an opaque one, by its own normal, at any scale. By default a flake met where the pixel's footprint holds
@@ -143,7 +152,7 @@ pub struct RenderArgs {
     pub(super) exact_flakes: bool,
     /// Largest film memory to allow, in GiB (default 4); the render is
     /// refused up front above it, and always above the memory available.
-    #[arg(long, value_name = "GIB", default_value_t = DEFAULT_MAX_MEMORY_GIB)]
+    #[arg(long, value_name = "GIB", default_value_t = DEFAULT_MAX_MEMORY_GIB, allow_negative_numbers = true)]
     pub(super) max_memory: f64,
     /// No progress bar and no summary.
     #[arg(long, short = 'q')]
@@ -151,10 +160,12 @@ pub struct RenderArgs {
     /// Render a turntable of N frames over a full turn: frame K is written
     /// as OUT-000K.png (or .exr), and a PNG turntable also as an animated
     /// OUT.png. Overrides the scene's `turntable`.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true,
+        value_parser = whole::<u32, 1, { MAX_FRAMES as u64 }>)]
     pub(super) frames: Option<u32>,
     /// Render frame K (from 0) of the turntable alone, as OUT-000K.png.
-    #[arg(long, value_name = "K")]
+    #[arg(long, value_name = "K", allow_negative_numbers = true,
+        value_parser = whole::<u32, 0, { MAX_FRAMES as u64 - 1 }>)]
     pub(super) frame: Option<u32>,
     /// What a turntable turns: the stones about their own verticals, or
     /// the camera round the point it looks at (default: the scene's, else
@@ -255,9 +266,14 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
         ));
     }
     if let Some(distance) = args.ao {
-        if !(distance.is_finite() && distance > 0.0) {
+        if !(distance.is_finite() && distance > 0.0 && distance <= MAX_COORDINATE_MM) {
+            let typed = if distance.abs() >= 1e6 {
+                format!("{distance:e}")
+            } else {
+                distance.to_string()
+            };
             return Err(format!(
-                "--ao {distance}: must be a positive distance in scene units (mm)"
+                "--ao {typed}: must be a positive distance in scene units (mm), at most {MAX_COORDINATE_MM:e}"
             ));
         }
     }
@@ -282,17 +298,25 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
     } else {
         "--tile"
     };
+    let smaller = if width.max(height) > 1 {
+        "use a smaller --size or "
+    } else {
+        ""
+    };
     if super::memory::gib(needed) > args.max_memory {
         return Err(format!(
-            "{what} needs {} of memory for its film, above the --max-memory limit of {} GiB; raise it, use a smaller --size or split it with {more_tiles}",
+            "{what} needs {} of memory for its film ({:.1} MiB), above the --max-memory limit of {} GiB \
+             ({:.1} MiB); raise it, {smaller}split it with {more_tiles}",
             super::memory::amount(needed),
-            args.max_memory
+            needed as f64 / f64::from(1u32 << 20),
+            args.max_memory,
+            args.max_memory * 1024.0
         ));
     }
     let available = super::memory::available_bytes();
     if needed > available {
         return Err(format!(
-            "{what} needs {} of memory for its film, but only {} is available; use a smaller --size or split it with {more_tiles}",
+            "{what} needs {} of memory for its film, but only {} is available; {smaller}split it with {more_tiles}",
             super::memory::amount(needed),
             super::memory::amount(available)
         ));
@@ -569,6 +593,12 @@ impl Inputs {
                 folder_separator_hint(&env.to_string_lossy())
             ));
         }
+        if let Some(env) = args.env.as_deref().filter(|path| path.is_dir()) {
+            return Err(format!(
+                "--env {}: is a folder; --env takes an equirectangular .hdr or .exr map file",
+                env.display()
+            ));
+        }
         let sha256 = inputs_sha256(&scene_bytes, &scene, &gem, args.env.as_deref())?;
         Ok(Inputs { scene, gem, sha256 })
     }
@@ -811,14 +841,12 @@ impl Renderer {
                 let mut channels = film_channels(film, with_ao);
                 channels.sort_by(|a, b| a.name.as_bytes().cmp(b.name.as_bytes()));
                 let note = tile_record(&record, split, &channels, stats.bad_samples).to_text();
-                write_exr_with_note(
-                    path,
-                    width,
-                    rows.end - rows.start,
-                    channels,
-                    (TILE_NOTE, &note),
-                )
-                .map_err(|e| e.to_string())?;
+                let band = Band {
+                    rows: rows.clone(),
+                    image_height: height,
+                };
+                write_exr_with_note(path, width, band, channels, (TILE_NOTE, &note))
+                    .map_err(|e| e.to_string())?;
             }
             (None, Format::Png) => {
                 let transform = record.display_transform();
@@ -868,6 +896,11 @@ impl Renderer {
             PixelFilter::Tent => "",
             PixelFilter::Box => ", box filter",
             PixelFilter::Gaussian => ", Gaussian filter",
+        };
+        // A PNG of a render with --ao is the occlusion, not the beauty.
+        let filter = match (self.record.ao_distance_mm, is_png_output(path)) {
+            (Some(d), Ok(true)) => format!("{filter}, ambient occlusion within {d} mm"),
+            _ => filter.to_string(),
         };
         self.report(&format!(
             "{what}wrote {} ({width} × {height}{tile}, {} spp{filter}) in {:.1} s: {:.2} Mrays/s, {:.2} M samples/s, {:.1} s total, {} code",

@@ -81,17 +81,14 @@ pub struct RenderRecord {
 
 impl RenderRecord {
     /// How the PNG of this render is encoded from its linear film: the same
-    /// for a single render and for merged tiles. Ambient occlusion, a
-    /// fraction, is shown linearly.
+    /// for a single render and for merged tiles.
     pub fn display_transform(&self) -> DisplayTransform {
-        DisplayTransform {
-            exposure_ev: self.exposure_ev,
-            curve: match self.ao_distance_mm {
-                Some(_) => ToneCurve::Linear,
-                None => self.tone_curve,
-            },
-            dither_seed: self.seed,
-        }
+        display_of(
+            self.exposure_ev,
+            self.tone_curve,
+            self.ao_distance_mm.is_some(),
+            self.seed,
+        )
     }
 
     /// The record's `key: value` lines as a tile stores them (what
@@ -134,6 +131,16 @@ impl RenderRecord {
             ("frame", frame),
             ("inputs_sha256", self.inputs_sha256.clone()),
         ]
+    }
+}
+
+/// The PNG encoding of a render's film: its exposure and tone curve, but
+/// ambient occlusion (a fraction) as it is, neither exposed nor curved.
+fn display_of(exposure_ev: f64, curve: ToneCurve, occlusion: bool, seed: u64) -> DisplayTransform {
+    DisplayTransform {
+        exposure_ev: if occlusion { 0.0 } else { exposure_ev },
+        curve: if occlusion { ToneCurve::Linear } else { curve },
+        dither_seed: seed,
     }
 }
 
@@ -254,15 +261,7 @@ impl ReadRecord {
         };
         let exposure_ev: f64 = get("exposure_ev")?.parse().ok()?;
         let seed: u64 = get("seed")?.parse().ok()?;
-        let display = DisplayTransform {
-            exposure_ev,
-            curve: if ao.is_some() {
-                ToneCurve::Linear
-            } else {
-                curve
-            },
-            dither_seed: seed,
-        };
+        let display = display_of(exposure_ev, curve, ao.is_some(), seed);
         let sha = get("pixels_sha256")?.to_string();
         Some(ReadRecord {
             size_px: (width.parse().ok()?, height.parse().ok()?),

@@ -23,7 +23,8 @@ use ::exr::meta::attribute::{AttributeValue, ChannelDescription, SampleType, Tex
 use ::exr::meta::header::Header;
 use ::exr::meta::BlockDescription;
 use ::exr::prelude::{
-    read, Compression, FlatSamples, LayerAttributes, LineOrder, ReadChannels, ReadLayers, SmallVec,
+    read, Compression, FlatSamples, IntegerBounds, LayerAttributes, LineOrder, ReadChannels,
+    ReadLayers, SmallVec, Vec2,
 };
 use rayon::prelude::*;
 
@@ -114,17 +115,34 @@ pub fn write_exr_owned(
     height: u32,
     channels: Vec<ExrChannel>,
 ) -> Result<(), OutputError> {
-    write_exr_with_attributes(path, width, height, channels, LayerAttributes::default())
+    let whole = Band {
+        rows: 0..height,
+        image_height: height,
+    };
+    write_exr_with_attributes(path, width, whole, channels, LayerAttributes::default())
 }
 
-/// [`write_exr_owned`] with one text attribute `note = (name, text)` in the
-/// header besides the standard ones (e.g. what a tile of a render is, for
-/// the merge to check). The text is stored as its UTF-8 bytes; one
-/// attribute, so the header's bytes do not depend on a map's order.
+/// Rows `rows` of an image `image_height` rows high: where a band's (a
+/// tile's) pixels sit in its image.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Band {
+    /// The band's rows, from the image's top.
+    pub rows: std::ops::Range<u32>,
+    /// The whole image's height.
+    pub image_height: u32,
+}
+
+/// [`write_exr_owned`] of the band `band` of an image (its channels hold
+/// the band's rows alone), with one text attribute `note = (name, text)` in
+/// the header besides the standard ones (e.g. what a tile of a render is,
+/// for the merge to check). The file's data window is the band's rows of
+/// its display window, the whole image, so that viewers place it there.
+/// The text is stored as its UTF-8 bytes; one attribute, so the header's
+/// bytes do not depend on a map's order.
 pub fn write_exr_with_note(
     path: &Path,
     width: u32,
-    height: u32,
+    band: Band,
     channels: Vec<ExrChannel>,
     note: (&str, &str),
 ) -> Result<(), OutputError> {
@@ -140,13 +158,13 @@ pub fn write_exr_with_note(
         name,
         AttributeValue::Text(Text::from_slice_unchecked(text.as_bytes())),
     );
-    write_exr_with_attributes(path, width, height, channels, attributes)
+    write_exr_with_attributes(path, width, band, channels, attributes)
 }
 
 fn write_exr_with_attributes(
     path: &Path,
     width: u32,
-    height: u32,
+    band: Band,
     channels: Vec<ExrChannel>,
     attributes: LayerAttributes,
 ) -> Result<(), OutputError> {
@@ -154,7 +172,15 @@ fn write_exr_with_attributes(
         path: path.display().to_string(),
         message,
     };
+    if band.rows.end > band.image_height || band.rows.start > band.rows.end {
+        return Err(err(format!(
+            "rows {}..{} are not a band of an image {} rows high",
+            band.rows.start, band.rows.end, band.image_height
+        )));
+    }
+    let height = band.rows.end - band.rows.start;
     let pixel_count = validate(width, height, &channels).map_err(err)?;
+    let first_row = band.rows.start as usize;
     debug_assert!(channels.iter().all(|c| c.data.len() == pixel_count));
     check_writable(path)?;
 
@@ -182,7 +208,12 @@ fn write_exr_with_attributes(
         BlockDescription::ScanLines,
         LineOrder::Increasing,
     )
-    .with_attributes(attributes);
+    .with_attributes(attributes)
+    .with_display_window(IntegerBounds::new(
+        (0, 0),
+        (width as usize, band.image_height as usize),
+    ))
+    .with_position(Vec2(0, first_row as i32));
     let width = width as usize;
     write_atomically_with(path, |file| {
         let mut buffered = std::io::BufWriter::new(file);
@@ -206,7 +237,8 @@ fn write_exr_with_attributes(
                         let chunk = Chunk {
                             layer_index: 0,
                             compressed_block: CompressedBlock::ScanLine(CompressedScanLineBlock {
-                                y_coordinate: y as i32,
+                                // Absolute: the data window starts at the band's first row.
+                                y_coordinate: (first_row + y) as i32,
                                 compressed_pixels_le,
                             }),
                         };

@@ -56,12 +56,11 @@ pub fn check_writable(path: &Path) -> Result<(), OutputError> {
     let parent = path.parent().filter(|p| !p.as_os_str().is_empty());
     if let Some(dir) = parent {
         if !dir.is_dir() {
-            let what = if dir.exists() {
-                "is not a directory"
+            return Err(err(if dir.exists() {
+                format!("{} is a file, not a directory", dir.display())
             } else {
-                "does not exist"
-            };
-            return Err(err(format!("directory {} {what}", dir.display())));
+                format!("directory {} does not exist", dir.display())
+            }));
         }
     }
     let probe = temporary_sibling(path);

@@ -1466,6 +1466,15 @@ impl<'a> Compiler<'a> {
 fn load_gem_source(spec: &str) -> Result<(String, String), RecipeError> {
     use crate::recipe::error::{did_you_mean, folder_separator_hint};
     use crate::recipe::library::{builtin_gem_names, builtin_gem_source};
+    if spec.trim().is_empty() {
+        return Err(RecipeError::whole_file(
+            "(empty gem name)",
+            format!(
+                "the gem name is empty; allowed: a built-in gem ({}) or a .ron gem file",
+                builtin_gem_names().collect::<Vec<_>>().join(", ")
+            ),
+        ));
+    }
     if crate::recipe::compile::names_a_file(spec) {
         let text = crate::recipe::compile::read_ron_file(spec, "gem recipe")?;
         return Ok((spec.to_string(), text));

@@ -368,7 +368,7 @@ pub(crate) const MAX_EMISSION: f64 = 1e12;
 /// Largest coordinate of a point in a scene, mm (100 m). The stones' BVH
 /// is built in f32 (obvhs), where 1e300 is infinite and its build panics;
 /// and a light's solid angle from this far stays representable.
-pub(crate) const MAX_COORDINATE_MM: f64 = 1e5;
+pub const MAX_COORDINATE_MM: f64 = 1e5;
 
 /// A point or vector: three finite numbers, each within ±`max_abs`.
 fn finite_vec3<'de, D: Deserializer<'de>>(
