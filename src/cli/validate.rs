@@ -100,11 +100,32 @@ pub fn recipe_kind(path: &str, text: &str) -> Result<RecipeKind, RecipeError> {
     }
 }
 
+/// What `validate` says of a valid input: its one-line summary, and its
+/// warnings (`FILE: warning: …`: a sunk stone, a camera inside a light, a
+/// map that is not 2:1), each a line of its own.
+#[derive(Debug, Default)]
+pub struct Checked {
+    /// "ok (gem \"goldstone\", 3 materials, …)".
+    pub summary: String,
+    /// Each warning, `FILE: warning: …`.
+    pub warnings: Vec<String>,
+}
+
+impl From<String> for Checked {
+    /// A summary without warnings.
+    fn from(summary: String) -> Self {
+        Checked {
+            summary,
+            warnings: Vec::new(),
+        }
+    }
+}
+
 /// Validate a gem recipe: parse, compile the pattern, compile every
 /// material it uses.
-fn validate_gem(path: &str, text: &str) -> Result<String, RecipeError> {
+fn validate_gem(path: &str, text: &str) -> Result<Checked, RecipeError> {
     let gem = parse_gem(path, text)?;
-    Ok(format!(
+    Ok(Checked::from(format!(
         "ok (gem \"{}\", {}, {}{}{})",
         gem.name,
         counted(gem.materials.len() as u64, "material"),
@@ -118,12 +139,12 @@ fn validate_gem(path: &str, text: &str) -> Result<String, RecipeError> {
             Body::Opaque => "",
             Body::Translucent { .. } => ", translucent body",
         }
-    ))
+    )))
 }
 
 /// Validate a material file: parse and compile (without the compensation
 /// tables).
-fn validate_material(path: &str, name: &str, text: &str) -> Result<String, RecipeError> {
+fn validate_material(path: &str, name: &str, text: &str) -> Result<Checked, RecipeError> {
     let mut material = parse_material(path, text)?;
     material.multiple_scattering = false;
     let source = MaterialSource {
@@ -137,10 +158,10 @@ fn validate_material(path: &str, name: &str, text: &str) -> Result<String, Recip
         BaseSpec::Conductor { .. } => "Conductor",
         BaseSpec::Black => "Black",
     };
-    Ok(format!(
+    Ok(Checked::from(format!(
         "ok (material, {}, {base} base)",
         counted(material.layers.len() as u64, "layer")
-    ))
+    )))
 }
 
 /// A referenced gem or material of a scene that does not load, reported at
@@ -190,7 +211,7 @@ pub(super) fn place_environment_error(scene: &Path, message: String) -> String {
 
 /// Validate a scene file: parse and compile it, then check that every gem
 /// and the ground material it names exist and validate.
-fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<String, RecipeError> {
+fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<Checked, RecipeError> {
     let scene = parse_scene(text, file).map_err(|mut e| {
         e.path = path.to_string();
         e
@@ -220,7 +241,7 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<String,
         }
     }
     if let (Some(ground), Some(written)) = (&scene.ground, &spec.ground) {
-        let check = || -> Result<String, RecipeError> {
+        let check = || -> Result<Checked, RecipeError> {
             let source = locate_material(&ground.material)?;
             validate_material(&source.path, &source.name, &source.text)
         };
@@ -243,21 +264,21 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<String,
             .map_err(|e| environment_error_at(path, text, written, e.to_string()))?;
         map_warning = environment
             .proportion_warning()
-            .map(|w| format!("\n{path}: warning: environment map {written}: {w}"));
+            .map(|w| format!("{path}: warning: environment map {written}: {w}"));
     }
     let n = scene.stones.len();
     let l = scene.lights.len();
     // Placement: valid, but a sunk or crossing stone is worth a warning.
     let stones = stone_instances(&scene).map_err(|e| RecipeError::whole_file(path, e))?;
     let world = World::new(stones, scene.ground.as_ref().map(|g| g.height));
-    let warnings: String = placement_problems(&world)
+    let warnings = placement_problems(&world)
         .iter()
         .chain(&viewpoint_problems(&world, &scene))
-        .map(|problem| format!("\n{path}: warning: {problem}"))
+        .map(|problem| format!("{path}: warning: {problem}"))
         .chain(map_warning)
         .collect();
-    Ok(format!(
-        "ok (scene, {}, {}{}){warnings}",
+    let summary = format!(
+        "ok (scene, {}, {}{})",
         counted(n as u64, "stone"),
         counted(l as u64, "light"),
         if scene.ground.is_some() {
@@ -265,7 +286,8 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<String,
         } else {
             ""
         }
-    ))
+    );
+    Ok(Checked { summary, warnings })
 }
 
 /// Validate one text of known display path; `file` is the file on disk
@@ -276,7 +298,7 @@ pub fn validate_text(
     file: Option<&Path>,
     name: &str,
     text: &str,
-) -> Result<String, RecipeError> {
+) -> Result<Checked, RecipeError> {
     match recipe_kind(path, text)? {
         RecipeKind::Gem => validate_gem(path, text),
         RecipeKind::Material => validate_material(path, name, text),
@@ -288,19 +310,17 @@ pub fn validate_text(
 /// Validate a batch job: the job itself ([`Job::load`]: fields, ranges,
 /// image names, the task count) and every recipe and scene it names
 /// ([`check_job_inputs`]).
-pub fn validate_job(path: &str, file: &Path, text: &str) -> Result<String, RecipeError> {
+pub fn validate_job(path: &str, file: &Path, text: &str) -> Result<Checked, RecipeError> {
     let job = Job::load(file)?;
-    let warnings: String = check_job_inputs(path, text, &job)?
-        .iter()
-        .map(|warning| format!("\n{warning}"))
-        .collect();
-    Ok(format!(
-        "ok (job, {}: {} × {} × {}){warnings}",
+    let warnings = check_job_inputs(path, text, &job)?;
+    let summary = format!(
+        "ok (job, {}: {} × {} × {})",
         counted(job.task_count(), "task"),
         counted(job.images.len() as u64, "image"),
         counted(job.turntable.map_or(1, |t| t.frames), "frame"),
         counted(job.tiles, "tile")
-    ))
+    );
+    Ok(Checked { summary, warnings })
 }
 
 /// Every recipe and scene of `job` (read from `text` at `path`), each as
@@ -330,7 +350,7 @@ pub fn check_job_inputs(path: &str, text: &str, job: &Job) -> Result<Vec<String>
             read_ron_file(&spec, "scene file")
                 .and_then(|text| validate_scene(&spec, Some(Path::new(&spec)), &text))
         };
-        let summary = checked_ok.map_err(|e| {
+        let checked = checked_ok.map_err(|e| {
             // Where the job names it: a built-in's name in quotes, a
             // file's name (the job may write a folder before it).
             let written = if names_a_file(&spec) {
@@ -347,26 +367,21 @@ pub fn check_job_inputs(path: &str, text: &str, job: &Job) -> Result<Vec<String>
                 format!("{what} `{spec}` does not load: {e}"),
             )
         })?;
-        warnings.extend(
-            summary
-                .lines()
-                .filter(|line| line.contains(": warning: "))
-                .map(str::to_string),
-        );
+        warnings.extend(checked.warnings);
     }
     Ok(warnings)
 }
 
 /// Validate one command-line argument (a file or a built-in name); returns
-/// the display path and the success summary, or the error.
-pub fn validate_one(spec: &str) -> Result<(String, String), RecipeError> {
+/// the display path and what was found, or the error.
+pub fn validate_one(spec: &str) -> Result<(String, Checked), RecipeError> {
     if names_a_file(spec) {
         let text = read_ron_file(spec, "recipe (gem, material, scene or job)")?;
         let name = Path::new(spec)
             .file_stem()
             .map_or(spec.to_string(), |s| s.to_string_lossy().into_owned());
-        let summary = validate_text(spec, Some(Path::new(spec)), &name, &text)?;
-        return Ok((spec.to_string(), summary));
+        let checked = validate_text(spec, Some(Path::new(spec)), &name, &text)?;
+        return Ok((spec.to_string(), checked));
     }
     let builtin = |prefix: &str| format!("builtin:{prefix}");
     if let Some(text) = builtin_gem_source(spec) {
@@ -449,12 +464,11 @@ pub fn run(recipes: &[String]) -> Result<(), String> {
             .map_err(Clone::clone)
             .and_then(|spec| validate_one(spec))
         {
-            Ok((path, summary)) => {
+            Ok((path, checked)) => {
                 // The ok line on stdout, its warnings on stderr with the
                 // errors (they stay seen under `> /dev/null`).
-                let mut lines = summary.lines();
-                super::emit(&format!("{path}: {}", lines.next().unwrap_or_default()));
-                for warning in lines {
+                super::emit(&format!("{path}: {}", checked.summary));
+                for warning in &checked.warnings {
                     eprintln!("{warning}");
                 }
             }
