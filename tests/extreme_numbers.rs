@@ -151,7 +151,7 @@ fn extreme_numbers_in_the_studio_scene_are_refused_or_render_finite() {
         };
         match prepare_scene(&scene, &gem, None, 4, Tables::Skipped, &|_| {}) {
             Err(error) => {
-                assert!(!error.is_empty(), "{what}: an empty message");
+                assert!(!error.message.is_empty(), "{what}: an empty message");
                 refused += 1;
             }
             Ok(render_scene) => {

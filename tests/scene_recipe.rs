@@ -1079,7 +1079,7 @@ fn the_renderer_s_preparation_refuses_an_unchecked_scene() {
         lapidary::Tables::Computed(&cache),
         &|_| {},
     );
-    assert!(prepared.is_err_and(|e| e.contains("vertical_fov_deg = 180")));
+    assert!(prepared.is_err_and(|e| e.message.contains("vertical_fov_deg = 180")));
 }
 
 #[test]

@@ -709,10 +709,10 @@ impl Renderer {
             &report,
         )
         .map_err(|e| match scene_file(args) {
-            Some(scene) if args.env.is_none() && e.starts_with("environment map") => {
-                super::validate::place_environment_error(scene, e)
+            Some(scene) if args.env.is_none() && e.message.starts_with("environment map") => {
+                super::validate::place_environment_error(scene, e.message)
             }
-            _ => e,
+            _ => e.message,
         })?;
         if let Some(warning) = traced.environment.proportion_warning() {
             let map = match (&args.env, &self.scene.environment) {

@@ -188,7 +188,7 @@ pub enum EnvironmentError {
     #[error(
         "environment map {origin}: texel at x = {x}, y = {y} (column, row from the top-left) has \
          a channel of {value:.4e}, above the {MAX_TEXEL_RADIANCE:.4e} a texel can hold; scale the map \
-         down and raise `intensity` instead"
+         down and raise `intensity` instead (a scene's `environment: File(path: …, intensity: …)`)"
     )]
     TooBright {
         /// The file path, or a note that the map came from memory.

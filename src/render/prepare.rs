@@ -14,6 +14,28 @@ use crate::render::render_scene::RenderScene;
 use crate::render::world::{StoneInstance, World};
 use crate::scene::{EnvironmentSpec, Scene};
 
+/// Why a scene could not be prepared or rendered: a setting out of its
+/// range, or a scene or recipe that does not load. The message names the
+/// file, line, field and what is allowed, as the command's errors do.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{message}")]
+pub struct RenderError {
+    /// The whole message.
+    pub message: String,
+}
+
+impl From<String> for RenderError {
+    fn from(message: String) -> Self {
+        RenderError { message }
+    }
+}
+
+impl From<RenderError> for String {
+    fn from(error: RenderError) -> Self {
+        error.message
+    }
+}
+
 /// Builds everything the integrator reads from a compiled scene.
 ///
 /// Stones without a recipe use `default_gem` (loaded by
@@ -32,7 +54,7 @@ pub fn prepare_scene(
     max_bounces: u32,
     tables: Tables<'_>,
     report: &dyn Fn(&str),
-) -> Result<RenderScene, String> {
+) -> Result<RenderScene, RenderError> {
     scene.check()?;
     // Each distinct (recipe, seed) is one gem; `None` is `default_gem`.
     let mut keys: Vec<(Option<&str>, Option<u64>)> = Vec::new();

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use crate::recipe::gem::GemSource;
 use crate::recipe::{TableCache, Tables};
 use crate::render::film::{self, Film, FilmSettings};
-use crate::render::prepare::{camera_for, prepare_scene};
+use crate::render::prepare::{camera_for, prepare_scene, RenderError};
 use crate::scene::Scene;
 
 /// Largest image side, in pixels (the command's `--width`/`--height`).
@@ -59,16 +59,6 @@ impl Default for StillSettings {
     }
 }
 
-/// Why [`render_still`] could not render: a setting out of its range, or
-/// a scene or recipe that does not load (the message names the file,
-/// line, field and what is allowed, as the command's errors do).
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("{message}")]
-pub struct RenderError {
-    /// The whole message.
-    pub message: String,
-}
-
 /// Renders `scene` with `gem` on every stone that names no recipe of its
 /// own: the film of `lapidary render` with the same inputs and settings
 /// (its PNG is [`crate::output::tonemap::DisplayTransform::encode_film`],
@@ -91,7 +81,7 @@ pub fn render_still(
     gem: &GemSource,
     settings: &StillSettings,
 ) -> Result<Film, RenderError> {
-    let fail = |message: String| Err(RenderError { message });
+    let fail = |message: String| Err(RenderError::from(message));
     for (name, value) in [
         ("width_px", settings.width_px),
         ("height_px", settings.height_px),
@@ -123,8 +113,7 @@ pub fn render_still(
         settings.bounces,
         Tables::Computed(&cache),
         &|_| {},
-    )
-    .map_err(|message| RenderError { message })?;
+    )?;
     if settings.flake_footprints {
         traced.shade_flakes_by_footprint(Some(cache));
     }
