@@ -21,6 +21,25 @@ fn material_from_ron(name: &str, text: &str) -> LayeredBrdf {
     compile_material(&source, &m).expect("test material compiles")
 }
 
+#[test]
+fn a_material_from_its_text_is_the_library_s() {
+    // `MaterialSource::new(path, text).compile()` is `load_material` from
+    // text in memory: the same BRDF, named by the path's stem; a mistake
+    // is placed in that path.
+    let text = lapidary::recipe::library::builtin_material_source("brass").unwrap();
+    let source = MaterialSource::new("my/brass.ron", text);
+    assert_eq!(source.name, "brass");
+    let (ours, library) = (source.compile().unwrap(), load_material("brass").unwrap());
+    let (wi, wo) = (
+        DVec3::new(0.3, 0.1, 0.95).normalize(),
+        DVec3::new(-0.2, 0.0, 0.98).normalize(),
+    );
+    assert_eq!(ours.eval(wi, wo), library.eval(wi, wo));
+    let broken = MaterialSource::new("my/broken.ron", "Material(layers: [Layer(ior: 9.0)])");
+    let error = broken.compile().unwrap_err().to_string();
+    assert!(error.starts_with("my/broken.ron:1:"), "{error}");
+}
+
 /// Hemispherical (cosine-weighted) average of the external dielectric
 /// Fresnel reflectance, F̄ = 2∫F(μ)μ dμ, by the midpoint rule.
 fn hemispherical_fresnel(eta: f64) -> f64 {

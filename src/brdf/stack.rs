@@ -105,7 +105,14 @@ impl LayeredBrdf {
     /// The full BRDF f(wi, wo) (no cosine): the single-crossing model plus
     /// the compensation lobe when enabled. wi: towards the light; wo: towards
     /// the viewer; both unit vectors (other lengths give wrong values), in
-    /// the local frame with z the normal.
+    /// the local frame with z the normal
+    /// ([`crate::sampling::direction_from_degrees`] makes one from θ, φ).
+    ///
+    /// A smooth layer's lobe is nearly a mirror (the notes' 0.01° gives a
+    /// Blinn exponent of about 4.6 · 10⁷), so at the exact mirror direction
+    /// its value is very large (tens of thousands per steradian) and a
+    /// degree away it is 0: integrate it with [`LayeredBrdf::sample`],
+    /// not by evaluating on a grid of directions.
     pub fn eval(&self, wi: DVec3, wo: DVec3) -> Rgb {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return Rgb::ZERO;

@@ -119,6 +119,26 @@ pub struct MaterialSource {
     pub text: String,
 }
 
+impl MaterialSource {
+    /// Material `text` read from `path` (or made in memory: `path` is only
+    /// for messages), named by the path's file stem.
+    pub fn new(path: &str, text: &str) -> Self {
+        MaterialSource {
+            path: path.to_string(),
+            name: Path::new(path)
+                .file_stem()
+                .map_or(path.to_string(), |s| s.to_string_lossy().into_owned()),
+            text: text.to_string(),
+        }
+    }
+
+    /// Parse, check and compile it, with its compensation table when it
+    /// asks for one (as [`load_material`], from this text).
+    pub fn compile(&self) -> Result<LayeredBrdf, RecipeError> {
+        compile_material(self, &parse_material(&self.path, &self.text)?)
+    }
+}
+
 /// Whether a command-line argument names a file rather than a library entry:
 /// it exists, ends in `.ron`, or contains a `/`.
 pub fn names_a_file(spec: &str) -> bool {
@@ -194,17 +214,9 @@ fn file_of_another_kind(bytes: &[u8]) -> Option<(&'static str, &'static str)> {
 /// Find MATERIAL as a file (if it names one or ends in `.ron`) or as a
 /// library name; unknown names get a did-you-mean.
 pub fn locate_material(spec: &str) -> Result<MaterialSource, RecipeError> {
-    let path = Path::new(spec);
     if names_a_file(spec) {
         let text = read_ron_file(spec, "material file")?;
-        let name = path
-            .file_stem()
-            .map_or(spec.to_string(), |s| s.to_string_lossy().into_owned());
-        return Ok(MaterialSource {
-            path: spec.to_string(),
-            name,
-            text,
-        });
+        return Ok(MaterialSource::new(spec, &text));
     }
     match builtin_material_source(spec) {
         Some(text) => Ok(MaterialSource {
@@ -236,9 +248,7 @@ pub fn locate_material(spec: &str) -> Result<MaterialSource, RecipeError> {
 /// default), computed here and not cached: see
 /// [`crate::recipe::TableCache`] to keep tables between calls.
 pub fn load_material(spec: &str) -> Result<LayeredBrdf, RecipeError> {
-    let source = locate_material(spec)?;
-    let material = parse_material(&source.path, &source.text)?;
-    compile_material(&source, &material)
+    locate_material(spec)?.compile()
 }
 
 /// [`load_material`] without the compensation table, and whether the
