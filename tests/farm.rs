@@ -479,6 +479,28 @@ fn tiles_of_one_render_run_from_different_working_folders_merge() {
     let (t0, t1) = (job.join("t0.exr"), job.join("t1.exr"));
     ok(&["merge", "-q", "-o", s(&merged), s(&t0), s(&t1)]);
     assert_eq!(bytes(&merged), bytes(&whole));
+    // A batch task run again from another folder finds its tile complete
+    // (the job names its scene relative to itself: `scene.ron` typed one
+    // way, `job/scene.ron` the other).
+    std::fs::write(
+        job.join("job.ron"),
+        r#"Job(output: "out", recipes: ["sunstone"], scenes: ["scene.ron"],
+               settings: [Settings(width: 32, height: 24, spp: 2)], tiles: 2)"#,
+    )
+    .unwrap();
+    let batch_in = |cwd: &Path, job_file: &str| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_lapidary"))
+            .args(["batch", job_file, "--task", "0"])
+            .current_dir(cwd)
+            .output()
+            .expect("binary runs");
+        assert!(out.status.success(), "{}", stderr(&out));
+        stderr(&out)
+    };
+    let first = batch_in(&job, "job.ron");
+    assert!(!first.contains("skipped"), "{first}");
+    let again = batch_in(&dir, "job/job.ron");
+    assert!(again.contains("already complete, skipped"), "{again}");
     refused(
         &[
             "merge",
@@ -587,6 +609,10 @@ fn bad_jobs_are_refused_with_the_place_and_the_allowed_range() {
         (JOB.replace("spp: 2", "spq: 2"), "did you mean `spp`?"),
         (JOB.replace("tiles: 2", "tiles: 25"), "allowed: 1 to 24"),
         (JOB.replace("frames: 2", "frames: 0"), "allowed: 1 to 3600"),
+        (
+            JOB.replace("spp: 2)", "spp: 2, ao_mm: Some(1e6))"),
+            "`ao_mm` = 1000000 is out of range; allowed: a positive distance (mm), at most 1e5",
+        ),
         (
             JOB.replace("recipes: [\"sunstone\"]", "recipes: []"),
             "`recipes` is empty",

@@ -450,6 +450,32 @@ fn exr_refuses_duplicate_and_empty_names() {
 }
 
 #[test]
+fn a_band_outside_its_image_is_refused() {
+    // Rows 3..9 of an image 5 rows high is no band of it: refused, nothing
+    // written.
+    use lapidary::output::exr::{write_exr_with_note, Band};
+    let dir = scratch_dir("band");
+    let path = dir.join("band.exr");
+    let channels = vec![ExrChannel {
+        name: "R".into(),
+        data: ChannelData::F32(vec![0.0; 12]),
+    }];
+    let band = Band {
+        rows: 3..9,
+        image_height_px: 5,
+    };
+    let e = write_exr_with_note(&path, 2, band, channels, ("note", "text"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("rows 3..9 are not a band of an image 5 rows high"),
+        "{e}"
+    );
+    assert!(entries(&dir).is_empty());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn exr_refuses_zero_size_and_no_channels() {
     let dir = scratch_dir("zero");
     let path = dir.join("bad.exr");

@@ -30,8 +30,8 @@ pub(crate) fn gib(bytes: u64) -> f64 {
 }
 
 /// `bytes` for a message: in GiB from one GiB, else in MiB, else in KiB,
-/// to three significant digits (so that an amount just above a limit
-/// does not read as the limit: 2.01 GiB, not 2.0).
+/// to three significant digits (a tiny film reads 8.38 KiB, not 0.0 MiB;
+/// a message comparing with a limit adds the MiB).
 pub(crate) fn amount(bytes: u64) -> String {
     let (value, unit) = if bytes >= 1 << 30 {
         (gib(bytes), "GiB")

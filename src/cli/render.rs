@@ -455,7 +455,20 @@ pub(super) fn run_task(
         if let Ok(tile) = read_tile(path) {
             let expected = renderer.record(frame);
             let done = tile_record(&expected, split, &tile.channels, tile.record.bad_samples);
-            if ReadRecord::parse(&done.to_text()).is_some_and(|r| r == tile.record) {
+            // This render's tile (its inputs' names may be typed from
+            // another folder, as merge accepts), complete.
+            let theirs = &tile.record;
+            if ReadRecord::parse(&done.to_text()).is_some_and(|ours| {
+                differing_line(&ours.render_lines, &theirs.render_lines).is_none()
+                    && (ours.size_px, ours.tile, ours.bad_samples, ours.display)
+                        == (
+                            theirs.size_px,
+                            theirs.tile,
+                            theirs.bad_samples,
+                            theirs.display,
+                        )
+                    && ours.pixels_sha256 == theirs.pixels_sha256
+            }) {
                 return Ok(TaskOutcome::AlreadyDone);
             }
         }
@@ -843,7 +856,7 @@ impl Renderer {
                 let note = tile_record(&record, split, &channels, stats.bad_samples).to_text();
                 let band = Band {
                     rows: rows.clone(),
-                    image_height: height,
+                    image_height_px: height,
                 };
                 write_exr_with_note(path, width, band, channels, (TILE_NOTE, &note))
                     .map_err(|e| e.to_string())?;

@@ -26,7 +26,7 @@ use serde::{Deserialize, Deserializer};
 use crate::recipe::compile::{parse_ron, read_ron_file, ron_error};
 use crate::recipe::error::RecipeError;
 use crate::render::still::{MAX_BOUNCES, MAX_SIDE_PX, MAX_SPP};
-use crate::scene::spec::TurntableSpec;
+use crate::scene::spec::{TurntableSpec, MAX_COORDINATE_MM};
 use crate::scene::Turntable;
 
 /// Most tasks one job may have.
@@ -200,9 +200,12 @@ fn exposure_ev<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
 fn ao_mm<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
     let v = Option::<f64>::deserialize(d)?;
     match v {
-        Some(v) if !(v.is_finite() && v > 0.0) => Err(D::Error::custom(format!(
-            "`ao_mm` = {v} is out of range; allowed: a positive distance (mm)"
-        ))),
+        Some(v) if !(v.is_finite() && v > 0.0 && v <= MAX_COORDINATE_MM) => {
+            Err(D::Error::custom(format!(
+                "`ao_mm` = {v} is out of range; allowed: a positive distance (mm), at most \
+                 {MAX_COORDINATE_MM:e}"
+            )))
+        }
         _ => Ok(v),
     }
 }

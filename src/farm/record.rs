@@ -357,14 +357,13 @@ pub fn inputs_sha256(
             add("ground material", ground.material.as_bytes());
         }
     }
-    let environment = environment_file
-        .map(Path::to_path_buf)
-        .or(match &scene.environment {
-            EnvironmentSpec::File { path, .. } => Some(path.clone()),
-            _ => None,
-        });
-    if let Some(path) = environment {
-        add("environment", &read(&path)?);
+    // The scene's map is turned and scaled as the scene's text says; an
+    // `environment_file` (`--env`) replaces it unturned at intensity 1, so
+    // the same file gives another render: it is hashed under its own label.
+    match (environment_file, &scene.environment) {
+        (Some(path), _) => add("environment replacing the scene's", &read(path)?),
+        (None, EnvironmentSpec::File { path, .. }) => add("environment", &read(path)?),
+        _ => {}
     }
     Ok(hex(&hash.finalize()))
 }
@@ -393,6 +392,53 @@ fn hex(bytes: &[u8]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn inputs_named_otherwise_are_one_render_only_while_their_bytes_agree() {
+        let lines = |recipe: &str, spp: &str, inputs: &str| -> Vec<RecordLine> {
+            [("recipe", recipe), ("spp", spp), ("inputs_sha256", inputs)]
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .to_vec()
+        };
+        let ours = lines("\"job/gem.ron\"", "4", "ab");
+        // The same bytes named from another folder: one render.
+        assert_eq!(
+            differing_line(&ours, &lines("\"gem.ron\"", "4", "ab")),
+            None
+        );
+        // Other bytes: the name is the line given, being the more telling.
+        let theirs = lines("\"other.ron\"", "4", "cd");
+        assert_eq!(
+            differing_line(&ours, &theirs).map(|(a, _)| a.0.as_str()),
+            Some("recipe")
+        );
+        // A setting differs whatever the names.
+        let theirs = lines("\"gem.ron\"", "8", "ab");
+        assert_eq!(
+            differing_line(&ours, &theirs).map(|(a, _)| a.0.as_str()),
+            Some("spp")
+        );
+    }
+
+    #[test]
+    fn a_map_replacing_the_scene_s_is_another_input_than_the_same_file_as_the_scene_s() {
+        // `--env sky.hdr` lights unturned at intensity 1; the scene's
+        // `File(path: "sky.hdr", rotation_deg: 90)` turned: other pixels
+        // from the same bytes, so other inputs.
+        let path = std::env::temp_dir().join(format!("lapidary-record-{}.hdr", std::process::id()));
+        std::fs::write(&path, b"the map's bytes").unwrap();
+        let mut scene = crate::scene::default_scene();
+        scene.environment = EnvironmentSpec::File {
+            path: path.clone(),
+            rotation_deg: 90.0,
+            intensity: 1.0,
+        };
+        let gem = GemSource::new("gem.ron", "Gem()");
+        let own = inputs_sha256(b"scene", &scene, &gem, None).unwrap();
+        let replaced = inputs_sha256(b"scene", &scene, &gem, Some(&path)).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_ne!(own, replaced);
+    }
 
     fn record() -> RenderRecord {
         RenderRecord {

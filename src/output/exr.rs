@@ -117,19 +117,19 @@ pub fn write_exr_owned(
 ) -> Result<(), OutputError> {
     let whole = Band {
         rows: 0..height,
-        image_height: height,
+        image_height_px: height,
     };
     write_exr_with_attributes(path, width, whole, channels, LayerAttributes::default())
 }
 
-/// Rows `rows` of an image `image_height` rows high: where a band's (a
+/// Rows `rows` of an image `image_height_px` rows high: where a band's (a
 /// tile's) pixels sit in its image.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Band {
     /// The band's rows, from the image's top.
     pub rows: std::ops::Range<u32>,
-    /// The whole image's height.
-    pub image_height: u32,
+    /// The whole image's height, in rows.
+    pub image_height_px: u32,
 }
 
 /// [`write_exr_owned`] of the band `band` of an image (its channels hold
@@ -172,10 +172,10 @@ fn write_exr_with_attributes(
         path: path.display().to_string(),
         message,
     };
-    if band.rows.end > band.image_height || band.rows.start > band.rows.end {
+    if band.rows.end > band.image_height_px || band.rows.start > band.rows.end {
         return Err(err(format!(
             "rows {}..{} are not a band of an image {} rows high",
-            band.rows.start, band.rows.end, band.image_height
+            band.rows.start, band.rows.end, band.image_height_px
         )));
     }
     let height = band.rows.end - band.rows.start;
@@ -211,7 +211,7 @@ fn write_exr_with_attributes(
     .with_attributes(attributes)
     .with_display_window(IntegerBounds::new(
         (0, 0),
-        (width as usize, band.image_height as usize),
+        (width as usize, band.image_height_px as usize),
     ))
     .with_position(Vec2(0, first_row as i32));
     let width = width as usize;
