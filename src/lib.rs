@@ -61,6 +61,7 @@
 
 pub mod brdf;
 pub mod farm;
+mod file_kind;
 pub mod gallery;
 pub mod geometry;
 mod message;

@@ -4,6 +4,7 @@
 
 use crate::brdf::fresnel;
 use crate::brdf::{Base, Interface, LayeredBrdf, Microfacet, Rgb};
+use crate::file_kind::FileKind;
 use crate::recipe::error::{
     did_you_mean, field_before, find_position, folder_separator_hint, line_col_of_offset,
     with_ron_hints, RecipeError,
@@ -193,22 +194,15 @@ pub fn read_ron_file(spec: &str, what: &str) -> Result<String, RecipeError> {
 /// What a file that is not UTF-8 text is, from its first bytes (an image,
 /// UTF-16 text), and what to do with it.
 fn file_of_another_kind(bytes: &[u8]) -> Option<(&'static str, &'static str)> {
-    const MAP: &str =
-        "; an environment map goes to `render --env FILE` or a scene's `environment: File(path: …)`";
-    const UTF_16: &str = "; save it as UTF-8";
-    let kinds: [(&[u8], &str, &str); 7] = [
-        (b"\x89PNG", "a PNG image", ""),
-        (b"\xff\xd8\xff", "a JPEG image", ""),
-        (b"\x76\x2f\x31\x01", "an OpenEXR image", MAP),
-        (b"#?RADIANCE", "a Radiance HDR image", MAP),
-        (b"#?RGBE", "a Radiance HDR image", MAP),
-        (b"\xff\xfe", "UTF-16 text", UTF_16),
-        (b"\xfe\xff", "UTF-16 text", UTF_16),
-    ];
-    kinds
-        .iter()
-        .find(|(magic, _, _)| bytes.starts_with(magic))
-        .map(|&(_, kind, hint)| (kind, hint))
+    let kind = FileKind::of(bytes)?;
+    let hint = match kind {
+        FileKind::OpenExr | FileKind::RadianceHdr => {
+            "; an environment map goes to `render --env FILE` or a scene's `environment: File(path: …)`"
+        }
+        FileKind::Utf16 => "; save it as UTF-8",
+        _ => "",
+    };
+    Some((kind.name(), hint))
 }
 
 /// Find MATERIAL as a file (if it names one or ends in `.ron`) or as a

@@ -49,6 +49,7 @@ use super::cpu::prefetch;
 use super::distribution::{alias_table, bucket_of_draw, draw, AliasTable};
 use super::shared_exponent::{decode, encode, exponent_scales, TEXEL_BITS, TEXEL_MASK};
 use crate::brdf::Rgb;
+use crate::file_kind::FileKind;
 use crate::sampling::sin_cos_turns;
 
 /// Largest accepted map width in texels (a 16K panorama).
@@ -1834,8 +1835,6 @@ fn read_map_file(path: &Path) -> Result<PackedTexels, EnvironmentError> {
 /// named as what it is rather than reported by a decoder's "signature not
 /// found".
 fn check_kind(path: &Path, extension: &str) -> Result<(), EnvironmentError> {
-    const HDR: &[u8] = b"#?";
-    const EXR: &[u8] = b"\x76\x2f\x31\x01";
     const CONVERT: &str = "allowed: .hdr (Radiance RGBE) or .exr (OpenEXR), \
         equirectangular (convert it to one of them)";
     let mut start = [0u8; 8];
@@ -1852,26 +1851,24 @@ fn check_kind(path: &Path, extension: &str) -> Result<(), EnvironmentError> {
         })
         .map_err(|e| io_error(path, &e))?;
     let start = &start[..read];
-    let (format, magic) = if extension == "hdr" {
-        ("Radiance HDR", HDR)
+    let (format, wanted) = if extension == "hdr" {
+        ("Radiance HDR", FileKind::RadianceHdr)
     } else {
-        ("OpenEXR", EXR)
+        ("OpenEXR", FileKind::OpenExr)
     };
-    if start.starts_with(magic) {
+    let kind = FileKind::of(start);
+    if kind == Some(wanted) {
         return Ok(());
     }
-    let kinds: [(&[u8], &str, &str); 8] = [
-        (HDR, "it is a Radiance HDR image", "name it .hdr"),
-        (EXR, "it is an OpenEXR image", "name it .exr"),
-        (b"\x89PNG", "it is a PNG image", CONVERT),
-        (b"\xff\xd8\xff", "it is a JPEG image", CONVERT),
-        (b"II*\0", "it is a TIFF image", CONVERT),
-        (b"MM\0*", "it is a TIFF image", CONVERT),
-        (b"GIF8", "it is a GIF image", CONVERT),
-        (b"RIFF", "it is a RIFF file (WebP?)", CONVERT),
-    ];
-    let (found, advice) = match kinds.iter().find(|(m, ..)| start.starts_with(m)) {
-        Some(&(_, kind, advice)) => (format!("{kind}, not {format}"), advice),
+    let (found, advice) = match kind {
+        Some(kind) => (
+            format!("it is {}, not {format}", kind.name()),
+            match kind {
+                FileKind::RadianceHdr => "name it .hdr",
+                FileKind::OpenExr => "name it .exr",
+                _ => CONVERT,
+            },
+        ),
         None if start.is_empty() => ("the file is empty".to_string(), CONVERT),
         None => (
             format!(
