@@ -196,6 +196,76 @@ fn expect_error(from: &str, to: &str, marker: &str, needles: &[&str]) {
 }
 
 #[test]
+fn a_name_defined_twice_is_refused_not_replaced() {
+    // A material or map copied and not renamed: the map kept the last one
+    // without a word (the first one's colour vanished from the picture).
+    expect_error(
+        "        \"lilac\": Material(",
+        "        \"lilac\": Material(layers: [], base: Black),\n        \"lilac\": Material(",
+        "(ior: 1.56)",
+        &[
+            "material `lilac` is defined twice",
+            "allowed: each name once",
+        ],
+    );
+    expect_error(
+        "        \"big\": SurfaceMap(",
+        "        \"small\": SurfaceMap(",
+        "(map: \"small\")",
+        &["map `small` is defined twice"],
+    );
+}
+
+#[test]
+fn a_misspelt_struct_name_is_named_with_the_one_expected() {
+    // It was "this is a file (`Glitter(…)`) where a file (`GlitterMap(…)`)
+    // was expected", as for a whole file of another kind.
+    expect_error(
+        "glitter: Some(GlitterMap(",
+        "glitter: Some(Glitter(",
+        "Some(Glitter(",
+        &["field `glitter`: `Glitter(…)` where `GlitterMap(…)` was expected (did you mean `GlitterMap`?)"],
+    );
+}
+
+#[test]
+fn a_comment_of_another_language_is_named_as_one() {
+    // `# …` and `-- …` stopped RON with "Expected identifier" and a tip to
+    // write Rust's raw identifier `r#--`.
+    for mark in ["#", "--"] {
+        expect_error(
+            "    seed: 3,",
+            &format!("    seed: 3, {mark} the textures' seed"),
+            "seed: 3",
+            &[&format!(
+                "(is `{mark}` a comment? RON's comments are `// …` and `/* … */`)"
+            )],
+        );
+    }
+    let text = GOOD.replacen("    seed: 3,", "    seed: 3, -- the seed", 1);
+    let message = parse_gem("bad.ron", &text).unwrap_err().to_string();
+    assert!(!message.contains("raw identifier"), "{message}");
+    assert!(
+        message.contains("found `--` where a field name or a value was expected"),
+        "{message}"
+    );
+}
+
+#[test]
+fn a_material_named_as_a_map_says_so() {
+    // The other way round from `material: "small"` (a map), which says so.
+    expect_error(
+        "(map: \"small\")",
+        "(map: \"lilac\")",
+        "(map: \"lilac\")",
+        &[
+            "unknown map `lilac`",
+            "(`lilac` is a material: write `material: \"lilac\"`)",
+        ],
+    );
+}
+
+#[test]
 fn good_recipe_compiles() {
     let gem = parse_gem("good.ron", GOOD).unwrap_or_else(|e| panic!("{e}"));
     // lilac inline, then library red-garnet, silver, gold on first use.

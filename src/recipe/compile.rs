@@ -77,6 +77,18 @@ pub(crate) fn ron_error(path: &str, source: &str, e: ron::error::SpannedError) -
             outer.as_deref().unwrap_or("this item")
         ),
         E::Message(m) => m.clone(),
+        // A struct inside a file (`Glitter(` for `GlitterMap(`): a name to
+        // correct, not a file of another kind.
+        E::ExpectedDifferentStructName { expected, found }
+            if ![*expected, found.as_str()]
+                .iter()
+                .any(|name| ["Gem", "Material", "Scene", "Job"].contains(name)) =>
+        {
+            let field = field_before(source, line, col)
+                .map(|field| format!("field `{field}`: "))
+                .unwrap_or_default();
+            format!("{field}`{found}(…)` where `{expected}(…)` was expected (did you mean `{expected}`?)")
+        }
         E::ExpectedDifferentStructName { expected, found } => {
             let what = |kind: &str| match kind {
                 "Gem" => "a gem recipe",

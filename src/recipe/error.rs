@@ -309,6 +309,27 @@ pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col
     {
         message.push_str("; allowed: a whole number such as 4, without a fraction");
     }
+    // RON's advice for text it cannot read as a name ("try the raw
+    // identifier `r#--` instead") is for Rust's raw identifiers, never
+    // what a recipe needs: say what stands there instead.
+    if let Some(at) = message.find("Found invalid std identifier \"") {
+        let found = &message[at + "Found invalid std identifier \"".len()..];
+        let found = found.split('"').next().unwrap_or_default().to_string();
+        message.truncate(at);
+        message.push_str(&format!(
+            "found `{found}` where a field name or a value was expected"
+        ));
+    }
+    // A comment in another language's syntax (`# …`, `-- …`) where RON
+    // stopped: RON's are `// …` and `/* … */`.
+    let other_comment = ["#", "--"]
+        .into_iter()
+        .find(|mark| rest.trim_start().starts_with(mark) && !rest.trim_start().starts_with("#!"));
+    if let Some(mark) = other_comment {
+        message.push_str(&format!(
+            " (is `{mark}` a comment? RON's comments are `// …` and `/* … */`)"
+        ));
+    }
     if message == "Non-whitespace trailing characters" {
         message.push_str(
             " after the end of the recipe (is a closing bracket before it one too many?)",

@@ -88,6 +88,18 @@ fn half() -> f64 {
     0.5
 }
 
+/// A gem's `materials`, each name once ([`ranges::named_once`]).
+fn materials_named_once<'de, D: Deserializer<'de>>(
+    d: D,
+) -> Result<BTreeMap<String, Material>, D::Error> {
+    ranges::named_once(d, "material")
+}
+
+/// A gem's `maps`, each name once ([`ranges::named_once`]).
+fn maps_named_once<'de, D: Deserializer<'de>>(d: D) -> Result<BTreeMap<String, MapSpec>, D::Error> {
+    ranges::named_once(d, "map")
+}
+
 /// A whole gem recipe as written (figure 4.6: surface side, glitter side).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(rename = "Gem", deny_unknown_fields)]
@@ -102,10 +114,10 @@ pub struct GemSpec {
     #[serde(default)]
     pub seed: u64,
     /// Inline materials by name (library names work without this).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "materials_named_once")]
     pub materials: BTreeMap<String, Material>,
     /// Surface maps and switches by name.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "maps_named_once")]
     pub maps: BTreeMap<String, MapSpec>,
     /// The map (or material) at the root of the surface side.
     pub surface: String,
@@ -946,11 +958,18 @@ impl<'a> Compiler<'a> {
                 let hint = did_you_mean(name, self.map_names.iter().map(String::as_str))
                     .map(|s| format!(" (did you mean `{s}`?)"))
                     .unwrap_or_default();
+                let also_material = if self.spec.materials.contains_key(name)
+                    || builtin_material_source(name).is_some()
+                {
+                    format!(" (`{name}` is a material: write `material: \"{name}\"`)")
+                } else {
+                    String::new()
+                };
                 Err(self.error_at_use(
                     "map",
                     name,
                     format!(
-                        "unknown map `{name}`{hint}; allowed: a name from `maps` ({})",
+                        "unknown map `{name}`{hint}{also_material}; allowed: a name from `maps` ({})",
                         if self.map_names.is_empty() {
                             "none".to_string()
                         } else {

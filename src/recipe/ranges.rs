@@ -2,7 +2,10 @@
 //! every out-of-range, NaN or infinite value is reported at its own line and
 //! column with the field's name and allowed range.
 
-use serde::de::Error;
+use std::collections::BTreeMap;
+use std::marker::PhantomData;
+
+use serde::de::{Error, MapAccess, Visitor};
 use serde::{Deserialize, Deserializer};
 
 use crate::message::number;
@@ -218,4 +221,41 @@ pub fn octaves<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
         )));
     }
     Ok(v)
+}
+
+/// A name → definition map whose names are each given once: a name given
+/// twice (an entry copied and not renamed) is an error naming it, where a
+/// map would keep the last silently. `what` is "material" or "map".
+pub(crate) fn named_once<'de, D: Deserializer<'de>, V: Deserialize<'de>>(
+    d: D,
+    what: &'static str,
+) -> Result<BTreeMap<String, V>, D::Error> {
+    struct Entries<V> {
+        what: &'static str,
+        value: PhantomData<V>,
+    }
+    impl<'de, V: Deserialize<'de>> Visitor<'de> for Entries<V> {
+        type Value = BTreeMap<String, V>;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            write!(f, "{{ \"name\": definition, … }} of {}s", self.what)
+        }
+        fn visit_map<A: MapAccess<'de>>(self, mut entries: A) -> Result<Self::Value, A::Error> {
+            let mut map = BTreeMap::new();
+            while let Some((name, value)) = entries.next_entry::<String, V>()? {
+                if map.contains_key(&name) {
+                    return Err(A::Error::custom(format!(
+                        "{} `{name}` is defined twice (the second would replace the first); \
+                         allowed: each name once",
+                        self.what
+                    )));
+                }
+                map.insert(name, value);
+            }
+            Ok(map)
+        }
+    }
+    d.deserialize_map(Entries {
+        what,
+        value: PhantomData,
+    })
 }
