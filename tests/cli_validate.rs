@@ -112,6 +112,48 @@ fn the_good_gem_is_reported_with_its_name_and_material_count() {
 }
 
 #[test]
+fn definitions_that_nothing_uses_are_warned_of() {
+    // An inline material no map names and a map the surface does not
+    // reach: valid (exit 0, the ok line), each with a warning on stderr.
+    // The good gem and every built-in gem have none.
+    let dir = scratch("unused");
+    let (code, _, err) = validate_file(&dir, "good.ron", GOOD_GEM.as_bytes());
+    assert!(code == 0 && !err.contains("warning"), "{err}");
+    let recipe = GOOD_GEM
+        .replace(
+            "    materials: {\n",
+            "    materials: {\n        \"spare\": Material(layers: [], base: Black),\n",
+        )
+        .replace(
+            "    maps: {\n",
+            "    maps: {\n        \"orphan\": SurfaceMap(cell_size: 0.1, entries: [(material: \"spare\")]),\n",
+        );
+    let (code, out, err) = validate_file(&dir, "unused.ron", recipe.as_bytes());
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("unused.ron: ok (gem"), "{out}");
+    assert!(
+        err.contains("unused.ron: warning: map `orphan` is used nowhere"),
+        "{err}"
+    );
+    // `spare` is named by the unreached map only: still used nowhere.
+    assert!(
+        err.contains("unused.ron: warning: material `spare` is used nowhere"),
+        "{err}"
+    );
+    let gems: Vec<String> = lapidary::recipe::library::builtin_gem_names()
+        .map(String::from)
+        .collect();
+    let mut args = vec!["validate"];
+    args.extend(gems.iter().map(String::as_str));
+    let out = lapidary(&args);
+    assert!(
+        out.status.success() && !text(&out.stderr).contains("warning"),
+        "{}",
+        text(&out.stderr)
+    );
+}
+
+#[test]
 fn field_typos_get_a_did_you_mean_at_their_line() {
     let dir = scratch("typo");
     // Line 7: `rougness_deg` in the layer.

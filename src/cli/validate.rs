@@ -20,7 +20,7 @@ use lapidary::recipe::compile::{
 use lapidary::recipe::error::{
     did_you_mean, first_code_offset, folder_separator_hint, line_col_of_offset, RecipeError,
 };
-use lapidary::recipe::gem::{parse_gem, Body, GemSource};
+use lapidary::recipe::gem::{parse_gem, Body, BodySpec, Gem, GemSource, MapSpec};
 use lapidary::recipe::library::{
     builtin_gem_names, builtin_gem_source, builtin_material_names, builtin_material_source,
 };
@@ -125,7 +125,11 @@ impl From<String> for Checked {
 /// material it uses.
 fn validate_gem(path: &str, text: &str) -> Result<Checked, RecipeError> {
     let gem = parse_gem(path, text)?;
-    Ok(Checked::from(format!(
+    let warnings = unused_definitions(&gem)
+        .into_iter()
+        .map(|unused| format!("{path}: warning: {unused}"))
+        .collect();
+    let summary = format!(
         "ok (gem \"{}\", {}, {}{}{})",
         gem.name,
         counted(gem.materials.len() as u64, "material"),
@@ -139,7 +143,61 @@ fn validate_gem(path: &str, text: &str) -> Result<Checked, RecipeError> {
             Body::Opaque => "",
             Body::Translucent { .. } => ", translucent body",
         }
-    )))
+    );
+    Ok(Checked { summary, warnings })
+}
+
+/// The inline materials and the maps of `gem` that nothing uses (a
+/// definition left behind, or a name misspelt where it is used, which the
+/// library material of that name then quietly serves): each in words.
+fn unused_definitions(gem: &Gem) -> Vec<String> {
+    let spec = &gem.spec;
+    // Maps reached from the surface's root, through entries, ranges and
+    // `per_cell_of`; the materials they, the glitter and the inclusions
+    // name.
+    let mut reached: Vec<&str> = Vec::new();
+    let mut used_materials: Vec<&str> = vec![spec.surface.as_str()];
+    let mut to_visit = vec![spec.surface.as_str()];
+    while let Some(name) = to_visit.pop() {
+        let Some(map) = spec.maps.get(name).filter(|_| !reached.contains(&name)) else {
+            continue;
+        };
+        reached.push(name);
+        let (maps, materials): (Vec<_>, Vec<_>) = match map {
+            MapSpec::SurfaceMap { entries, .. } => entries
+                .iter()
+                .map(|e| (e.map.as_deref(), e.material.as_deref()))
+                .unzip(),
+            MapSpec::Switch {
+                ranges,
+                per_cell_of,
+                ..
+            } => ranges
+                .iter()
+                .map(|r| (r.map.as_deref(), r.material.as_deref()))
+                .chain([(per_cell_of.as_deref(), None)])
+                .unzip(),
+        };
+        to_visit.extend(maps.into_iter().flatten());
+        used_materials.extend(materials.into_iter().flatten());
+    }
+    if let Some(glitter) = &spec.glitter {
+        used_materials.extend(glitter.entries.iter().filter_map(|e| e.material.as_deref()));
+    }
+    if let BodySpec::Translucent { inclusions, .. } = &spec.body {
+        used_materials.extend(inclusions.iter().map(|i| i.material.as_str()));
+    }
+    let materials = spec
+        .materials
+        .keys()
+        .filter(|name| !used_materials.contains(&name.as_str()))
+        .map(|name| format!("material `{name}` is used nowhere"));
+    let maps = spec
+        .maps
+        .keys()
+        .filter(|name| !reached.contains(&name.as_str()))
+        .map(|name| format!("map `{name}` is used nowhere (the surface does not reach it)"));
+    materials.chain(maps).collect()
 }
 
 /// Validate a material file: parse and compile (without the compensation
