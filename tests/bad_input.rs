@@ -1672,6 +1672,28 @@ fn a_misspelt_built_in_scene_has_a_suggestion() {
 }
 
 #[test]
+fn a_gem_file_of_the_folder_named_without_its_extension_is_suggested() {
+    // `render malachit` in a folder holding malachite.ron listed the
+    // built-in gems only.
+    let dir = scratch("gem-file-here");
+    let text = lapidary::GemSource::load("sunstone").unwrap().text;
+    std::fs::write(dir.join("malachite.ron"), text).unwrap();
+    for typed in ["malachit", "malachite"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_lapidary"))
+            .args(["render", typed, "--size", "8", "--spp", "1", "-o", "x.png"])
+            .current_dir(&*dir)
+            .output()
+            .expect("binary runs");
+        assert_refused(
+            "gem-file-here",
+            &out,
+            &["(did you mean `malachite.ron`, a file here?)".to_string()],
+        );
+    }
+    assert!(!dir.join("x.png").exists());
+}
+
+#[test]
 fn a_size_beyond_32_bits_gets_the_same_range_message() {
     let render = os(&["render", "--size", "99999999999", "--spp", "1"]);
     assert_refused_writing(

@@ -283,6 +283,18 @@ fn out_of_range_numbers_give_the_allowed_range() {
         Some(8),
         &["`colour`", "0 <= colour <= 1"],
     );
+    // 1.3 is no 8-bit value of a colour picker: no such hint; (26, 140,
+    // 77) is, and gets the fractions it stands for.
+    let (_, _, err) = validate_file(&dir, "colour.ron", gem.as_bytes());
+    assert!(!err.contains("8-bit"), "{err}");
+    let gem = GOOD_GEM.replace("(0.4, 0.3, 0.5)", "(26, 140, 77)");
+    broken(
+        &dir,
+        "picker.ron",
+        &gem,
+        Some(8),
+        &["(8-bit values? divided by 255 they are (0.102, 0.549, 0.302))"],
+    );
 }
 
 #[test]

@@ -541,6 +541,29 @@ fn turntable_of(args: &RenderArgs, scene: &Scene) -> Result<Option<Turntable>, S
     Ok(turntable)
 }
 
+/// For a gem name that is neither built in nor a file: a `.ron` file of
+/// the working folder it may mean (`malachit` for `malachite.ron`, written
+/// without its extension), as " (did you mean `malachite.ron`, a file
+/// here?)"; empty when there is none.
+fn recipe_file_here_hint(name: Option<&str>) -> String {
+    let Some(name) = name.filter(|n| !n.contains('/') && !n.ends_with(".ron")) else {
+        return String::new();
+    };
+    let files: Vec<String> = std::fs::read_dir(".")
+        .map(|entries| {
+            entries
+                .filter_map(|e| e.ok()?.file_name().into_string().ok())
+                .filter(|f| f.ends_with(".ron"))
+                .collect()
+        })
+        .unwrap_or_default();
+    let stems = files.iter().map(|f| f.trim_end_matches(".ron"));
+    match did_you_mean(name, stems) {
+        Some(stem) => format!(" (did you mean `{stem}.ron`, a file here?)"),
+        None => String::new(),
+    }
+}
+
 /// The inputs of a render, read and checked.
 struct Inputs {
     scene: Scene,
@@ -591,7 +614,7 @@ impl Inputs {
             None => (default_scene(), DEFAULT_SCENE_SOURCE.as_bytes().to_vec()),
         };
         let gem = GemSource::load(args.recipe.as_deref().unwrap_or(DEFAULT_GEM))
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| format!("{e}{}", recipe_file_here_hint(args.recipe.as_deref())))?;
         if let Some(recipe) = &args.recipe {
             if !scene.stones.is_empty() && scene.stones.iter().all(|s| s.recipe.is_some()) {
                 eprintln!(

@@ -36,17 +36,29 @@ pub(crate) fn checked_rgb<'de, D: Deserializer<'de>>(
     ok: impl Fn(f64) -> bool,
 ) -> Result<[f64; 3], D::Error> {
     let v = <(f64, f64, f64)>::deserialize(d)?;
-    for c in [v.0, v.1, v.2] {
-        if !c.is_finite() || !ok(c) {
-            return Err(D::Error::custom(format!(
-                "`{field}` = ({}, {}, {}) has a component out of range; allowed: {allowed} per channel",
-                number(v.0),
-                number(v.1),
-                number(v.2)
-            )));
-        }
+    let rgb = [v.0, v.1, v.2];
+    if rgb.iter().any(|&c| !c.is_finite() || !ok(c)) {
+        // A colour picker's 8-bit values (whole numbers 0 to 255) where
+        // fractions are meant: say what they would be.
+        let eight_bit = rgb
+            .iter()
+            .all(|&c| (0.0..=255.0).contains(&c) && c.fract() == 0.0)
+            && rgb.iter().any(|&c| c > 1.0)
+            && rgb.iter().all(|&c| ok(c / 255.0));
+        let hint = if eight_bit {
+            let [r, g, b] = rgb.map(|c| number((c / 255.0 * 1000.0).round() / 1000.0));
+            format!(" (8-bit values? divided by 255 they are ({r}, {g}, {b}))")
+        } else {
+            String::new()
+        };
+        return Err(D::Error::custom(format!(
+            "`{field}` = ({}, {}, {}) has a component out of range; allowed: {allowed} per channel{hint}",
+            number(v.0),
+            number(v.1),
+            number(v.2)
+        )));
     }
-    Ok([v.0, v.1, v.2])
+    Ok(rgb)
 }
 
 macro_rules! scalar_field {
