@@ -10,7 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lapidary::farm::job::frame_suffix;
 use lapidary::farm::merge::{read_tile, read_tile_record};
 use lapidary::farm::record::{
-    differing_line, inputs_sha256, tile_record, FrameOf, ReadRecord, RenderRecord, TILE_NOTE,
+    differing_line, inputs_sha256, tile_record, FrameOf, RenderRecord, TILE_NOTE,
 };
 use lapidary::output::animation::write_apng;
 use lapidary::output::exr::{film_channels, write_exr_owned, write_exr_with_note, Band};
@@ -454,21 +454,13 @@ pub(super) fn run_task(
     if path.exists() {
         if let Ok(tile) = read_tile(path) {
             let expected = renderer.record(frame);
-            let done = tile_record(&expected, split, &tile.channels, tile.record.bad_samples);
             // This render's tile (its inputs' names may be typed from
-            // another folder, as merge accepts), complete.
-            let theirs = &tile.record;
-            if ReadRecord::parse(&done.to_text()).is_some_and(|ours| {
-                differing_line(&ours.render_lines, &theirs.render_lines).is_none()
-                    && (ours.size_px, ours.tile, ours.bad_samples, ours.display)
-                        == (
-                            theirs.size_px,
-                            theirs.tile,
-                            theirs.bad_samples,
-                            theirs.display,
-                        )
-                    && ours.pixels_sha256 == theirs.pixels_sha256
-            }) {
+            // another folder, as merge accepts), complete: `read_tile`
+            // checked its pixels against its record, whose size and PNG
+            // encoding follow from its render lines.
+            if differing_line(&tile.record.render_lines, &expected.text_lines()).is_none()
+                && tile.record.tile == (split.index(), split.count())
+            {
                 return Ok(TaskOutcome::AlreadyDone);
             }
         }
