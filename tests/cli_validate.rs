@@ -380,7 +380,32 @@ fn broken_files_name_the_file_and_what_was_expected() {
         "stray.ron",
         &stray,
         Some(14),
-        &[":14:31: Expected comma (is this `)` one too many, or the wrong kind of bracket?)"],
+        &[
+            ":14:31: Expected comma (is a `]` missing? the `[` of field `entries` at 12:54 is \
+             still open where the `)` at 14:31 closes, or is that `)` one too many?)",
+        ],
+    );
+    // A material's closing bracket missing at the end of its line: RON
+    // stops lines later; the message names the bracket left open.
+    let unclosed = GOOD_GEM.replace("(colour: (0.4, 0.3, 0.5)),", "(colour: (0.4, 0.3, 0.5),");
+    broken(
+        &dir,
+        "unclosed.ron",
+        &unclosed,
+        Some(10),
+        &[
+            "is a `)` missing on line 8? the `(` of `Diffuse(` at 8:26 is still open where \
+             line 9 begins",
+        ],
+    );
+    // A closing quote missing.
+    let unquoted = GOOD_GEM.replace("name: \"good\",", "name: \"good,");
+    broken(
+        &dir,
+        "unquoted.ron",
+        &unquoted,
+        None,
+        &["is a closing `\"` missing? the string opened at 3:11 runs on past the end of its line"],
     );
     // Not UTF-8 (a Latin-1 `é` in a comment).
     let mut bytes = b"// caf\xe9\n".to_vec();

@@ -3,6 +3,10 @@
 
 use std::fmt;
 
+use crate::recipe::brackets::open_bracket_hint;
+pub(crate) use crate::recipe::ron_text::blank_comments_and_strings;
+pub use crate::recipe::ron_text::line_col_of_offset;
+
 /// A problem with a user's (or a built-in) RON file.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RecipeError {
@@ -65,46 +69,6 @@ pub(crate) fn find_position(source: &str, needle: &str, nth: usize) -> Option<(u
     Some(line_col_of_offset(source, offset))
 }
 
-/// A copy of RON `text` with the comments and the contents of string
-/// literals blanked to spaces (the quotes kept), byte for byte, so that
-/// offsets (and the original text's line:col) stay valid: names and
-/// brackets in comments and strings do not count when searching it.
-pub(crate) fn blank_comments_and_strings(text: &str) -> Vec<u8> {
-    let bytes = text.as_bytes();
-    let n = bytes.len();
-    let mut code = bytes.to_vec();
-    let mut i = 0;
-    while i < n {
-        // Blank [from, to) and go on at `next`.
-        let (from, to, next) = match bytes[i] {
-            b'"' => {
-                let mut k = i + 1;
-                while k < n && bytes[k] != b'"' {
-                    k += if bytes[k] == b'\\' { 2 } else { 1 };
-                }
-                (i + 1, k.min(n), k + 1)
-            }
-            b'/' if bytes.get(i + 1) == Some(&b'/') => {
-                let end = bytes[i..].iter().position(|&c| c == b'\n');
-                let to = end.map_or(n, |e| i + e);
-                (i, to, to)
-            }
-            b'/' if bytes.get(i + 1) == Some(&b'*') => {
-                let end = text[i + 2..].find("*/");
-                let to = end.map_or(n, |e| i + 2 + e + 2);
-                (i, to, to)
-            }
-            _ => {
-                i += 1;
-                continue;
-            }
-        };
-        code[from..to].fill(b' ');
-        i = next;
-    }
-    code
-}
-
 /// Byte offset of the first place `needle` is written in RON `source` as
 /// code: never inside a comment; a needle in quotes (`"gold"`) only as a
 /// whole string literal, and preferably one that is a value (a reference
@@ -144,14 +108,6 @@ pub(crate) fn find_in_code(source: &str, needle: &str) -> Option<usize> {
         }
     }
     key
-}
-
-/// 1-based line and column of a byte offset.
-pub fn line_col_of_offset(source: &str, offset: usize) -> (usize, usize) {
-    let before = &source[..offset.min(source.len())];
-    let line = before.matches('\n').count() + 1;
-    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, col)
 }
 
 /// The name of the field whose value starts at or before (line, col): the
@@ -250,9 +206,11 @@ pub fn first_code_offset(text: &str) -> usize {
 /// RON's `message` for an error at (line, col) of `source`, with plainer
 /// words for its type errors (what to write); where a closing bracket
 /// stands at an error outside any field's value, or text follows the
-/// recipe's end, that a bracket may be one too many; and where only
-/// whitespace and comments follow, that the file ends there (RON's own
-/// message, "expected `(`", does not say so).
+/// recipe's end, that a bracket may be one too many; where a bracket or a
+/// string opened before the error looks left open, which one
+/// ([`open_bracket_hint`]); else, where only whitespace and comments
+/// follow, that the file ends there (RON's own message, "expected `(`",
+/// does not say so).
 pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col: usize) -> String {
     for (ron_says, allowed) in [
         ("Expected float", "a number such as 1.5, without quotes"),
@@ -273,11 +231,15 @@ pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col
         .nth(col.saturating_sub(1))
         .map_or(source.len(), |(i, _)| line_start + i);
     let rest = &source[offset.min(source.len())..];
+    let at_end = first_code_offset(rest) >= rest.len();
+    // A bracket or a quote left open before the error, which RON's
+    // message does not name; it says more than the guesses below.
+    let left_open = open_bracket_hint(source, offset, at_end);
     // RON expected something else where a closing bracket stands, outside
     // any field's value (a field's own error names the field): one too
     // many, or of the wrong kind; RON says only what it expected.
     let closer = rest.chars().next().filter(|c| matches!(c, ')' | ']' | '}'));
-    if let Some(c) = closer.filter(|_| message.starts_with("Expected")) {
+    if let Some(c) = closer.filter(|_| message.starts_with("Expected") && left_open.is_none()) {
         message.push_str(&format!(
             " (is this `{c}` one too many, or the wrong kind of bracket?)"
         ));
@@ -342,10 +304,12 @@ pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col
             character_name(c)
         ));
     }
-    if first_code_offset(rest) >= rest.len() {
-        message.push_str(
+    match left_open {
+        Some(hint) => message.push_str(&hint),
+        None if at_end => message.push_str(
             " (the file ends here: is it cut short, or is a closing `)`, `]` or `}` missing?)",
-        );
+        ),
+        None => {}
     }
     message
 }

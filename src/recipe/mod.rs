@@ -2,12 +2,14 @@
 //! with `file:line:col` errors, the embedded library, and compilation into
 //! the plain data the renderer evaluates.
 
+mod brackets;
 pub mod compile;
 pub mod error;
 pub mod gem;
 pub mod library;
 pub mod material;
 pub(crate) mod ranges;
+mod ron_text;
 pub mod table_cache;
 
 pub use compile::{load_material, locate_material, parse_material};
