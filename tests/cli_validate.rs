@@ -140,6 +140,20 @@ fn definitions_that_nothing_uses_are_warned_of() {
         err.contains("unused.ron: warning: material `spare` is used nowhere"),
         "{err}"
     );
+    // A translucent body under the good gem's map: the map is not shaded.
+    let glass = GOOD_GEM.replace(
+        "    surface: \"tiles\",\n",
+        "    surface: \"tiles\",\n    body: Translucent(ior: 1.5),\n",
+    );
+    let (code, _, err) = validate_file(&dir, "glass.ron", glass.as_bytes());
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.contains(
+            "glass.ron: warning: the surface `tiles` is a map, but a translucent body's surface \
+             is not shaded by its materials"
+        ),
+        "{err}"
+    );
     let gems: Vec<String> = lapidary::recipe::library::builtin_gem_names()
         .map(String::from)
         .collect();
@@ -580,6 +594,19 @@ fn a_sphere_light_around_the_scene_and_things_below_the_ground_are_warned_of() {
         "{found:?}"
     );
     assert!(found[1].contains("stone 1 is inside light 1"), "{found:?}");
+    // A point light inside a small sphere light away from the stone, and a
+    // sphere light only partly inside it (not warned of).
+    let nested = with_lights(
+        "Sphere(centre: (30.0, 0.0, 10.0), radius: 2.0, radiance: (1.0, 1.0, 1.0)),\n        \
+         Point(position: (30.5, 0.0, 10.0), intensity: (1.0, 1.0, 1.0)),\n        \
+         Sphere(centre: (31.5, 0.0, 10.0), radius: 1.0, radiance: (1.0, 1.0, 1.0)),",
+    );
+    let found = warnings("nested.ron", &nested);
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!(
+        found[0].contains("light 2 is inside light 1, a sphere that emits outwards only"),
+        "{found:?}"
+    );
     // A sphere under the ground, a sun below the horizon.
     let below = with_lights(
         "Sphere(centre: (0.0, 0.0, -20.0), radius: 2.0, radiance: (1.0, 1.0, 1.0)),\n        \

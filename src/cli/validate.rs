@@ -127,6 +127,7 @@ fn validate_gem(path: &str, text: &str) -> Result<Checked, RecipeError> {
     let gem = parse_gem(path, text)?;
     let warnings = unused_definitions(&gem)
         .into_iter()
+        .chain(unshaded_surface(&gem))
         .map(|unused| format!("{path}: warning: {unused}"))
         .collect();
     let summary = format!(
@@ -145,6 +146,22 @@ fn validate_gem(path: &str, text: &str) -> Result<Checked, RecipeError> {
         }
     );
     Ok(Checked { summary, warnings })
+}
+
+/// A translucent gem whose surface is a map: the map's materials are not
+/// shaded (the look comes from the body), only named in the EXR's
+/// `material_id`, which a pattern written for its looks does not expect.
+fn unshaded_surface(gem: &Gem) -> Option<String> {
+    let spec = &gem.spec;
+    let translucent = matches!(spec.body, BodySpec::Translucent { .. });
+    (translucent && spec.maps.contains_key(&spec.surface)).then(|| {
+        format!(
+            "the surface `{}` is a map, but a translucent body's surface is not shaded by \
+             its materials (they only name the surface in the EXR's `material_id`): the look \
+             comes from the body's `absorption`, `scattering` and `inclusions`",
+            spec.surface
+        )
+    })
 }
 
 /// The inline materials and the maps of `gem` that nothing uses (a

@@ -71,6 +71,14 @@ pub enum PlacementProblem {
         /// The light, from 0.
         light: usize,
     },
+    /// Light `inner` lies wholly inside sphere light `outer` (both from
+    /// 0), which emits outwards only: the sphere hides it from everything.
+    LightInsideLight {
+        /// The hidden light, from 0.
+        inner: usize,
+        /// The sphere light around it, from 0.
+        outer: usize,
+    },
     /// The camera lies below the ground's plane, at height `z_mm` (the
     /// ground at `ground_mm`).
     CameraBelowGround {
@@ -138,6 +146,13 @@ impl fmt::Display for PlacementProblem {
                 stone + 1,
                 light + 1
             ),
+            Self::LightInsideLight { inner, outer } => write!(
+                f,
+                "light {} is inside light {}, a sphere that emits outwards only: the sphere \
+                 hides it from everything (make the sphere smaller or move the light out)",
+                inner + 1,
+                outer + 1
+            ),
             Self::CameraBelowGround { z_mm, ground_mm } => write!(
                 f,
                 "the camera is below the ground (z = {z_mm:.3} mm, the ground at {ground_mm:.3} \
@@ -162,8 +177,8 @@ impl fmt::Display for PlacementProblem {
 /// What keeps the camera or the lights of `scene` from the stones of
 /// `world` (the scene's stones, placed): the camera inside a stone, inside
 /// a sphere light or below the ground; a light (all but a sun) that fits
-/// inside a stone; a stone inside a sphere light; a light wholly below the
-/// ground (a sun below the horizon).
+/// inside a stone or wholly inside a sphere light; a stone inside a sphere
+/// light; a light wholly below the ground (a sun below the horizon).
 pub fn viewpoint_problems(world: &World, scene: &Scene) -> Vec<PlacementProblem> {
     // The stone `point` lies at least `reach` deep inside, if any.
     let inside = |point: DVec3, reach: f64| {
@@ -212,6 +227,16 @@ pub fn viewpoint_problems(world: &World, scene: &Scene) -> Vec<PlacementProblem>
                     problems.push(PlacementProblem::StoneInsideLight { stone, light });
                 }
             }
+        }
+        let around = scene.lights.iter().enumerate().find(|&(outer, other)| {
+            matches!(*other, LightSpec::Sphere { centre, radius, .. }
+                if outer != light && place.distance(centre) + reach < radius)
+        });
+        if let Some((outer, _)) = around {
+            problems.push(PlacementProblem::LightInsideLight {
+                inner: light,
+                outer,
+            });
         }
         if ground.is_some_and(|ground| place.z + reach < ground) {
             problems.push(PlacementProblem::LightBelowGround { light, sun: false });
