@@ -1599,7 +1599,7 @@ fn negative_and_overflowing_counts_get_the_flag_s_range() {
     // now names its flag and its own range, written either way (exit 2,
     // usage); a count in range of its type but not of the flag stays
     // exit 1, as do negative distances.
-    let usage: [(&[&str], &str); 6] = [
+    let usage: [(&[&str], &str); 9] = [
         (
             &["render", "--spp", "-1"],
             "'--spp <N>': allowed 1 to 1048576",
@@ -1620,6 +1620,19 @@ fn negative_and_overflowing_counts_get_the_flag_s_range() {
         (
             &["gallery", "--threads", "-2"],
             "'--threads <N>': allowed 1 to 1024",
+        ),
+        // Decimal flags: text that is no number gets the flag's range too.
+        (
+            &["render", "--exposure", "abc"],
+            "'--exposure <EV>': not a number; allowed −64 to 64 stops",
+        ),
+        (
+            &["render", "--ao", "1,5"],
+            "'--ao <DIST>': not a number; allowed a positive distance in mm, at most 1e5",
+        ),
+        (
+            &["maps", "goldstone", "--extent", "x"],
+            "'--extent <E>': not a number; allowed above 0 up to 1000 texture units",
         ),
     ];
     let dir = scratch("negative-counts");
@@ -1787,6 +1800,30 @@ fn an_output_that_cannot_be_made_is_refused_before_the_render() {
     assert_refused("animation-folder", &out, &["is a directory".to_string()]);
     assert!(!String::from_utf8_lossy(&out.stderr).contains("compiling"));
     assert_eq!(files_in(&dir), ["spin.png"], "frames were written");
+    // A read-only file is kept, before any work, as it was.
+    let dir = scratch("read-only-output");
+    let kept = dir.join("keep.png");
+    std::fs::write(&kept, b"mine").unwrap();
+    let mut permissions = std::fs::metadata(&kept).unwrap().permissions();
+    permissions.set_readonly(true);
+    std::fs::set_permissions(&kept, permissions).unwrap();
+    let out = lapidary(&[
+        "render",
+        "--size",
+        "8",
+        "--spp",
+        "1",
+        "-o",
+        kept.to_str().unwrap(),
+    ]);
+    assert_refused(
+        "read-only output",
+        &out,
+        &[format!("{}: is read-only, and is kept", kept.display())],
+    );
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("compiling"));
+    assert_eq!(std::fs::read(&kept).unwrap(), b"mine");
+    assert_eq!(files_in(&dir), ["keep.png"]);
 }
 
 #[test]

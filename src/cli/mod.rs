@@ -41,7 +41,7 @@ enum Command {
     /// figures 4.11, 3.2, 4.3 and 4.5 b of the course notes and a turntable
     /// strip into a folder.
     Gallery(gallery::GalleryArgs),
-    /// List the built-in materials with their classes.
+    /// List the built-in materials with their classes, and the built-in gems.
     List,
     /// Draw the figure 4.6 sheet of a gem: surface map, glitter map, facet
     /// normals and the combination, over the slice z = 0.
@@ -87,7 +87,8 @@ struct MapsArgs {
         long,
         value_name = "E",
         default_value_t = 1.0,
-        allow_negative_numbers = true
+        allow_negative_numbers = true,
+        value_parser = decimal("above 0 up to 1000 texture units")
     )]
     extent: f64,
 }
@@ -104,7 +105,8 @@ struct BrdfArgs {
     /// Print CSV `theta_o_deg,r,g,b`: f·cosθₒ in the plane of incidence for
     /// light at THETA_I degrees, θₒ from −87 to 87 in steps of 3 (negative:
     /// on the light's side).
-    #[arg(long, value_name = "THETA_I", conflicts_with_all = ["eval", "output"], allow_hyphen_values = true)]
+    #[arg(long, value_name = "THETA_I", conflicts_with_all = ["eval", "output"], allow_hyphen_values = true,
+        value_parser = decimal("0 to 90 degrees"))]
     slice: Option<f64>,
     /// Print `r,g,b`, the BRDF value f (no cosine) for THETA_I,PHI_I,THETA_O,PHI_O in degrees.
     #[arg(
@@ -196,6 +198,20 @@ pub(crate) fn whole<T: TryFrom<u64>, const LO: u64, const HI: u64>(
         .and_then(|n| u64::try_from(n).ok())
         .and_then(|n| T::try_from(n).ok())
         .ok_or(range)
+}
+
+/// A flag's decimal number: text that is none is refused here, with what
+/// the flag allows in words (`allowed`; clap's own message gives no
+/// range); the range is checked where the value is used, naming the flag
+/// (exit 1).
+pub(crate) fn decimal(
+    allowed: &'static str,
+) -> impl Fn(&str) -> Result<f64, String> + Clone + Send + Sync + 'static {
+    move |text| {
+        text.trim()
+            .parse()
+            .map_err(|_| format!("not a number; allowed {allowed}"))
+    }
 }
 
 /// The rayon pool a command renders in: `threads` workers, or one per

@@ -33,7 +33,7 @@ use lapidary::scene::{
 };
 
 use super::validate::BUILTIN_SCENE_NAME;
-use super::{whole, MAX_THREADS};
+use super::{decimal, whole, MAX_THREADS};
 
 pub use lapidary::render::still::{MAX_BOUNCES, MAX_SIDE_PX, MAX_SPP};
 /// Default of `--max-memory`, GiB.
@@ -117,7 +117,8 @@ pub struct RenderArgs {
         long,
         value_name = "EV",
         default_value_t = 0.0,
-        allow_negative_numbers = true
+        allow_negative_numbers = true,
+        value_parser = decimal("−64 to 64 stops")
     )]
     pub(super) exposure: f64,
     /// Tone curve for PNG output.
@@ -135,7 +136,8 @@ pub struct RenderArgs {
     /// shader gathers it: adds an `ao` layer to EXR output; a PNG shows the
     /// occlusion itself (white: open, black: enclosed; no exposure or tone
     /// curve) instead of the beauty.
-    #[arg(long, value_name = "DIST", allow_negative_numbers = true)]
+    #[arg(long, value_name = "DIST", allow_negative_numbers = true,
+        value_parser = decimal("a positive distance in mm, at most 1e5"))]
     pub(super) ao: Option<f64>,
     /// Shade every flake inside a translucent stone, and every glitter
     /// facet of an opaque one, by its own normal, at any scale. By default a flake met where the pixel's footprint holds
@@ -152,7 +154,8 @@ pub struct RenderArgs {
     pub(super) exact_flakes: bool,
     /// Largest film memory to allow, in GiB (default 4); the render is
     /// refused up front above it, and always above the memory available.
-    #[arg(long, value_name = "GIB", default_value_t = DEFAULT_MAX_MEMORY_GIB, allow_negative_numbers = true)]
+    #[arg(long, value_name = "GIB", default_value_t = DEFAULT_MAX_MEMORY_GIB, allow_negative_numbers = true,
+        value_parser = decimal("a positive number of GiB"))]
     pub(super) max_memory: f64,
     /// No progress bar and no summary.
     #[arg(long, short = 'q')]

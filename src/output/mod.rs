@@ -43,7 +43,7 @@ fn temporary_sibling(path: &Path) -> PathBuf {
 }
 
 /// Check that `path` can be written: its directory exists, it is not a
-/// directory, and a file can be made beside it (its temporary file is
+/// directory nor a read-only file, and a file can be made beside it (its temporary file is
 /// made and removed). Called before long work so that errors come first.
 pub fn check_writable(path: &Path) -> Result<(), OutputError> {
     let err = |message: String| OutputError {
@@ -52,6 +52,14 @@ pub fn check_writable(path: &Path) -> Result<(), OutputError> {
     };
     if path.is_dir() {
         return Err(err("is a directory, expected a file name".into()));
+    }
+    // Renaming over a file needs only its folder's permission: a file
+    // made read-only, to keep it, would be replaced without a word.
+    if std::fs::metadata(path).is_ok_and(|meta| meta.permissions().readonly()) {
+        return Err(err(
+            "is read-only, and is kept: make it writable to replace it, or write another file"
+                .into(),
+        ));
     }
     let parent = path.parent().filter(|p| !p.as_os_str().is_empty());
     if let Some(dir) = parent {
