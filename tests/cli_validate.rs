@@ -394,10 +394,7 @@ fn broken_files_name_the_file_and_what_was_expected() {
         "stray.ron",
         &stray,
         Some(14),
-        &[
-            ":14:31: Expected comma (is a `]` missing? the `[` of field `entries` at 12:54 is \
-             still open where the `)` at 14:31 closes, or is that `)` one too many?)",
-        ],
+        &[":14:31: Expected comma (is this `)` one too many, or the wrong kind of bracket?)"],
     );
     // A material's closing bracket missing at the end of its line: RON
     // stops lines later; the message names the bracket left open.
