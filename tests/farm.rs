@@ -544,6 +544,15 @@ fn a_batch_task_re_run_gives_the_same_tile_and_a_complete_one_is_skipped() {
     assert_eq!(bytes(&tile), first);
     let log = ok(&["batch", s(&job), "--task", "3"]);
     assert!(log.contains("already complete, skipped"), "{log}");
+    // A complete tile made read-only (kept by its owner) is skipped too.
+    let mut permissions = std::fs::metadata(&tile).unwrap().permissions();
+    permissions.set_readonly(true);
+    std::fs::set_permissions(&tile, permissions.clone()).unwrap();
+    let log = ok(&["batch", s(&job), "--task", "3"]);
+    assert!(log.contains("already complete, skipped"), "{log}");
+    #[allow(clippy::permissions_set_readonly_false)]
+    permissions.set_readonly(false);
+    std::fs::set_permissions(&tile, permissions).unwrap();
     // A tile of other settings is not this task's output: the merge
     // refuses it, the task renders it again.
     for task in ["0", "1", "2"] {

@@ -451,7 +451,6 @@ pub(super) fn run_task(
     path: &Path,
 ) -> Result<TaskOutcome, String> {
     let (width, height) = check_settings(args)?;
-    lapidary::output::check_writable(path).map_err(|e| e.to_string())?;
     let inputs = Inputs::load(args)?;
     let renderer = Renderer::prepare_lazily(args, inputs, width, height, turntable)?;
     if path.exists() {
@@ -468,6 +467,8 @@ pub(super) fn run_task(
             }
         }
     }
+    // After the skip: a complete tile made read-only is still this task's.
+    lapidary::output::check_writable(path).map_err(|e| e.to_string())?;
     let mut renderer = renderer.compiled(args)?;
     renderer.render_to(frame, Some(split), path)?;
     Ok(TaskOutcome::Rendered)

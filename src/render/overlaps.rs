@@ -72,7 +72,8 @@ pub enum PlacementProblem {
         light: usize,
     },
     /// Light `inner` lies wholly inside sphere light `outer` (both from
-    /// 0), which emits outwards only: the sphere hides it from everything.
+    /// 0), which emits outwards only: the sphere hides it from everything
+    /// outside the sphere.
     LightInsideLight {
         /// The hidden light, from 0.
         inner: usize,
@@ -149,7 +150,8 @@ impl fmt::Display for PlacementProblem {
             Self::LightInsideLight { inner, outer } => write!(
                 f,
                 "light {} is inside light {}, a sphere that emits outwards only: the sphere \
-                 hides it from everything (make the sphere smaller or move the light out)",
+                 hides it from everything outside it (make the sphere smaller or move the light \
+                 out)",
                 inner + 1,
                 outer + 1
             ),
