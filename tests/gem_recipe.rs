@@ -616,6 +616,7 @@ fn translucent_body_fields_are_range_checked() {
         lapidary::recipe::gem::Body::Translucent {
             ior: 1.54,
             roughness_deg: 0.0,
+            rough_surface: None,
             medium: lapidary::recipe::gem::Medium {
                 absorption_per_mm: lapidary::brdf::Rgb::new(0.1, 0.2, 0.3),
                 scattering_per_mm: lapidary::brdf::Rgb::ZERO,

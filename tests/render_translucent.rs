@@ -589,17 +589,18 @@ fn stone_mean(film: &Film) -> f64 {
 
 #[test]
 fn a_lossless_body_with_a_rough_surface_never_exceeds_the_furnace() {
-    // A rough interface loses what single scattering's shadowing and the
-    // micro-facet reflections below the surface carry away, at every one
-    // of the many crossings and internal reflections of a path, and
-    // creates nothing: the stone's mean stays ≤ 1, within a few % of 1
-    // when nearly smooth. Under the map, light is also sampled at every
-    // rough vertex and weighed by the power heuristic: the same means
-    // within the noise. Measured (24², 1024 spp), BSDF sampling alone /
-    // with light sampling: 2° 0.9937 / 0.9937; 20° 0.6129 / 0.6160 (at
-    // 8192 spp 0.6145 / 0.6148; at 256 spp 0.6101 / 0.6175).
+    // Single scattering at a rough interface loses what the micro-facets
+    // shadow or send below the surface, at every one of the many crossings
+    // and internal reflections of a path (0.61 of the light was left at
+    // 20°); the interface gives it back with its own lobe's shape
+    // (`RoughInterface`'s compensation) and creates nothing: the stone's
+    // mean stays within a few tenths of a % of 1. Under the map, light is
+    // also sampled at every rough vertex and weighed by the power
+    // heuristic: the same means within the noise. Measured (24², 1024
+    // spp), BSDF sampling alone / with light sampling: 2° 0.9998 / 0.9998;
+    // 20° 0.9997 / 0.9989.
     let camera = three_quarter_camera(24);
-    for (roughness_deg, floor) in [(2.0, 0.98), (20.0, 0.5)] {
+    for (roughness_deg, floor) in [(2.0, 0.995), (20.0, 0.995)] {
         let body = format!("Translucent(ior: 1.54, roughness_deg: {roughness_deg})");
         let mut means = vec![];
         for environment in [Environment::Constant(Rgb::ONE), white_map()] {
@@ -616,7 +617,7 @@ fn a_lossless_body_with_a_rough_surface_never_exceeds_the_furnace() {
             let mean = stone_mean(&film);
             eprintln!("m {roughness_deg}°: mean {mean:.4}");
             assert!(
-                (floor..=1.0 + 2e-3).contains(&mean),
+                (floor..=1.0 + 3e-3).contains(&mean),
                 "m {roughness_deg}°: mean over the stone {mean}"
             );
             means.push(mean);

@@ -2,8 +2,10 @@
 //! (`render::dielectric::RoughInterface`, Walter et al. 2007): its sampling
 //! follows the density it claims (χ² over the whole sphere, reflection and
 //! transmission, from outside and from inside), its sampling weight is
-//! f·|cos|/pdf, and its single-scattering albedo is at most 1 from both
-//! sides and close to 1 when the surface is nearly smooth.
+//! f·|cos|/pdf, its single-scattering albedo is at most 1 from both sides
+//! and close to 1 when the surface is nearly smooth, its table of that
+//! albedo agrees with the sampled one, and the compensated interface
+//! keeps the energy.
 
 mod common;
 
@@ -105,21 +107,58 @@ fn the_sample_weight_is_the_bsdf_times_the_cosine_over_the_density() {
     }
 }
 
-/// Monte Carlo estimate of the albedo ∫ f |cosθi| dωi for `wo` (the mean
-/// sample weight, a failed sample counting 0) and the reflected part.
+/// Monte Carlo estimate of the single-scattering albedo ∫ f |cosθi| dωi
+/// for `wo` (the mean sample weight without the compensation, a failed
+/// sample counting 0) and the reflected part.
 fn albedo(interface: &RoughInterface, wo: DVec3, n: usize, seed: u64) -> (f64, f64) {
     let mut rng = TestRng(seed);
     let (mut total, mut reflected) = (0.0, 0.0);
+    let compensation = interface.compensation(wo);
     for _ in 0..n {
         let u = [rng.unit(), rng.unit(), rng.unit()];
         if let Some(s) = interface.sample(wo, u) {
-            total += s.weight;
+            total += s.weight / compensation;
             if !s.refracted {
-                reflected += s.weight;
+                reflected += s.weight / compensation;
             }
         }
     }
     (total / n as f64, reflected / n as f64)
+}
+
+#[test]
+fn the_albedo_table_matches_the_sampled_albedo_and_the_compensated_interface_keeps_the_energy() {
+    // The table (a jittered grid of visible normals) against the mean
+    // weight of 400 000 random samples: within 0.5 % (measured: within
+    // 0.2 % from 10° to 40°, both sides, also against the normals drawn by
+    // D cos θm, whose weights are not bounded); the quadrature test below
+    // checks the sampled albedo against the value's integral. The
+    // compensated interface then passes on all the light, 1 within the
+    // same, where E is at least a quarter (below, it is compensated in
+    // part, and passes less).
+    for roughness_deg in [10.0, 20.0, 40.0] {
+        let interface = RoughInterface::new(IOR, roughness_deg);
+        for inside in [false, true] {
+            for theta in [0.0, 45.0, 70.0, 85.0] {
+                let wo = view(theta, inside);
+                let (sampled, _) = albedo(&interface, wo, 400_000, 3);
+                let table = interface.single_scattering_albedo(wo);
+                assert!(
+                    (table - sampled).abs() < 5e-3 * sampled,
+                    "m {roughness_deg} θ {theta} inside {inside}: table {table} vs sampled {sampled}"
+                );
+                let compensated = sampled * interface.compensation(wo);
+                if table >= 0.25 {
+                    assert!(
+                        (compensated - 1.0).abs() < 5e-3,
+                        "m {roughness_deg} θ {theta} inside {inside}: {compensated}"
+                    );
+                } else {
+                    assert!(compensated < 1.0, "{compensated}");
+                }
+            }
+        }
+    }
 }
 
 #[test]
@@ -172,7 +211,7 @@ fn the_albedo_by_quadrature_matches_the_sampled_one() {
                     |wi| interface.eval_and_pdf(wo, wi).0 * wi.z.abs(),
                     16,
                     32,
-                );
+                ) / interface.compensation(wo);
                 let (sampled, _) = albedo(&interface, wo, 400_000, 7);
                 assert!(integral <= 1.0 + 1e-6, "{integral}");
                 assert!(
@@ -187,8 +226,8 @@ fn the_albedo_by_quadrature_matches_the_sampled_one() {
 #[test]
 fn transmission_obeys_the_generalised_reciprocity() {
     // f(wo, wi)/n(wi)² = f(wi, wo)/n(wo)² (Walter eq. 21 is of radiance;
-    // the camera's basic radiance turns it around); reflection is
-    // symmetric.
+    // the camera's basic radiance turns it around) for single scattering;
+    // reflection is symmetric.
     let mut rng = TestRng(0x1234_5678);
     let interface = RoughInterface::new(IOR, 20.0);
     let mut nonzero = 0;
@@ -196,8 +235,11 @@ fn transmission_obeys_the_generalised_reciprocity() {
         let wo = rng.direction();
         let wi = rng.direction();
         let n_of = |w: DVec3| if w.z > 0.0 { 1.0 } else { IOR };
-        let forward = interface.eval_and_pdf(wo, wi).0 / (n_of(wi) * n_of(wi));
-        let backward = interface.eval_and_pdf(wi, wo).0 / (n_of(wo) * n_of(wo));
+        // Without the compensation, which divides by E(wo) only.
+        let forward =
+            interface.eval_and_pdf(wo, wi).0 / interface.compensation(wo) / (n_of(wi) * n_of(wi));
+        let backward =
+            interface.eval_and_pdf(wi, wo).0 / interface.compensation(wi) / (n_of(wo) * n_of(wo));
         assert!(
             (forward - backward).abs() <= 1e-9 * forward.max(backward),
             "{wo} {wi}: {forward} vs {backward}"

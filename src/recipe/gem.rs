@@ -53,6 +53,7 @@ use crate::recipe::library::{builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
 use crate::recipe::ranges;
 use crate::recipe::table_cache::Tables;
+use crate::render::dielectric::RoughInterface;
 use crate::sampling::unit_direction;
 use crate::texture::hash::{derive_stream, hash_prefix, seed_key};
 use crate::texture::noise_fns::{Fbm, Marble, PerlinNoise, PerlinSource, Turbulence};
@@ -259,6 +260,9 @@ pub enum Body {
         /// Average micro-facet slope of the surface in degrees; 0 is a
         /// smooth (delta) interface.
         roughness_deg: f64,
+        /// The surface's micro-facets with their compensation tables when
+        /// it is rough (`roughness_deg` > 0 and `ior` > 1), else None.
+        rough_surface: Option<RoughInterface>,
         /// What happens along a path inside; with zoning, its absorption is
         /// the least the zoning reaches, per channel.
         medium: Medium,
@@ -1385,6 +1389,8 @@ impl<'a> Compiler<'a> {
         Ok(Body::Translucent {
             ior: *ior,
             roughness_deg: *roughness_deg,
+            rough_surface: (*roughness_deg > 0.0 && *ior > 1.0)
+                .then(|| RoughInterface::new(*ior, *roughness_deg)),
             zoning,
             medium: Medium {
                 absorption_per_mm,

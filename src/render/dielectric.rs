@@ -10,6 +10,7 @@ use glam::DVec3;
 use crate::brdf::fresnel::{self, Snell};
 use crate::brdf::microfacet::{reflect, refract};
 use crate::brdf::{Microfacet, MicrofacetModel};
+use crate::sampling::Rng;
 
 /// Where a ray goes at a smooth dielectric interface.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -133,12 +134,46 @@ pub(crate) fn split_smooth_interface(
 /// i and o exchanged, i = `wo`, o = `wi`; it obeys the generalised
 /// reciprocity f(wo, wi)/n(wi)² = f(wi, wo)/n(wo)², and its sampling weight
 /// is Walter's eq. 41, free of η.
-#[derive(Clone, Copy, Debug, PartialEq)]
+///
+/// Single scattering loses what the micro-facets shadow or send below
+/// them (mostly total internal reflections inside): at 20° a lossless
+/// stone would keep about 0.6 of the light. As the random-walk reference
+/// of the layered BRDFs does (`brdf::reference`), each interaction's
+/// value and weight are divided by the single-scattering albedo E(|cos θo|)
+/// of its side, tabulated when the interface is made, so that the lost
+/// light leaves with the single-scattering lobe's shape and a lossless
+/// body keeps its energy (Kulla & Conty 2017 keep it so, in a lobe of its
+/// own). The division is by the albedo of `wo`'s side and angle only: the
+/// compensated interface is not reciprocal.
+#[derive(Clone, Debug, PartialEq)]
 pub struct RoughInterface {
     /// The micro-facet distribution (GGX with Smith G).
     lobe: Microfacet,
     /// Index of the body relative to the air around it (> 1).
     ior: f64,
+    /// The single-scattering albedo E at |cos θo| = (j / (nodes − 1))²
+    /// (closer where E changes fast, at grazing angles), from outside
+    /// (`[0]`) and from inside (`[1]`).
+    albedo: Box<[[f64; ALBEDO_NODES]; 2]>,
+}
+
+/// Nodes of [`RoughInterface`]'s albedo tables over |cos θo| in [0, 1].
+const ALBEDO_NODES: usize = 64;
+/// Visible micro-normals per node: a side × side jittered grid.
+const ALBEDO_GRID_SIDE: usize = 64;
+/// The least albedo the compensation divides by: at grazing angles E
+/// falls to 0, where dividing would give a few paths huge weights; below
+/// it the light is compensated in part.
+const LEAST_COMPENSATED_ALBEDO: f64 = 0.25;
+
+/// A micro-normal drawn for `wo`: the normal on `wo`'s side, its cosine to
+/// `wo` and the Fresnel reflectance there.
+#[derive(Clone, Copy)]
+struct DrawnNormal {
+    m: DVec3,
+    facing: DVec3,
+    cos: f64,
+    reflectance: f64,
 }
 
 /// A direction drawn by [`RoughInterface::sample`].
@@ -146,7 +181,8 @@ pub struct RoughInterface {
 pub struct InterfaceSample {
     /// The sampled direction `wi` (local frame, unit).
     pub wi: DVec3,
-    /// f(wo, wi)·|cosθi| / pdf (Walter eq. 41: |wo·m| G / (|cosθo| cosθm)).
+    /// f(wo, wi)·|cosθi| / pdf: G / G1(wo) for visible normals, at most 1,
+    /// times the compensation of single scattering's loss.
     pub weight: f64,
     /// The density of `wi` per unit solid angle, Fresnel choice included.
     pub pdf: f64,
@@ -161,10 +197,57 @@ impl RoughInterface {
     /// does, to at least 0.01°).
     pub fn new(ior: f64, roughness_deg: f64) -> Self {
         debug_assert!(ior > 1.0, "a rough interface needs ior > 1, got {ior}");
-        RoughInterface {
+        let mut interface = RoughInterface {
             lobe: Microfacet::new(MicrofacetModel::Ggx, roughness_deg),
             ior,
+            albedo: Box::new([[1.0; ALBEDO_NODES]; 2]),
+        };
+        let grid = ALBEDO_GRID_SIDE as f64;
+        for (side, sign) in [(0, 1.0), (1, -1.0)] {
+            for node in 0..ALBEDO_NODES {
+                let cos_o = (node as f64 / (ALBEDO_NODES - 1) as f64).powi(2).max(1e-4);
+                let wo = DVec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, sign * cos_o);
+                let mut jitter = Rng::new(node as u64, side as u64);
+                let mut sum = 0.0;
+                for a in 0..ALBEDO_GRID_SIDE {
+                    for b in 0..ALBEDO_GRID_SIDE {
+                        let [ja, jb, _] = jitter.next_3();
+                        let u = [(a as f64 + ja) / grid, (b as f64 + jb) / grid];
+                        let Some(drawn) = interface.draw_normal(wo, u) else {
+                            continue;
+                        };
+                        let weight = |refracted| {
+                            interface
+                                .scatter(wo, &drawn, refracted)
+                                .map_or(0.0, |s| s.weight)
+                        };
+                        sum += drawn.reflectance * weight(false)
+                            + (1.0 - drawn.reflectance) * weight(true);
+                    }
+                }
+                interface.albedo[side][node] = sum / (grid * grid);
+            }
         }
+        interface
+    }
+
+    /// The single-scattering albedo ∫ f |cos θi| dωi of the uncompensated
+    /// interface for `wo` (interpolated in its table).
+    pub fn single_scattering_albedo(&self, wo: DVec3) -> f64 {
+        let table = &self.albedo[usize::from(wo.z < 0.0)];
+        let x = wo.z.abs().min(1.0).sqrt() * (ALBEDO_NODES - 1) as f64;
+        let node = (x as usize).min(ALBEDO_NODES - 2);
+        let t = x - node as f64;
+        table[node] * (1.0 - t) + table[node + 1] * t
+    }
+
+    /// The factor that compensates single scattering's loss for `wo`:
+    /// 1 / E(|cos θo|) of its side, E taken as at least 0.25 (at grazing
+    /// angles, where it falls to 0, the loss is given back in part).
+    pub fn compensation(&self, wo: DVec3) -> f64 {
+        1.0 / self
+            .single_scattering_albedo(wo)
+            .max(LEAST_COMPENSATED_ALBEDO)
     }
 
     /// The indices on the side of `wo` and on the other side.
@@ -182,13 +265,15 @@ impl RoughInterface {
     /// where the pair cannot occur.
     ///
     /// Reflection (same side): F(wo·h)·D(h)·G / (4 |cosθo| |cosθi|) with
-    /// h ∝ wo + wi (Walter eq. 20); pdf = F·D(h) cosθh / (4 |wo·h|)
-    /// (eqs. 13–14 times the Fresnel choice). Transmission: with ηo, ηi
+    /// h ∝ wo + wi (Walter eq. 20); pdf = F·D_wo(h) / (4 |wo·h|), D_wo the
+    /// density of the normals visible from wo (eqs. 13–14 with the Fresnel
+    /// choice). Transmission: with ηo, ηi
     /// the indices on the sides of wo and wi and the generalised half vector
     /// h ∝ −(ηo wo + ηi wi) (eq. 16),
     /// f = |wo·h| |wi·h| / (|cosθo| |cosθi|) · ηi² (1 − F) G D / (ηo wo·h + ηi wi·h)²
-    /// (eq. 21, i = wo) and pdf = (1 − F)·D(h) cosθh · ηi² |wi·h| / (ηo wo·h + ηi wi·h)²
-    /// (eq. 17's Jacobian).
+    /// (eq. 21, i = wo) and pdf = (1 − F)·D_wo(h) · ηi² |wi·h| / (ηo wo·h + ηi wi·h)²
+    /// (eq. 17's Jacobian). The value is compensated (see the type).
+    /// f(wo, wi)·|cos θi| / pdf is G / G1(wo) (times the compensation).
     pub fn eval_and_pdf(&self, wo: DVec3, wi: DVec3) -> (f64, f64) {
         let (cos_o, cos_i) = (wo.z, wi.z);
         if cos_o == 0.0 || cos_i == 0.0 {
@@ -216,45 +301,99 @@ impl RoughInterface {
         }
         let (oh, ih) = (wo.dot(h), wi.dot(h));
         let f = fresnel::dielectric(oh, eta_i / eta_o);
+        let compensation = self.compensation(wo);
+        // The density of h among the normals visible from wo.
+        let visible = self.lobe.smith_g1_of_cosine(cos_o.abs()) * oh.abs() * d / cos_o.abs();
         if same_side {
             let value = f * d * g / (4.0 * cos_o.abs() * cos_i.abs());
-            let pdf = f * d * h.z / (4.0 * oh.abs());
-            (value, pdf)
+            let pdf = f * visible / (4.0 * oh.abs());
+            (value * compensation, pdf)
         } else {
             let denominator = eta_o * oh + eta_i * ih;
             let jacobian = eta_i * eta_i * ih.abs() / (denominator * denominator);
             let value = (1.0 - f) * d * g * oh.abs() * jacobian / (cos_o.abs() * cos_i.abs());
-            let pdf = (1.0 - f) * d * h.z * jacobian;
-            (value, pdf)
+            let pdf = (1.0 - f) * visible * jacobian;
+            (value * compensation, pdf)
         }
     }
 
-    /// Draws `wi` for `wo` from `u` in [0, 1)³: a micro-normal m with
-    /// density D(m) cosθm from `u[0]`, `u[1]` (Walter eq. 35, via
-    /// `Microfacet::sample_normal`), then reflection about m with
+    /// Draws `wi` for `wo` from `u` in [0, 1)³: a micro-normal m among
+    /// those visible from `wo`, density D_wo(m) (Heitz 2018), from `u[0]`,
+    /// `u[1]`, then reflection about m with
     /// probability F(wo·m) (1 under total internal reflection) chosen by
     /// `u[2]`, else refraction through m by Snell's law. None when m faces
     /// away from `wo` or the new direction falls on the wrong side of the
     /// surface (a path the model's G would give 0).
     pub fn sample(&self, wo: DVec3, u: [f64; 3]) -> Option<InterfaceSample> {
+        let drawn = self.draw_normal(wo, [u[0], u[1]])?;
+        let mut sample = self.scatter(wo, &drawn, u[2] >= drawn.reflectance)?;
+        sample.weight *= self.compensation(wo);
+        Some(sample)
+    }
+
+    /// The micro-normal m of density D(m) cosθm drawn from `u` (Walter eq.
+    /// 35), on `wo`'s side; None when it faces away from `wo`.
+    fn draw_normal(&self, wo: DVec3, u: [f64; 2]) -> Option<DrawnNormal> {
         if wo.z == 0.0 {
             return None;
         }
-        let side = wo.z.signum();
         let (eta_o, eta_i) = self.indices(wo.z);
-        let m = self.lobe.sample_normal(u[0], u[1]);
+        let m = self.visible_normal(wo, u);
         // The micro-normal on wo's side and the cosine to it.
-        let facing = m * side;
+        let facing = m * wo.z.signum();
         let cos = wo.dot(facing);
-        if cos <= 0.0 {
+        if m.z <= 0.0 || cos <= 0.0 {
             return None;
         }
         let eta = eta_i / eta_o;
         let snell = Snell::at(cos, eta);
-        let f = fresnel::dielectric_from_snell(cos, snell, eta);
-        let refracted = u[2] >= f;
+        let reflectance = fresnel::dielectric_from_snell(cos, snell, eta);
+        Some(DrawnNormal {
+            m,
+            facing,
+            cos,
+            reflectance,
+        })
+    }
+
+    /// A micro-normal (upper hemisphere) of the distribution of normals
+    /// visible from `wo` (from either side), drawn from `u`: GGX's by
+    /// Heitz 2018, density D_wo(m) = G1(wo) |wo·m| D(m) / |cos θo|.
+    fn visible_normal(&self, wo: DVec3, u: [f64; 2]) -> DVec3 {
+        let alpha = self.lobe.alpha;
+        // The view in the upper hemisphere, stretched to unit roughness.
+        let v = (wo * wo.z.signum() * DVec3::new(alpha, alpha, 1.0)).normalize();
+        let across = v.x.hypot(v.y);
+        let t1 = if across > 0.0 {
+            DVec3::new(-v.y, v.x, 0.0) / across
+        } else {
+            DVec3::X
+        };
+        let t2 = v.cross(t1);
+        let r = u[0].sqrt();
+        let (sin_phi, cos_phi) = crate::sampling::sin_cos_turns(u[1]);
+        let p1 = r * cos_phi;
+        let s = 0.5 * (1.0 + v.z);
+        let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * sin_phi;
+        let n = t1 * p1 + t2 * p2 + v * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
+        DVec3::new(alpha * n.x, alpha * n.y, n.z.max(0.0)).normalize_or_zero()
+    }
+
+    /// The uncompensated sample for `wo` that reflects about the drawn
+    /// normal, or refracts through it when `refracted`; None when the new
+    /// direction falls on the wrong side of the surface (a path the
+    /// model's G would give 0).
+    fn scatter(&self, wo: DVec3, drawn: &DrawnNormal, refracted: bool) -> Option<InterfaceSample> {
+        let side = wo.z.signum();
+        let (eta_o, eta_i) = self.indices(wo.z);
+        let DrawnNormal {
+            m,
+            facing,
+            cos,
+            reflectance: f,
+        } = *drawn;
         let wi = if refracted {
-            refract(wo, facing, eta)?
+            refract(wo, facing, eta_i / eta_o)?
         } else {
             reflect(wo, facing)
         };
@@ -265,17 +404,19 @@ impl RoughInterface {
         if g == 0.0 {
             return None;
         }
-        let d = self.lobe.d(m);
+        // The density of the visible normal, G1(wo) |wo·m| D(m) / |cos θo|.
+        let g1 = self.lobe.smith_g1_of_cosine(wo.z.abs());
+        let visible = g1 * cos * self.lobe.d(m) / wo.z.abs();
         let pdf = if refracted {
             let ih = wi.dot(m);
             let denominator = eta_o * wo.dot(m) + eta_i * ih;
-            (1.0 - f) * d * m.z * eta_i * eta_i * ih.abs() / (denominator * denominator)
+            (1.0 - f) * visible * eta_i * eta_i * ih.abs() / (denominator * denominator)
         } else {
-            f * d * m.z / (4.0 * cos)
+            f * visible / (4.0 * cos)
         };
         Some(InterfaceSample {
             wi,
-            weight: cos * g / (wo.z.abs() * m.z),
+            weight: g / g1,
             pdf,
             refracted,
         })

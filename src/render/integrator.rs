@@ -30,7 +30,7 @@ use crate::render::medium::{
 };
 use crate::render::refracted_light::ConnectedVertex;
 use crate::render::render_scene::{
-    is_rough, power_heuristic, shadow_reach, RenderScene, MATERIAL_ID_GROUND, MAX_LIGHT_SAMPLES,
+    power_heuristic, shadow_reach, RenderScene, MATERIAL_ID_GROUND, MAX_LIGHT_SAMPLES,
     TEXTURE_UNITS_PER_SCENE_UNIT,
 };
 use crate::render::sampler::SampleStream;
@@ -814,7 +814,7 @@ impl RenderScene {
                         let sky = parts_apart.then(|| self.sky_part_numbers(stream));
                         radiance += throughput
                             * self.direct_at_interface(
-                                &interface,
+                                interface,
                                 frame,
                                 wo,
                                 (outwards, sky),
@@ -1075,19 +1075,15 @@ impl RenderScene {
     /// smooth interface; also at IOR 1, where there is no interface to be
     /// rough).
     #[inline(always)]
-    fn translucent_body(&self, hit: &SurfaceHit) -> Option<(f64, Medium, Option<RoughInterface>)> {
+    fn translucent_body(&self, hit: &SurfaceHit) -> Option<(f64, Medium, Option<&RoughInterface>)> {
         let index = hit.stone_index()?;
         match &self.gems[self.world.stones()[index].gem].body {
             Body::Translucent {
                 ior,
                 medium,
-                roughness_deg,
+                rough_surface,
                 ..
-            } => {
-                let rough = is_rough(*ior, *roughness_deg)
-                    .then(|| RoughInterface::new(*ior, *roughness_deg));
-                Some((*ior, *medium, rough))
-            }
+            } => Some((*ior, *medium, rough_surface.as_ref())),
             Body::Opaque => None,
         }
     }
