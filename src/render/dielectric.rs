@@ -11,6 +11,7 @@ use crate::brdf::fresnel::{self, Snell};
 use crate::brdf::microfacet::{reflect, refract};
 use crate::brdf::{Microfacet, MicrofacetModel};
 use crate::sampling::Rng;
+use crate::texture::hash::mix64;
 
 /// Where a ray goes at a smooth dielectric interface.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -132,15 +133,16 @@ pub(crate) fn split_smooth_interface(
 /// divided by n² (the basic radiance that a smooth interface passes with
 /// weight 1), so the transmission term is Walter's eq. 21 with the roles of
 /// i and o exchanged, i = `wo`, o = `wi`; it obeys the generalised
-/// reciprocity f(wo, wi)/n(wi)² = f(wi, wo)/n(wo)², and its sampling weight
-/// is Walter's eq. 41, free of η.
+/// reciprocity f(wo, wi)/n(wi)² = f(wi, wo)/n(wo)² (single scattering),
+/// and its sampling weight is free of η.
 ///
 /// Single scattering loses what the micro-facets shadow or send below
 /// them (mostly total internal reflections inside): at 20° a lossless
 /// stone would keep about 0.6 of the light. As the random-walk reference
 /// of the layered BRDFs does (`brdf::reference`), each interaction's
-/// value and weight are divided by the single-scattering albedo E(|cos θo|)
-/// of its side, tabulated when the interface is made, so that the lost
+/// value is divided by the single-scattering albedo E(|cos θo|) of its
+/// side, tabulated when the interface is made, and sampling draws from the
+/// lobe normalised by E (see [`RoughInterface::sample`]), so that the lost
 /// light leaves with the single-scattering lobe's shape and a lossless
 /// body keeps its energy (Kulla & Conty 2017 keep it so, in a lobe of its
 /// own). The division is by the albedo of `wo`'s side and angle only: the
@@ -159,6 +161,10 @@ pub struct RoughInterface {
 
 /// Nodes of [`RoughInterface`]'s albedo tables over |cos θo| in [0, 1].
 const ALBEDO_NODES: usize = 64;
+/// The most micro-normals [`RoughInterface::sample`] draws for one
+/// sample before it gives up (a path lost): (1 − E)^32, below 10⁻⁴ where E
+/// is at least a quarter.
+const MAX_DRAWS: u32 = 32;
 /// Visible micro-normals per node: a side × side jittered grid.
 const ALBEDO_GRID_SIDE: usize = 64;
 /// The least albedo the compensation divides by: at grazing angles E
@@ -181,8 +187,9 @@ struct DrawnNormal {
 pub struct InterfaceSample {
     /// The sampled direction `wi` (local frame, unit).
     pub wi: DVec3,
-    /// f(wo, wi)·|cosθi| / pdf: G / G1(wo) for visible normals, at most 1,
-    /// times the compensation of single scattering's loss.
+    /// f(wo, wi)·|cosθi| / pdf: E(wo) times the compensation of single
+    /// scattering's loss, the same for every sample of `wo` (1 where E is
+    /// at least 0.25).
     pub weight: f64,
     /// The density of `wi` per unit solid angle, Fresnel choice included.
     pub pdf: f64,
@@ -265,15 +272,13 @@ impl RoughInterface {
     /// where the pair cannot occur.
     ///
     /// Reflection (same side): F(wo·h)·D(h)·G / (4 |cosθo| |cosθi|) with
-    /// h ∝ wo + wi (Walter eq. 20); pdf = F·D_wo(h) / (4 |wo·h|), D_wo the
-    /// density of the normals visible from wo (eqs. 13–14 with the Fresnel
-    /// choice). Transmission: with ηo, ηi
-    /// the indices on the sides of wo and wi and the generalised half vector
+    /// h ∝ wo + wi (Walter eq. 20). Transmission: with ηo, ηi the indices
+    /// on the sides of wo and wi and the generalised half vector
     /// h ∝ −(ηo wo + ηi wi) (eq. 16),
     /// f = |wo·h| |wi·h| / (|cosθo| |cosθi|) · ηi² (1 − F) G D / (ηo wo·h + ηi wi·h)²
-    /// (eq. 21, i = wo) and pdf = (1 − F)·D_wo(h) · ηi² |wi·h| / (ηo wo·h + ηi wi·h)²
-    /// (eq. 17's Jacobian). The value is compensated (see the type).
-    /// f(wo, wi)·|cos θi| / pdf is G / G1(wo) (times the compensation).
+    /// (eq. 21, i = wo). The value returned is compensated (see the type);
+    /// the density is f(wo, wi) |cos θi| / E(wo) of the uncompensated
+    /// value, E from the table.
     pub fn eval_and_pdf(&self, wo: DVec3, wi: DVec3) -> (f64, f64) {
         let (cos_o, cos_i) = (wo.z, wi.z);
         if cos_o == 0.0 || cos_i == 0.0 {
@@ -301,38 +306,74 @@ impl RoughInterface {
         }
         let (oh, ih) = (wo.dot(h), wi.dot(h));
         let f = fresnel::dielectric(oh, eta_i / eta_o);
-        let compensation = self.compensation(wo);
-        // The density of h among the normals visible from wo.
-        let visible = self.lobe.smith_g1_of_cosine(cos_o.abs()) * oh.abs() * d / cos_o.abs();
-        if same_side {
-            let value = f * d * g / (4.0 * cos_o.abs() * cos_i.abs());
-            let pdf = f * visible / (4.0 * oh.abs());
-            (value * compensation, pdf)
+        let value = if same_side {
+            f * d * g / (4.0 * cos_o.abs() * cos_i.abs())
         } else {
             let denominator = eta_o * oh + eta_i * ih;
             let jacobian = eta_i * eta_i * ih.abs() / (denominator * denominator);
-            let value = (1.0 - f) * d * g * oh.abs() * jacobian / (cos_o.abs() * cos_i.abs());
-            let pdf = (1.0 - f) * visible * jacobian;
-            (value * compensation, pdf)
+            (1.0 - f) * d * g * oh.abs() * jacobian / (cos_o.abs() * cos_i.abs())
+        };
+        // Sampling keeps a draw with probability f |cos θi| / its density:
+        // what it keeps has the lobe's own shape, normalised by E.
+        let albedo = self.single_scattering_albedo(wo);
+        if albedo <= 0.0 {
+            return (0.0, 0.0);
         }
+        (value * self.compensation(wo), value * cos_i.abs() / albedo)
     }
 
-    /// Draws `wi` for `wo` from `u` in [0, 1)³: a micro-normal m among
-    /// those visible from `wo`, density D_wo(m) (Heitz 2018), from `u[0]`,
-    /// `u[1]`, then reflection about m with
-    /// probability F(wo·m) (1 under total internal reflection) chosen by
-    /// `u[2]`, else refraction through m by Snell's law. None when m faces
-    /// away from `wo` or the new direction falls on the wrong side of the
-    /// surface (a path the model's G would give 0).
+    /// Draws `wi` for `wo` from `u` in [0, 1)³ with density
+    /// f(wo, wi) |cos θi| / E(wo), the single-scattering lobe normalised: a
+    /// micro-normal m among those visible from `wo` (density D_wo(m),
+    /// Heitz 2018) from `u[0]`, `u[1]`, reflection about m with probability
+    /// F(wo·m) (1 under total internal reflection) by `u[2]`, else
+    /// refraction through m by Snell's law, kept with probability
+    /// G / G1(wo) (what the micro-facets pass on; the rest of `u[2]` past
+    /// the Fresnel choice decides), else drawn again from numbers derived
+    /// from `u` (at most 32 times; then None, a path lost).
+    /// Every sample so weighs the same, E(wo) times the compensation (1
+    /// where E is at least 0.25): single scattering's loss is given back
+    /// without weights that grow along a path.
     pub fn sample(&self, wo: DVec3, u: [f64; 3]) -> Option<InterfaceSample> {
-        let drawn = self.draw_normal(wo, [u[0], u[1]])?;
-        let mut sample = self.scatter(wo, &drawn, u[2] >= drawn.reflectance)?;
-        sample.weight *= self.compensation(wo);
-        Some(sample)
+        let albedo = self.single_scattering_albedo(wo);
+        if albedo <= 0.0 {
+            return None;
+        }
+        // Further numbers, when a draw is refused, from `u` itself.
+        let key = u
+            .iter()
+            .fold(0x6a09_e667_f3bc_c909, |h: u64, x| mix64(h ^ x.to_bits()));
+        let mut more = Rng::new(key, 0);
+        let mut numbers = u;
+        for _ in 0..MAX_DRAWS {
+            let drawn = self.draw_normal(wo, [numbers[0], numbers[1]]);
+            if let Some(drawn) = drawn {
+                let f = drawn.reflectance;
+                let refracted = numbers[2] >= f;
+                // The Fresnel number past the choice: a fresh uniform.
+                let keep = if refracted {
+                    (numbers[2] - f) / (1.0 - f)
+                } else {
+                    numbers[2] / f
+                };
+                if let Some(sample) = self.scatter(wo, &drawn, refracted) {
+                    if keep < sample.weight {
+                        return Some(InterfaceSample {
+                            weight: albedo * self.compensation(wo),
+                            pdf: sample.weight * sample.pdf / albedo,
+                            ..sample
+                        });
+                    }
+                }
+            }
+            numbers = more.next_3();
+        }
+        None
     }
 
-    /// The micro-normal m of density D(m) cosθm drawn from `u` (Walter eq.
-    /// 35), on `wo`'s side; None when it faces away from `wo`.
+    /// The micro-normal m visible from `wo` drawn from `u`, on `wo`'s
+    /// side, with the Fresnel reflectance there; None when it faces away
+    /// from `wo`.
     fn draw_normal(&self, wo: DVec3, u: [f64; 2]) -> Option<DrawnNormal> {
         if wo.z == 0.0 {
             return None;
