@@ -1389,8 +1389,7 @@ impl<'a> Compiler<'a> {
         Ok(Body::Translucent {
             ior: *ior,
             roughness_deg: *roughness_deg,
-            rough_surface: (*roughness_deg > 0.0 && *ior > 1.0)
-                .then(|| RoughInterface::new(*ior, *roughness_deg)),
+            rough_surface: RoughInterface::of_body(*ior, *roughness_deg),
             zoning,
             medium: Medium {
                 absorption_per_mm,

@@ -173,6 +173,12 @@ const ALBEDO_GRID_SIDE: usize = 64;
 /// it the light is compensated in part.
 const LEAST_COMPENSATED_ALBEDO: f64 = 0.25;
 
+/// The factor that gives back single scattering's loss where its albedo
+/// is `albedo`: 1 / E, E taken as at least [`LEAST_COMPENSATED_ALBEDO`].
+fn compensation_of(albedo: f64) -> f64 {
+    1.0 / albedo.max(LEAST_COMPENSATED_ALBEDO)
+}
+
 /// A micro-normal drawn for `wo`: the normal on `wo`'s side, its cosine to
 /// `wo` and the Fresnel reflectance there.
 #[derive(Clone, Copy)]
@@ -239,6 +245,13 @@ impl RoughInterface {
         interface
     }
 
+    /// The rough surface of a body of index `ior` polished to
+    /// `roughness_deg`, or None where the interface is smooth (roughness 0)
+    /// or absent (IOR 1: no interface to be rough).
+    pub fn of_body(ior: f64, roughness_deg: f64) -> Option<Self> {
+        (roughness_deg > 0.0 && ior > 1.0).then(|| Self::new(ior, roughness_deg))
+    }
+
     /// The single-scattering albedo ∫ f |cos θi| dωi of the uncompensated
     /// interface for `wo` (interpolated in its table).
     pub fn single_scattering_albedo(&self, wo: DVec3) -> f64 {
@@ -253,9 +266,7 @@ impl RoughInterface {
     /// 1 / E(|cos θo|) of its side, E taken as at least 0.25 (at grazing
     /// angles, where it falls to 0, the loss is given back in part).
     pub fn compensation(&self, wo: DVec3) -> f64 {
-        1.0 / self
-            .single_scattering_albedo(wo)
-            .max(LEAST_COMPENSATED_ALBEDO)
+        compensation_of(self.single_scattering_albedo(wo))
     }
 
     /// The indices on the side of `wo` and on the other side.
@@ -320,7 +331,10 @@ impl RoughInterface {
         if albedo <= 0.0 {
             return (0.0, 0.0);
         }
-        (value * self.compensation(wo), value * cos_i.abs() / albedo)
+        (
+            value * compensation_of(albedo),
+            value * cos_i.abs() / albedo,
+        )
     }
 
     /// Draws `wi` for `wo` from `u` in [0, 1)³ with density
@@ -340,11 +354,9 @@ impl RoughInterface {
         if albedo <= 0.0 {
             return None;
         }
-        // Further numbers, when a draw is refused, from `u` itself.
-        let key = u
-            .iter()
-            .fold(0x6a09_e667_f3bc_c909, |h: u64, x| mix64(h ^ x.to_bits()));
-        let mut more = Rng::new(key, 0);
+        // Further numbers, when a draw is refused, from `u` itself (made
+        // at the first refusal: most first draws are kept).
+        let mut more: Option<Rng> = None;
         let mut numbers = u;
         for _ in 0..MAX_DRAWS {
             let drawn = self.draw_normal(wo, [numbers[0], numbers[1]]);
@@ -360,14 +372,21 @@ impl RoughInterface {
                 if let Some(sample) = self.scatter(wo, &drawn, refracted) {
                     if keep < sample.weight {
                         return Some(InterfaceSample {
-                            weight: albedo * self.compensation(wo),
+                            weight: albedo * compensation_of(albedo),
                             pdf: sample.weight * sample.pdf / albedo,
                             ..sample
                         });
                     }
                 }
             }
-            numbers = more.next_3();
+            numbers = more
+                .get_or_insert_with(|| {
+                    let key = u
+                        .iter()
+                        .fold(0x6a09_e667_f3bc_c909, |h: u64, x| mix64(h ^ x.to_bits()));
+                    Rng::new(key, 0)
+                })
+                .next_3();
         }
         None
     }

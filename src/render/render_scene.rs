@@ -92,8 +92,8 @@ impl RenderScene {
     pub(crate) fn smooth_body_ior(&self, stone: usize) -> Option<f64> {
         match &self.gems[self.world.stones()[stone].gem].body {
             Body::Translucent {
-                ior, roughness_deg, ..
-            } if !is_rough(*ior, *roughness_deg) => Some(*ior),
+                ior, rough_surface, ..
+            } if rough_surface.is_none() => Some(*ior),
             _ => None,
         }
     }
@@ -185,13 +185,6 @@ impl RenderScene {
         let pairs = 2 + self.sampled_emitters().min(MAX_LIGHT_SAMPLES);
         pairs.min(SOBOL_PAIRS as usize) as u32
     }
-}
-
-/// Whether a body's surface of index `ior` and polish `roughness_deg` is
-/// rough micro-facets (else a smooth interface; at IOR 1 there is no
-/// interface to be rough).
-pub(crate) fn is_rough(ior: f64, roughness_deg: f64) -> bool {
-    roughness_deg > 0.0 && ior > 1.0
 }
 
 /// The power heuristic with exponent 2 for a strategy of density `pdf_a`
