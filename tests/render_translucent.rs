@@ -42,7 +42,7 @@ fn scene_of(
     lights: Vec<Light>,
 ) -> RenderScene {
     let text = format!(
-        r#"Gem(surface: "teflon", materials: {{"white": Material(layers: [], base: Diffuse(colour: (1, 1, 1))), "glossy-copper": Material(layers: [], base: Conductor(metal: "copper", roughness_deg: 8.0)), "black-flake": Material(layers: [], base: Black)}}, body: {body})"#
+        r#"Gem(surface: "teflon", materials: {{"white": Material(layers: [], base: Diffuse(colour: (1, 1, 1))), "glossy-copper": Material(layers: [], base: Conductor(metal: "copper", roughness_deg: 8.0)), "black-flake": Material(layers: [], base: Black), "grey": Material(layers: [], base: Diffuse(colour: (0.2, 0.2, 0.2)))}}, body: {body})"#
     );
     let gem = compile_gem(&GemSource::new("test", &text), None, Tables::Skipped).unwrap();
     let stone = StoneInstance {
@@ -408,20 +408,25 @@ fn assert_the_stone_vanishes_in_the_white_sky(film: &Film) {
     );
     let mean = stone.iter().map(|p| f64::from(p[1])).sum::<f64>() / stone.len() as f64;
     assert!((mean - 1.0).abs() < 0.01, "mean over the stone {mean}");
+    // Russian roulette after a path's fourth flake divides the survivors
+    // by their chance (at most 0.95), so a pixel of a few paths may pass
+    // the sky by some per cent (measured at most 5 % at 32 spp); light is
+    // made only if the mean passes it.
     assert!(
-        stone.iter().all(|p| p.iter().all(|c| *c <= 1.0 + 1e-6)),
-        "energy created"
+        stone.iter().all(|p| p.iter().all(|c| *c <= 1.25)),
+        "a pixel far above the sky"
     );
+    assert_eq!(film.stats.bad_samples, 0);
 }
 
 #[test]
 fn lossless_flakes_in_a_clear_body_vanish_in_a_white_furnace() {
     // White Lambert platelets (albedo 1, either side) in a body that does
-    // not absorb: every path still ends in the white sky with weight 1.
+    // not absorb: every path still ends in the white sky, with expected
+    // weight 1.
     let camera = three_quarter_camera(24);
     let film = render_body(
-        "Translucent(ior: 1.53, inclusions: [Inclusions(shape: Triangle, size_mm: 0.3, \
-         size_spread: 0.3, density_per_mm3: 6.0, orientation: Isotropic, material: \"white\", seed: 2)])",
+        LOSSLESS_FLAKES,
         CabochonParams::default(),
         Environment::Constant(Rgb::ONE),
         vec![],
@@ -429,6 +434,32 @@ fn lossless_flakes_in_a_clear_body_vanish_in_a_white_furnace() {
         24,
         32,
     );
+    assert_the_stone_vanishes_in_the_white_sky(&film);
+}
+
+/// White Lambert platelets, 0.3 mm, six to a cubic millimetre, in a body
+/// that does not absorb.
+const LOSSLESS_FLAKES: &str = "Translucent(ior: 1.53, inclusions: [Inclusions(shape: Triangle, \
+     size_mm: 0.3, size_spread: 0.3, density_per_mm3: 6.0, orientation: Isotropic, material: \
+     \"white\", seed: 2)])";
+
+#[test]
+fn flakes_are_no_bounces_so_two_bounces_light_a_flaked_body_fully() {
+    // Two bounces take light in through the surface and out again; the
+    // flakes met between are scattering events (ended by Russian
+    // roulette), not bounces. With the body's index the air's, no light is
+    // reflected inside (which would be a bounce), so the lossless stone
+    // still vanishes in the white sky. Were each flake a bounce, every
+    // path meeting one would end inside: the stone's mean was 0.953 with
+    // them counted.
+    let mut scene = scene_of(
+        &LOSSLESS_FLAKES.replace("ior: 1.53", "ior: 1.0"),
+        CabochonParams::default(),
+        Environment::Constant(Rgb::ONE),
+        vec![],
+    );
+    scene.max_bounces = 2;
+    let film = render_scene(&scene, &three_quarter_camera(24), 24, 32, 5);
     assert_the_stone_vanishes_in_the_white_sky(&film);
 }
 
@@ -698,16 +729,11 @@ fn a_body_polished_to_roughness_zero_renders_the_same_bytes_as_one_without() {
     );
 }
 
-/// White diffuse flakes, 0.6 mm, in a clear body of IOR 1.5 under a small
-/// bright sphere (1.5 mm radius at 59 mm: 1.5° across), a dim sky and no
-/// ground: glints at depth that path sampling finds only by hitting the
-/// light through the surface.
-fn glints_under_a_small_light(extra: &str) -> RenderScene {
-    glints_under_a_sphere(extra, 1.5)
-}
-
-/// [`glints_under_a_small_light`] under a sphere of `radius` mm with the
-/// same power.
+/// White diffuse flakes, 0.6 mm, in a clear body of IOR 1.5 under a
+/// sphere of `radius` mm (1.5 mm at 59 mm: 1.5° across) whose power does
+/// not depend on it, a dim sky and no ground: under a small sphere, glints
+/// at depth that path sampling finds only by hitting the light through
+/// the surface.
 fn glints_under_a_sphere(extra: &str, radius: f64) -> RenderScene {
     flakes_of_under_a_sphere("white", extra, radius)
 }
@@ -862,21 +888,35 @@ fn light_connected_through_the_surface_makes_glints_at_depth_converge() {
     // The issue's goal: at equal time, the stone's error against a long
     // render at least 4× lower than with path sampling alone. A connection
     // costs at most 2.5× a sample here, so at equal samples the error must
-    // fall at least 4·√2.5 ≈ 6.3×; asserted 10×. Measured (40², 64 spp
-    // against 1024): 0.0056 connected, 0.99 sampled alone, 177×.
+    // fall at least 4·√2.5 ≈ 6.3×; asserted 10×. Grey flakes: light passed
+    // between flakes (not bounces: they go on until roulette ends them) is
+    // path-sampled by both, and white ones' would blur the comparison of
+    // what the connections do. Path sampling alone finds the small light
+    // rarely, so its error is heavy-tailed: the RMSE pools four render
+    // seeds. Measured (40², 64 spp against 1024): 0.0057 connected, 0.163
+    // sampled alone (one seed 0.021 to 0.21), 29×.
     let camera = three_quarter_camera(40);
-    let mut scene = glints_under_a_small_light("");
-    let mask = mirror_image(glints_under_a_small_light(""), &camera, 40);
+    let grey_glints = || flakes_of_under_a_sphere("grey", "", 1.5);
+    let mut scene = grey_glints();
+    let mask = mirror_image(grey_glints(), &camera, 40);
     let reference = render_scene(&scene, &camera, 40, 1024, 1);
-    let connected = render_scene(&scene, &camera, 40, 64, 2);
-    scene.connect_through_surfaces = false;
-    let sampled = render_scene(&scene, &camera, 40, 64, 2);
-    let pixels = glint_pixels(&mask, &[&reference, &connected, &sampled]);
-    let rmse = |v: &Vec<f64>| {
-        let sum: f64 = v.iter().zip(&pixels[0]).map(|(a, b)| (a - b).powi(2)).sum();
-        (sum / v.len() as f64).sqrt()
+    let pooled_rmse = |scene: &RenderScene| {
+        let (mut sum, mut count) = (0.0, 0);
+        for seed in 2..6 {
+            let film = render_scene(scene, &camera, 40, 64, seed);
+            let pixels = glint_pixels(&mask, &[&reference, &film]);
+            sum += pixels[1]
+                .iter()
+                .zip(&pixels[0])
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>();
+            count += pixels[0].len();
+        }
+        (sum / count as f64).sqrt()
     };
-    let (connected, sampled) = (rmse(&pixels[1]), rmse(&pixels[2]));
+    let connected = pooled_rmse(&scene);
+    scene.connect_through_surfaces = false;
+    let sampled = pooled_rmse(&scene);
     eprintln!("stone RMSE at 64 spp: connected {connected:.5}, sampled alone {sampled:.5}");
     assert!(
         connected < 0.1 * sampled,

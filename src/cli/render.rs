@@ -125,7 +125,8 @@ pub struct RenderArgs {
     #[arg(long, value_enum, default_value_t = TonemapArg::Filmic)]
     pub(super) tonemap: TonemapArg,
     /// Bounces after the first hit (0: direct light only; a translucent
-    /// stone's inside needs 2).
+    /// stone's inside needs 2; flakes and scattering inside it are not
+    /// bounces).
     #[arg(long, value_name = "N", default_value_t = 4, allow_negative_numbers = true,
         value_parser = whole::<u32, 0, { MAX_BOUNCES as u64 }>)]
     pub(super) bounces: u32,

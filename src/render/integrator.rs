@@ -114,12 +114,34 @@ fn choice_of_estimate(estimate: impl FnOnce() -> f64, total: f64, emitters: usiz
     }
 }
 
-/// Scattering events a path may take inside translucent bodies (which are
-/// not bounces): a stone whose light scatters further is dark anyway.
+/// Scattering events and flakes a path may meet inside translucent bodies
+/// (which are not bounces): a stone whose light scatters further is dark
+/// anyway.
 const MAX_SCATTERINGS: u32 = 1024;
 /// Scattering events before Russian roulette (survival = the largest
 /// channel of the throughput, at most 0.95) may end a path.
 const SCATTERINGS_BEFORE_ROULETTE: u32 = 4;
+
+/// Russian roulette after a path's `scatterings`-th event inside a body
+/// (a scattering or a flake): past [`SCATTERINGS_BEFORE_ROULETTE`] the
+/// path survives with probability = the largest channel of its
+/// throughput (at most 0.95), which is then divided by it, so the
+/// expectation is kept. Whether the path goes on.
+fn survives_scattering(
+    throughput: &mut Rgb,
+    scatterings: u32,
+    uniform: impl FnOnce() -> f64,
+) -> bool {
+    if scatterings <= SCATTERINGS_BEFORE_ROULETTE {
+        return true;
+    }
+    let survival = throughput.max_element().min(0.95);
+    if uniform() >= survival {
+        return false;
+    }
+    *throughput /= survival;
+    true
+}
 
 /// What the camera ray met first (the AOVs of one sample).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -493,7 +515,8 @@ impl RenderScene {
         let mut bounce = start_bounce;
         // The pixel's footprint along the current segment.
         let mut cone = start_cone;
-        // Scattering events inside bodies so far (they are not bounces).
+        // Scattering events and flakes inside bodies so far (they are not
+        // bounces).
         let mut scatterings = 0;
         // Whether the path meets flakes with lobes as a medium: from the
         // vertex after the one where the pixel's footprint ended (what
@@ -615,12 +638,8 @@ impl RenderScene {
                         });
                         scatterings += 1;
                         cone = RayCone::UNBOUNDED;
-                        if scatterings > SCATTERINGS_BEFORE_ROULETTE {
-                            let survival = throughput.max_element().min(0.95);
-                            if stream.next_1d() >= survival {
-                                break;
-                            }
-                            throughput /= survival;
+                        if !survives_scattering(&mut throughput, scatterings, || stream.next_1d()) {
+                            break;
                         }
                         leaving = None;
                         previous = None;
@@ -631,10 +650,15 @@ impl RenderScene {
                     // Only a camera ray refracted in runs inside at bounce
                     // 1, and it did not scatter: its first event inside.
                     first_hits.inclusions += u32::from(!BRANCH && bounce == 1 && scatterings == 0);
-                    if bounce > self.max_bounces {
+                    // A flake is a scattering event, not a bounce: light
+                    // passed between a body's flakes takes as many events
+                    // as its reflectance allows (copper's red dozens), so
+                    // the walk ends by Russian roulette as a cloudy
+                    // stone's does, whatever `max_bounces` is.
+                    if bounce > self.max_bounces || scatterings == MAX_SCATTERINGS {
                         break;
                     }
-                    let chains = self.chains_from(stone, bounce + 1);
+                    let chains = self.chains_from(stone, bounce);
                     // A flake of the medium is the lobe's; one met by the
                     // walk, by the flakes its footprint holds.
                     let population_lobe = self.flake_lobe(stone, flake.population);
@@ -735,7 +759,10 @@ impl RenderScene {
                     own_cell = own;
                     leaving = None;
                     previous = None;
-                    bounce += 1;
+                    scatterings += 1;
+                    if !survives_scattering(&mut throughput, scatterings, || stream.next_1d()) {
+                        break;
+                    }
                     continue;
                 }
             }
@@ -1137,9 +1164,9 @@ impl RenderScene {
     /// is smooth, connections are on, and a sampled continuation could
     /// still reflect that often and leave and meet a light. Each crossing
     /// of the surface is a bounce, and `crossing_bounce` is the bounce of
-    /// the continuation's first one: the vertex's own plus one after a
-    /// flake (a bounce), the vertex's own after a scattering (none); a
-    /// crossing at bounce b is taken while b ≤ `max_bounces`.
+    /// the continuation's first one: the vertex's own (a flake or a
+    /// scattering is no bounce); a crossing at bounce b is taken while
+    /// b ≤ `max_bounces`.
     fn chains_from(&self, stone: usize, crossing_bounce: u32) -> Option<usize> {
         (self.connect_through_surfaces
             && crossing_bounce <= self.max_bounces
