@@ -346,7 +346,7 @@ fn a_directory_or_non_utf8_file_is_refused_with_its_name() {
 #[test]
 fn slice_prints_the_lobe_in_the_plane_with_the_walk_beside_it() {
     // Gold, a bare metal: its lobe peaks on the mirror side (θₒ = +30° for
-    // light at 30°), nothing comes back on the light's side near the
+    // light at 30°), next to nothing comes back on the light's side near the
     // horizon, and the model agrees with its random walk at the peak.
     let text = stdout_of_success(&["brdf", "gold", "--slice", "30", "--reference"]);
     let lines: Vec<&str> = text.lines().collect();
@@ -368,8 +368,9 @@ fn slice_prints_the_lobe_in_the_plane_with_the_walk_beside_it() {
         peak[1],
         peak[4]
     );
-    assert_eq!(
-        rows[0][1], 0.0,
+    // (The compensation lobe, spread over the hemisphere, may print 1e-6.)
+    assert!(
+        rows[0][1] < 1e-5,
         "light's side at the horizon: {:?}",
         rows[0]
     );

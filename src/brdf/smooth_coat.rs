@@ -18,8 +18,9 @@
 //! U(ν) = E[ w · T(ν′) · (1 − F_in(ν′) + F_in(ν′) · T(ν′) · U(ν′)) ],
 //!
 //! the expectation over the base's sampled scattering ν → ν′ with weight w
-//! (exactly the walk's `scatter_base`, its micro-facet albedo table and
-//! conductor Fresnel table included), and the stack's albedo is
+//! (the walk's base scattering in expectation, by `scatter_base_stratified`:
+//! its micro-facet albedo table and conductor Fresnel table included), and
+//! the stack's albedo is
 //!
 //! E_stack(μ) = F(μ) + (1 − F(μ)) · T(μ′) · U(μ′),   μ′ the refracted cosine.
 //!
@@ -41,7 +42,7 @@
 use crate::brdf::fresnel;
 use crate::brdf::layer::{Base, Interface};
 use crate::brdf::microfacet::MIN_ROUGHNESS_DEG;
-use crate::brdf::reference::{scatter_base, PresetUniforms, WalkTables};
+use crate::brdf::reference::{scatter_base_stratified, WalkTables};
 use crate::brdf::stack::LayeredBrdf;
 use crate::brdf::Rgb;
 use crate::sampling::Rng;
@@ -167,19 +168,12 @@ impl SmoothCoatChain {
         let mut escaping = Rgb::ZERO;
         for a in 0..side {
             for b in 0..side {
-                let preset = [
+                let u = [
                     (a as f64 + rng.next_f64()) / side as f64,
                     (b as f64 + rng.next_f64()) / side as f64,
-                    0.0,
-                    0.0,
                 ];
-                let mut uniforms = PresetUniforms {
-                    preset,
-                    used: 0,
-                    rng: &mut rng,
-                };
                 let Some((w, weight)) =
-                    scatter_base(&self.base, &self.tables, w_away, &mut uniforms)
+                    scatter_base_stratified(&self.base, &self.tables, w_away, u)
                 else {
                     continue;
                 };

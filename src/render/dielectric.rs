@@ -8,7 +8,7 @@
 use glam::DVec3;
 
 use crate::brdf::fresnel::{self, Snell};
-use crate::brdf::microfacet::{reflect, refract};
+use crate::brdf::microfacet::{ggx_visible_normal, reflect, refract};
 use crate::brdf::{Microfacet, MicrofacetModel};
 use crate::sampling::Rng;
 use crate::texture::hash::mix64;
@@ -421,23 +421,7 @@ impl RoughInterface {
     /// visible from `wo` (from either side), drawn from `u`: GGX's by
     /// Heitz 2018, density D_wo(m) = G1(wo) |wo·m| D(m) / |cos θo|.
     fn visible_normal(&self, wo: DVec3, u: [f64; 2]) -> DVec3 {
-        let alpha = self.lobe.alpha;
-        // The view in the upper hemisphere, stretched to unit roughness.
-        let v = (wo * wo.z.signum() * DVec3::new(alpha, alpha, 1.0)).normalize();
-        let across = v.x.hypot(v.y);
-        let t1 = if across > 0.0 {
-            DVec3::new(-v.y, v.x, 0.0) / across
-        } else {
-            DVec3::X
-        };
-        let t2 = v.cross(t1);
-        let r = u[0].sqrt();
-        let (sin_phi, cos_phi) = crate::sampling::sin_cos_turns(u[1]);
-        let p1 = r * cos_phi;
-        let s = 0.5 * (1.0 + v.z);
-        let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * sin_phi;
-        let n = t1 * p1 + t2 * p2 + v * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
-        DVec3::new(alpha * n.x, alpha * n.y, n.z.max(0.0)).normalize_or_zero()
+        ggx_visible_normal(self.lobe.alpha, wo, u)
     }
 
     /// The uncompensated sample for `wo` that reflects about the drawn
