@@ -20,9 +20,11 @@
 //! draws from the single-scattering lobe divided by its own albedo E(μ), so
 //! the lost light leaves with the lobe's shape and every interaction weighs
 //! exactly 1 (a conductor base: its Fresnel reflectance). A lossless stack
-//! over a white base therefore returns every path with power 1, however
-//! many layers and grazing angles it meets inside: no weights multiply
-//! along a path. (Normals drawn from D(h)·cosθh weigh G·|ω·h|/(cosθ·cosθh),
+//! over a white base therefore returns every path with the power it had
+//! below the top (where reflection and transmission are split in
+//! expectation), however many layers and grazing angles it meets inside:
+//! no weights multiply along a path (a path that runs out of draws or
+//! events is lost, a few in 10⁴ for 16 rough layers). (Normals drawn from D(h)·cosθh weigh G·|ω·h|/(cosθ·cosθh),
 //! unbounded at grazing angles; divided by a tabulated E, as this walk
 //! once did, a stack of many layers had heavy-tailed noise: 0.64 to 2.50
 //! for sixteen lossless layers over white at neighbouring angles.)
@@ -141,8 +143,11 @@ impl WalkTables {
 }
 
 /// E at cosine `mu` from a table of [`TABLE_NODES`] (linear between
-/// the nodes, at least 10⁻³).
+/// the nodes, at least 10⁻³); 1 from an empty table (no such interface).
 fn lookup(table: &[f64], mu: f64) -> f64 {
+    if table.is_empty() {
+        return 1.0;
+    }
     let n = table.len();
     let x = (mu.clamp(0.0, 1.0) * n as f64 - 0.5).clamp(0.0, (n - 1) as f64);
     let k = (x.floor() as usize).min(n - 2);

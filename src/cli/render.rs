@@ -125,7 +125,7 @@ pub struct RenderArgs {
     #[arg(long, value_enum, default_value_t = TonemapArg::Filmic)]
     pub(super) tonemap: TonemapArg,
     /// Bounces after the first hit (0: direct light only; a translucent
-    /// stone's inside needs 2; flakes and scattering inside it are not
+    /// stone's inside needs 1; flakes and scattering inside it are not
     /// bounces).
     #[arg(long, value_name = "N", default_value_t = 4, allow_negative_numbers = true,
         value_parser = whole::<u32, 0, { MAX_BOUNCES as u64 }>)]
@@ -950,8 +950,9 @@ impl Renderer {
 }
 
 /// Bounces a path needs to show a translucent stone's inside: the
-/// refraction in is one, the flake or exit behind it the second.
-const BOUNCES_TO_SEE_INSIDE: u32 = 2;
+/// refraction in (flakes and scattering inside are no bounces, and the
+/// lights reach them through the surface within it).
+const BOUNCES_TO_SEE_INSIDE: u32 = 1;
 
 /// The warning for `--bounces` too few to show the inside of a translucent
 /// stone of the scene (it renders as its surface's reflections over
