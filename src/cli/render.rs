@@ -124,9 +124,10 @@ pub struct RenderArgs {
     /// Tone curve for PNG output.
     #[arg(long, value_enum, default_value_t = TonemapArg::Filmic)]
     pub(super) tonemap: TonemapArg,
-    /// Bounces after the first hit (0: direct light only; a translucent
-    /// stone's inside needs 1; flakes and scattering inside it are not
-    /// bounces).
+    /// Bounces after the first hit, 0 to 64 (0: direct light only; a
+    /// translucent stone's inside needs 1; its flakes and scattering are
+    /// not bounces, its internal reflections are: 4 is within about 4 % of
+    /// 32).
     #[arg(long, value_name = "N", default_value_t = 4, allow_negative_numbers = true,
         value_parser = whole::<u32, 0, { MAX_BOUNCES as u64 }>)]
     pub(super) bounces: u32,
