@@ -24,6 +24,17 @@ impl Rng {
         rng
     }
 
+    /// A generator keyed by the bits of `numbers` (salted by `salt`): the
+    /// further uniforms a sampler needs past the point it was given (a
+    /// rejection's redraws, a choice), so that they are a pure function of
+    /// that point and a stratified point stays stratified.
+    pub fn keyed_by(salt: u64, numbers: &[f64]) -> Self {
+        let key = numbers
+            .iter()
+            .fold(salt, |hash, x| mix64(hash ^ x.to_bits()));
+        Rng::new(key, 0)
+    }
+
     /// The next 64 uniformly distributed bits.
     pub fn next_u64(&mut self) -> u64 {
         self.state = self.state.wrapping_add(0x9e37_79b9_7f4a_7c15);

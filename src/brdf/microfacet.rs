@@ -7,7 +7,7 @@
 //! (appendix, "Convert degrees"), i.e. D falls to half its peak at θh = m.
 //! Beckmann and GGX take α = tan m, the RMS slope, and use Smith shadowing.
 
-use crate::sampling::{mix64, Rng};
+use crate::sampling::Rng;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -182,10 +182,7 @@ impl Microfacet {
     /// stratified. Scattering about the normal then weighs G / G1(w, h)
     /// ([`Microfacet::visible_g1`]), at most 1.
     pub(crate) fn sample_visible_normal(&self, w: DVec3, u: [f64; 2]) -> DVec3 {
-        let mut more = || {
-            let key = mix64(mix64(0x9e37_79b9_7f4a_7c15 ^ u[0].to_bits()) ^ u[1].to_bits());
-            Rng::new(key, 0)
-        };
+        let mut more = || Rng::keyed_by(0x9e37_79b9_7f4a_7c15, &u);
         match self.model {
             MicrofacetModel::Ggx => ggx_visible_normal(self.alpha, w, u),
             MicrofacetModel::Blinn => {

@@ -110,14 +110,7 @@ impl WalkTables {
     pub(crate) fn of_base(base: &Base) -> Self {
         let base_albedo = match base {
             Base::Conductor { own_lobe, .. } => tabulate(|w, u| {
-                let h = own_lobe.sample_normal(u[0], u[1]);
-                let wh = w.dot(h);
-                let r = reflect(w, h);
-                if wh <= 0.0 || r.z <= 0.0 {
-                    0.0
-                } else {
-                    own_lobe.g(w, r, h) * wh / (w.z * h.z)
-                }
+                projected_reflection(own_lobe, w, u).map_or(0.0, |(_, _, weight)| weight)
             }),
             _ => Vec::new(),
         };
@@ -293,15 +286,11 @@ fn scatter_dielectric(
     eta: f64,
     rng: &mut impl Uniforms,
 ) -> Option<(DVec3, bool)> {
-    if w_away.z <= 0.0 {
-        return None;
-    }
-    for _ in 0..MAX_DRAWS {
-        let h = lobe.sample_visible_normal(w_away, uniform_pair(rng));
-        let (choice, keep) = (rng.next_f64(), rng.next_f64());
-        let (wh, visible) = (w_away.dot(h), lobe.visible_g1(w_away, h));
-        if wh <= 0.0 || visible <= 0.0 {
-            continue;
+    let (w, _, reflected) = keep_what_shadowing_passes(lobe, w_away, rng, |h, rng| {
+        let choice = rng.next_f64();
+        let wh = w_away.dot(h);
+        if wh <= 0.0 {
+            return None;
         }
         let reflected = choice < fresnel::dielectric(wh, eta);
         let w = if reflected {
@@ -309,11 +298,9 @@ fn scatter_dielectric(
         } else {
             refract(w_away, h, eta).filter(|t| t.z < 0.0)
         };
-        if let Some(w) = w.filter(|w| keep * visible < lobe.g(w_away, *w, h)) {
-            return Some((w, reflected));
-        }
-    }
-    None
+        w.map(|w| (w, reflected))
+    })?;
+    Some((w, reflected))
 }
 
 /// A conductor's micro-facet reflection of light from `w_away` (z > 0)
@@ -326,19 +313,61 @@ fn conductor_scatter(
     w_away: DVec3,
     rng: &mut impl Uniforms,
 ) -> Option<(DVec3, DVec3)> {
+    let (w, h, ()) = keep_what_shadowing_passes(lobe, w_away, rng, |h, _| {
+        Some((reflect(w_away, h), ())).filter(|(w, _)| w.z > 0.0)
+    })?;
+    Some((w, h))
+}
+
+/// The rejection both interactions share: a normal h visible from
+/// `w_away` (z > 0), a direction `propose`d for it (which may draw numbers
+/// of its own, e.g. the Fresnel choice, and carries a tag), kept with
+/// probability G/G1(w_away, h) by the next number, else all drawn again, at
+/// most [`MAX_DRAWS`] times. Returns the kept direction, its normal and
+/// the tag.
+fn keep_what_shadowing_passes<U: Uniforms, T>(
+    lobe: &Microfacet,
+    w_away: DVec3,
+    rng: &mut U,
+    mut propose: impl FnMut(DVec3, &mut U) -> Option<(DVec3, T)>,
+) -> Option<(DVec3, DVec3, T)> {
     if w_away.z <= 0.0 {
         return None;
     }
     for _ in 0..MAX_DRAWS {
         let h = lobe.sample_visible_normal(w_away, uniform_pair(rng));
+        let proposed = propose(h, rng);
         let keep = rng.next_f64();
         let visible = lobe.visible_g1(w_away, h);
-        let w = reflect(w_away, h);
-        if visible > 0.0 && w.z > 0.0 && keep * visible < lobe.g(w_away, w, h) {
-            return Some((w, h));
+        if visible <= 0.0 {
+            continue;
+        }
+        if let Some((w, tag)) = proposed {
+            if keep * visible < lobe.g(w_away, w, h) {
+                return Some((w, h, tag));
+            }
         }
     }
     None
+}
+
+/// A conductor's reflection of light from `w_away` (z > 0) about a normal
+/// drawn from D(h) cosθh by `u`: the direction, the normal and its weight
+/// G·(ω·h)/(cosθ cosθh) (Walter et al. 2007, eq. 41; unbounded at grazing
+/// angles, so only for stratified averages); None where the normal faces
+/// away or the reflection points below the surface.
+fn projected_reflection(
+    lobe: &Microfacet,
+    w_away: DVec3,
+    u: [f64; 2],
+) -> Option<(DVec3, DVec3, f64)> {
+    let h = lobe.sample_normal(u[0], u[1]);
+    let wh = w_away.dot(h);
+    let w = reflect(w_away, h);
+    if wh <= 0.0 || w.z <= 0.0 {
+        return None;
+    }
+    Some((w, h, lobe.g(w_away, w, h) * wh / (w_away.z * h.z)))
 }
 
 /// Scatter at the base: light arrives from `w_away` (z > 0, in the frame of
@@ -350,11 +379,7 @@ pub(crate) fn scatter_base(
     rng: &mut impl Uniforms,
 ) -> Option<(DVec3, Rgb)> {
     match base {
-        Base::Diffuse { .. } => {
-            let w = cosine_hemisphere(rng.next_f64(), rng.next_f64());
-            // weight f·cos/pdf with pdf = cos/π
-            Some((w, base.eval(w_away, w) * PI))
-        }
+        Base::Diffuse { .. } => scatter_base_stratified(base, tables, w_away, uniform_pair(rng)),
         Base::Conductor { own_lobe, .. } => {
             let (w, h) = conductor_scatter(own_lobe, w_away, rng)?;
             Some((w, lookup_fresnel(&tables.base_fresnel, w_away.dot(h))))
@@ -378,18 +403,16 @@ pub(crate) fn scatter_base_stratified(
     match base {
         Base::Diffuse { .. } => {
             let w = cosine_hemisphere(u[0], u[1]);
+            // weight f·cos/pdf with pdf = cos/π
             Some((w, base.eval(w_away, w) * PI))
         }
         Base::Conductor { own_lobe, .. } => {
-            let h = own_lobe.sample_normal(u[0], u[1]);
-            let wh = w_away.dot(h);
-            let w = reflect(w_away, h);
-            if wh <= 0.0 || w.z <= 0.0 {
-                return None;
-            }
-            let weight =
-                own_lobe.g(w_away, w, h) * wh / (w_away.z * h.z) / lookup(&tables.base, w_away.z);
-            Some((w, lookup_fresnel(&tables.base_fresnel, wh) * weight))
+            let (w, h, weight) = projected_reflection(own_lobe, w_away, u)?;
+            let weight = weight / lookup(&tables.base, w_away.z);
+            Some((
+                w,
+                lookup_fresnel(&tables.base_fresnel, w_away.dot(h)) * weight,
+            ))
         }
         Base::Black => None,
     }

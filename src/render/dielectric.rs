@@ -11,7 +11,6 @@ use crate::brdf::fresnel::{self, Snell};
 use crate::brdf::microfacet::{ggx_visible_normal, reflect, refract};
 use crate::brdf::{Microfacet, MicrofacetModel};
 use crate::sampling::Rng;
-use crate::texture::hash::mix64;
 
 /// Where a ray goes at a smooth dielectric interface.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -380,12 +379,7 @@ impl RoughInterface {
                 }
             }
             numbers = more
-                .get_or_insert_with(|| {
-                    let key = u
-                        .iter()
-                        .fold(0x6a09_e667_f3bc_c909, |h: u64, x| mix64(h ^ x.to_bits()));
-                    Rng::new(key, 0)
-                })
+                .get_or_insert_with(|| Rng::keyed_by(0x6a09_e667_f3bc_c909, &u))
                 .next_3();
         }
         None
