@@ -29,7 +29,8 @@
 //! flakes) is the walk's Markov chain in the cosine, solved
 //! ([`crate::brdf::smooth_coat`]); other stacks trace stratified batches of
 //! walks only until the node's standard error is below 10⁻³
-//! ([`adaptive_walk_albedo`]); E_single of a Lambertian base is mixed from
+//! ([`adaptive_walk_albedo`]), and E_single takes batches of samples
+//! until its own is ([`single_crossing_albedo`]); E_single of a Lambertian base is mixed from
 //! a black- and a white-base table shared by every colour under the same
 //! coat. Tables are a pure function of the stack; the compiling layer
 //! (`crate::recipe::TableCache`) keeps finished ones in memory and on disk.
@@ -59,9 +60,15 @@ const MIN_WALKS_PER_NODE: usize = 1024;
 /// walks, documented as ≲ 3·10⁻³), so stopping early keeps the tables as
 /// accurate as before.
 const TARGET_STANDARD_ERROR: f64 = 1e-3;
-/// Stratified samples per node for E_single: a 64 × 64 grid (32 × 32 doubles
-/// its noise: ~5·10⁻³ near the normal, ~2·10⁻² at grazing for rough coats).
+/// Stratified samples per batch of E_single: a 64 × 64 grid. One batch
+/// leaves a standard error of up to ~6·10⁻³ for the library's rough coats
+/// at grazing angles and ~10⁻² for stacks of many rough layers: since the
+/// compensation returns E_stack − E_single, an E_single estimated low by
+/// that much makes a lossless stack reflect more than it receives.
 pub(crate) const SINGLE_SAMPLES_SIDE: usize = 64;
+/// The most batches of E_single per node (65 536 samples): a quarter of one
+/// batch's error where the target is out of reach.
+const MAX_SINGLE_BATCHES: usize = 16;
 
 /// The direction at cosine `mu` in the x–z plane.
 fn direction_at_cosine(mu: f64) -> DVec3 {
@@ -69,16 +76,49 @@ fn direction_at_cosine(mu: f64) -> DVec3 {
 }
 
 /// Directional albedo ∫ f(ωᵢ, ωₒ) cosθᵢ dωᵢ of the single-crossing model at
-/// outgoing cosine `mu`, by stratified importance sampling (the table's
-/// `SINGLE_SAMPLES_SIDE`² samples).
+/// outgoing cosine `mu`, by stratified importance sampling in batches of
+/// `SINGLE_SAMPLES_SIDE`² samples until the standard error of every
+/// channel is below `TARGET_STANDARD_ERROR` (10⁻³), as E_stack's walks, or
+/// after `MAX_SINGLE_BATCHES`. The first batch is the same whatever
+/// follows, so a node that meets the target with it keeps its value.
 pub fn single_crossing_albedo(brdf: &LayeredBrdf, mu: f64, seed: u64) -> Rgb {
-    single_crossing_albedo_sampled(brdf, mu, seed, SINGLE_SAMPLES_SIDE)
+    let (mut sum, mut variance_sum) = (Rgb::ZERO, Rgb::ZERO);
+    for batch in 0..MAX_SINGLE_BATCHES {
+        let (mean, variance) = single_crossing_batch(brdf, mu, seed, batch, SINGLE_SAMPLES_SIDE);
+        sum += mean;
+        variance_sum += variance;
+        // The batches are independent: the variance of their average is
+        // the sum of theirs over the count squared.
+        let count = (batch + 1) as f64;
+        if (variance_sum / (count * count)).max_element().sqrt() < TARGET_STANDARD_ERROR {
+            return sum / count;
+        }
+    }
+    sum / MAX_SINGLE_BATCHES as f64
 }
 
-/// [`single_crossing_albedo`] with `side`² samples (a `side` × `side`
-/// jittered grid over the two uniforms that pick the direction), so tests
-/// can compare the table's count with a finer one.
+/// [`single_crossing_albedo`]'s first batch alone, with `side`² samples (a
+/// `side` × `side` jittered grid over the two uniforms that pick the
+/// direction), so tests can compare the table's count with a finer one.
 pub fn single_crossing_albedo_sampled(brdf: &LayeredBrdf, mu: f64, seed: u64, side: usize) -> Rgb {
+    single_crossing_batch(brdf, mu, seed, 0, side).0
+}
+
+/// Batch number `batch` of E_single at cosine `mu` (`side`² stratified
+/// samples): its mean and the estimated variance of that mean. The
+/// variance is estimated from neighbouring cells of the grid, taken in
+/// pairs: E[(w − w′)²] = σ² + σ′² + (m − m′)², so Σ(w − w′)²/N² over the
+/// N/2 pairs bounds the stratified mean's variance Σσ²/N² from above by
+/// only the change of the mean between neighbours (a smooth integrand's
+/// gain from stratification is kept; independent samples' √(Var/N)
+/// would overstate a smooth coat's error some fifteenfold).
+fn single_crossing_batch(
+    brdf: &LayeredBrdf,
+    mu: f64,
+    seed: u64,
+    batch: usize,
+    side: usize,
+) -> (Rgb, Rgb) {
     let wo = direction_at_cosine(mu);
     // The single crossing alone: the material without a compensation lobe,
     // prepared once for wo (its sampler and fused eval and pdf, the closed
@@ -94,23 +134,31 @@ pub fn single_crossing_albedo_sampled(brdf: &LayeredBrdf, mu: f64, seed: u64, si
     };
     let at = brdf.at(wo);
     let n = side.max(1);
-    let mut sum = Rgb::ZERO;
-    for_each_jittered_uniform(seed, mu, n, |u| {
-        if let Some(sample) = at.sample(u) {
-            sum += sample.weight();
+    let (mut sum, mut pair_sum) = (Rgb::ZERO, Rgb::ZERO);
+    let mut previous = None;
+    // Batch 0 is the stream the tables always used; later batches salt it.
+    let stream = mu.to_bits() ^ (batch as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    for_each_jittered_uniform(seed, stream, n, |u| {
+        let weight = at.sample(u).map_or(Rgb::ZERO, |sample| sample.weight());
+        sum += weight;
+        // Cells (a, 2c) and (a, 2c + 1) are neighbours in u₂.
+        match previous.take() {
+            None => previous = Some(weight),
+            Some(first) => pair_sum += (weight - first) * (weight - first),
         }
     });
-    sum / (n * n) as f64
+    let count = (n * n) as f64;
+    (sum / count, pair_sum / (count * count))
 }
 
-/// The uniforms E_single at cosine `mu` draws from, in order: (u₁, u₂) one
-/// point in each cell of an `n` × `n` grid, and u₀ (the sampler's lobe
-/// choice) one point in each of n² strata of [0, 1), the strata dealt to
-/// the cells in random order (a Latin hypercube over u₀): the choice
-/// between lobes whose weights differ several-fold is then as stratified
-/// as the direction.
-fn for_each_jittered_uniform(seed: u64, mu: f64, n: usize, mut draw: impl FnMut([f64; 3])) {
-    let mut rng = crate::sampling::Rng::new(seed, mu.to_bits());
+/// The uniforms E_single draws from stream `stream` (of `seed`), in order:
+/// (u₁, u₂) one point in each cell of an `n` × `n` grid, and u₀ (the
+/// sampler's lobe choice) one point in each of n² strata of [0, 1), the
+/// strata dealt to the cells in random order (a Latin hypercube over u₀):
+/// the choice between lobes whose weights differ several-fold is then as
+/// stratified as the direction.
+fn for_each_jittered_uniform(seed: u64, stream: u64, n: usize, mut draw: impl FnMut([f64; 3])) {
+    let mut rng = crate::sampling::Rng::new(seed, stream);
     let count = n * n;
     let mut strata: Vec<usize> = (0..count).collect();
     shuffle(&mut strata, &mut rng);
@@ -643,7 +691,7 @@ mod tests {
         // One u₀ in each of the n² strata, one (u₁, u₂) in each grid cell.
         let n = 16;
         let (mut lobe, mut cells) = (vec![0; n * n], vec![0; n * n]);
-        for_each_jittered_uniform(5, 0.3, n, |[u0, u1, u2]| {
+        for_each_jittered_uniform(5, 0.3f64.to_bits(), n, |[u0, u1, u2]| {
             lobe[(u0 * (n * n) as f64) as usize] += 1;
             cells[(u1 * n as f64) as usize * n + (u2 * n as f64) as usize] += 1;
         });
@@ -664,7 +712,7 @@ mod tests {
             for mu in [0.05, 0.5, 0.97] {
                 let wo = direction_at_cosine(mu);
                 let mut sum = Rgb::ZERO;
-                for_each_jittered_uniform(3, mu, side, |u| {
+                for_each_jittered_uniform(3, mu.to_bits(), side, |u| {
                     if let Some((_, weight)) = brdf.sample_single_crossing(wo, u) {
                         sum += weight;
                     }
