@@ -52,8 +52,11 @@ impl Rng {
     }
 }
 
-/// The SplitMix64 output mixer (a bijection on u64 with full avalanche).
-pub fn mix64(mut z: u64) -> u64 {
+/// SplitMix64's output function (Stafford "Mix13"; Steele, Lea & Flood
+/// 2014): a cheap bijection on u64 with full avalanche, the building block
+/// of every hash and stream here and of the textures' cell hashes.
+#[inline(always)]
+pub const fn mix64(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
     z ^ (z >> 31)

@@ -370,9 +370,15 @@ fn mixed_single_crossing_table_matches_a_fine_direct_estimate() {
 /// The tables of `brdf` computed the way they were before batching: one
 /// material at a time, E_single mixed from its coat's black- and white-base
 /// tables when the base is Lambertian, E_stack in closed form, by the
-/// chain under a smooth coat or by walks.
+/// chain under a smooth coat or by walks, and E_single again to its target
+/// error where the stack keeps nearly all light.
 fn table_one_material_at_a_time(brdf: &LayeredBrdf, seed: u64) -> Option<Compensation> {
-    use lapidary::brdf::compensation::{adaptive_walk_albedo, single_crossing_albedo};
+    use lapidary::brdf::compensation::{
+        adaptive_walk_albedo, needs_refined_single, refined_single_albedo_at_node,
+        single_crossing_albedo_sampled,
+    };
+    let single_crossing_albedo =
+        |brdf: &LayeredBrdf, mu: f64, seed: u64| single_crossing_albedo_sampled(brdf, mu, seed, 64);
     use lapidary::brdf::reference::WalkTables;
     use lapidary::brdf::smooth_coat::SmoothCoatChain;
     let closed_form = SmoothCoatOverLambert::of(brdf);
@@ -412,6 +418,9 @@ fn table_one_material_at_a_time(brdf: &LayeredBrdf, seed: u64) -> Option<Compens
             _ => unreachable!(),
         };
         stack.push(e.min(Rgb::ONE));
+        if needs_refined_single(stack[k]) {
+            single[k] = refined_single_albedo_at_node(brdf, k, seed);
+        }
     }
     Compensation::from_albedos(single, stack)
 }

@@ -29,8 +29,9 @@
 //! flakes) is the walk's Markov chain in the cosine, solved
 //! ([`crate::brdf::smooth_coat`]); other stacks trace stratified batches of
 //! walks only until the node's standard error is below 10⁻³
-//! ([`adaptive_walk_albedo`]), and E_single takes batches of samples
-//! until its own is ([`single_crossing_albedo`]); E_single of a Lambertian base is mixed from
+//! ([`adaptive_walk_albedo`]); E_single takes one stratified batch of
+//! samples, and more until its own standard error is below 10⁻³ where the
+//! stack keeps nearly all light ([`needs_refined_single`]); E_single of a Lambertian base is mixed from
 //! a black- and a white-base table shared by every colour under the same
 //! coat. Tables are a pure function of the stack; the compiling layer
 //! (`crate::recipe::TableCache`) keeps finished ones in memory and on disk.
@@ -69,6 +70,9 @@ pub(crate) const SINGLE_SAMPLES_SIDE: usize = 64;
 /// The most batches of E_single per node (65 536 samples): a quarter of one
 /// batch's error where the target is out of reach.
 const MAX_SINGLE_BATCHES: usize = 16;
+/// E_stack above which a node's E_single is taken to its target error
+/// ([`needs_refined_single`]): three times one batch's worst standard error.
+const NEARLY_LOSSLESS: f64 = 0.95;
 
 /// The direction at cosine `mu` in the x–z plane.
 fn direction_at_cosine(mu: f64) -> DVec3 {
@@ -106,12 +110,16 @@ pub fn single_crossing_albedo_sampled(brdf: &LayeredBrdf, mu: f64, seed: u64, si
 
 /// Batch number `batch` of E_single at cosine `mu` (`side`² stratified
 /// samples): its mean and the estimated variance of that mean. The
-/// variance is estimated from neighbouring cells of the grid, taken in
-/// pairs: E[(w − w′)²] = σ² + σ′² + (m − m′)², so Σ(w − w′)²/N² over the
-/// N/2 pairs bounds the stratified mean's variance Σσ²/N² from above by
-/// only the change of the mean between neighbours (a smooth integrand's
-/// gain from stratification is kept; independent samples' √(Var/N)
-/// would overstate a smooth coat's error some fifteenfold).
+/// variance is estimated from samples taken in pairs of neighbours:
+/// E[(w − w′)²] = σ² + σ′² + (m − m′)², so Σ(w − w′)²/N² over the N/2
+/// pairs bounds the stratified mean's variance Σσ²/N² from above by only
+/// the change of the mean between neighbours (a smooth integrand's gain
+/// from stratification is kept; independent samples' √(Var/N) would
+/// overstate a smooth coat's error some fifteenfold). Two pairings, the
+/// smaller taken: neighbouring cells of the direction's grid (whose lobe
+/// choices are unrelated: it overstates the error of a mixture of lobes
+/// 30-fold, as for a smooth coat over a polished metal), and neighbouring
+/// strata of the lobe choice (whose directions are unrelated).
 fn single_crossing_batch(
     brdf: &LayeredBrdf,
     mu: f64,
@@ -134,21 +142,29 @@ fn single_crossing_batch(
     };
     let at = brdf.at(wo);
     let n = side.max(1);
-    let (mut sum, mut pair_sum) = (Rgb::ZERO, Rgb::ZERO);
+    let count = n * n;
+    let (mut sum, mut cell_pairs) = (Rgb::ZERO, Rgb::ZERO);
     let mut previous = None;
+    let mut by_lobe_stratum = vec![Rgb::ZERO; count];
     // Batch 0 is the stream the tables always used; later batches salt it.
     let stream = mu.to_bits() ^ (batch as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
     for_each_jittered_uniform(seed, stream, n, |u| {
         let weight = at.sample(u).map_or(Rgb::ZERO, |sample| sample.weight());
         sum += weight;
+        by_lobe_stratum[((u[0] * count as f64) as usize).min(count - 1)] = weight;
         // Cells (a, 2c) and (a, 2c + 1) are neighbours in u₂.
         match previous.take() {
             None => previous = Some(weight),
-            Some(first) => pair_sum += (weight - first) * (weight - first),
+            Some(first) => cell_pairs += (weight - first) * (weight - first),
         }
     });
-    let count = (n * n) as f64;
-    (sum / count, pair_sum / (count * count))
+    let lobe_pairs = by_lobe_stratum
+        .chunks_exact(2)
+        .fold(Rgb::ZERO, |acc, pair| {
+            acc + (pair[0] - pair[1]) * (pair[0] - pair[1])
+        });
+    let count = count as f64;
+    (sum / count, cell_pairs.min(lobe_pairs) / (count * count))
 }
 
 /// The uniforms E_single draws from stream `stream` (of `seed`), in order:
@@ -581,10 +597,29 @@ pub fn material_key(brdf: &LayeredBrdf, seed: u64) -> String {
     )
 }
 
-/// E_single of `brdf` at table node `k`, with the stream every table of
-/// `seed` uses for it (salted apart from the E_stack walks' streams).
+/// E_single of `brdf` at table node `k` from one batch of samples, with
+/// the stream every table of `seed` uses for it (salted apart from the
+/// E_stack walks' streams).
 fn single_albedo_at_node(brdf: &LayeredBrdf, k: usize, seed: u64) -> Rgb {
+    single_crossing_albedo_sampled(brdf, node_cosine(k), seed ^ 0xa1b2, SINGLE_SAMPLES_SIDE)
+}
+
+/// E_single of `brdf` at table node `k` to its target error
+/// ([`single_crossing_albedo`], whose first batch is
+/// `single_albedo_at_node`'s), for a node that [`needs_refined_single`].
+pub fn refined_single_albedo_at_node(brdf: &LayeredBrdf, k: usize, seed: u64) -> Rgb {
     single_crossing_albedo(brdf, node_cosine(k), seed ^ 0xa1b2)
+}
+
+/// Whether a node whose stack reflects `stack_albedo` takes E_single to
+/// its target error rather than from one batch: where the stack keeps
+/// nearly all light, an E_single estimated low by one batch's error (up
+/// to ~0.02 for stacks of many rough layers) would make the compensated
+/// model reflect more than it receives. Elsewhere that error moves the
+/// albedo by as much, which the walk's own noise matches, at a fraction
+/// of the compile time.
+pub fn needs_refined_single(stack_albedo: Rgb) -> bool {
+    stack_albedo.max_element() > NEARLY_LOSSLESS
 }
 
 impl LayeredBrdf {
@@ -662,19 +697,47 @@ impl Compensation {
                 }
             })
             .collect();
+        // E_single from one batch, or mixed from its pair.
+        for (material, single) in plan.materials.iter().zip(&mut single) {
+            if let Some(MaterialPlan {
+                single: SingleSource::Pair(p),
+                brdf,
+                ..
+            }) = material
+            {
+                let (black, white) = &pairs[*p];
+                let colour = base_colour(brdf);
+                *single = (0..TABLE_NODES)
+                    .map(|k| colour_mix(black[k], white[k], colour))
+                    .collect();
+            }
+        }
+        // Where the stack keeps nearly all light, E_single again, in
+        // batches to its target (`single_crossing_albedo`).
+        let refined: Vec<(usize, usize)> = plan
+            .materials
+            .iter()
+            .enumerate()
+            .filter(|(_, material)| material.is_some())
+            .flat_map(|(m, _)| (0..TABLE_NODES).map(move |k| (m, k)))
+            .filter(|&(m, k)| needs_refined_single(stack[m][k]))
+            .collect();
+        let values: Vec<Rgb> = refined
+            .par_iter()
+            .map(|&(m, k)| {
+                let plan = plan.materials[m].as_ref().expect("planned materials only");
+                refined_single_albedo_at_node(plan.brdf, k, plan.seed)
+            })
+            .collect();
+        for (&(m, k), value) in refined.iter().zip(values) {
+            single[m][k] = value;
+        }
         let tables = plan
             .materials
             .iter()
             .zip(stack.into_iter().zip(single))
-            .map(|(material, (stack, mut single))| {
-                let material = material.as_ref()?;
-                if let SingleSource::Pair(p) = material.single {
-                    let (black, white) = &pairs[p];
-                    let colour = base_colour(material.brdf);
-                    single = (0..TABLE_NODES)
-                        .map(|k| colour_mix(black[k], white[k], colour))
-                        .collect();
-                }
+            .map(|(material, (stack, single))| {
+                material.as_ref()?;
                 Self::from_albedos(single, stack)
             })
             .collect();

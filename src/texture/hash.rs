@@ -35,17 +35,10 @@
 
 use glam::IVec3;
 
+pub use crate::sampling::mix64;
+
 /// The SplitMix64 increment, ⌊2⁶⁴/φ⌋ (odd): the "golden gamma" of Steele et al. 2014.
 pub const GOLDEN_GAMMA: u64 = 0x9e37_79b9_7f4a_7c15;
-
-/// SplitMix64's output function (Stafford "Mix13"): a cheap bijective 64-bit
-/// mix with full avalanche, the building block of every hash here.
-#[inline(always)]
-pub const fn mix64(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
-}
 
 /// Turns a user seed into the start of the cell-hash chain: the first output
 /// of SplitMix64 with state `seed`. Nearby seeds give unrelated keys.
