@@ -429,7 +429,8 @@ fn table_one_material_at_a_time(brdf: &LayeredBrdf, seed: u64) -> Option<Compens
 fn batched_tables_are_bit_identical_to_one_material_at_a_time() {
     // Library materials of every kind (walked rough coats, metals, a
     // multi-layer paint), two colours under one coat (one shared pair), an
-    // Oren-Nayar base, a black base and a bare Lambert surface.
+    // Oren-Nayar base, a black base, a nearly white base (refined E_single)
+    // and a bare Lambert surface.
     let mut materials: Vec<LayeredBrdf> = ["sugar", "brass", "light-blue-house-paint", "ice"]
         .iter()
         .map(|name| {
@@ -461,6 +462,15 @@ fn batched_tables_are_bit_identical_to_one_material_at_a_time() {
         },
     ));
     materials.push(coated(1.6, 0.0, absorption, Base::Black));
+    // Nearly white under a clear rough coat: the stack keeps nearly all
+    // light, so E_single is refined past its pair's mix.
+    let nearly_white = materials.len();
+    materials.push(coated(
+        1.5,
+        15.0,
+        Rgb::ZERO,
+        lambert(Rgb::new(0.97, 0.98, 0.99)),
+    ));
     materials.push(LayeredBrdf::new(
         "bare",
         MicrofacetModel::Blinn,
@@ -473,6 +483,13 @@ fn batched_tables_are_bit_identical_to_one_material_at_a_time() {
         .map(|brdf| format!("{:?}", table_one_material_at_a_time(brdf, seed)))
         .collect();
     assert!(expected.iter().filter(|t| t.starts_with("Some")).count() >= 6);
+    let refined = table_one_material_at_a_time(&materials[nearly_white], seed)
+        .unwrap()
+        .stack_albedo
+        .iter()
+        .filter(|&&e| lapidary::brdf::compensation::needs_refined_single(e))
+        .count();
+    assert!(refined > 0, "no node of the nearly white stack is refined");
     let requests: Vec<(&LayeredBrdf, u64)> = materials.iter().map(|b| (b, seed)).collect();
     for threads in [1, 3] {
         let pool = rayon::ThreadPoolBuilder::new()

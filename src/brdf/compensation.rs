@@ -84,7 +84,9 @@ fn direction_at_cosine(mu: f64) -> DVec3 {
 /// `SINGLE_SAMPLES_SIDE`² samples until the standard error of every
 /// channel is below `TARGET_STANDARD_ERROR` (10⁻³), as E_stack's walks, or
 /// after `MAX_SINGLE_BATCHES`. The first batch is the same whatever
-/// follows, so a node that meets the target with it keeps its value.
+/// follows (a table's one-batch value, when the material's own). A batch
+/// with a low mean also tends to have a low estimated error, so stopping
+/// early leans low, by up to about the target.
 pub fn single_crossing_albedo(brdf: &LayeredBrdf, mu: f64, seed: u64) -> Rgb {
     let (mut sum, mut variance_sum) = (Rgb::ZERO, Rgb::ZERO);
     for batch in 0..MAX_SINGLE_BATCHES {
@@ -148,10 +150,10 @@ fn single_crossing_batch(
     let mut by_lobe_stratum = vec![Rgb::ZERO; count];
     // Batch 0 is the stream the tables always used; later batches salt it.
     let stream = mu.to_bits() ^ (batch as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-    for_each_jittered_uniform(seed, stream, n, |u| {
+    for_each_jittered_uniform(seed, stream, n, |u, lobe_stratum| {
         let weight = at.sample(u).map_or(Rgb::ZERO, |sample| sample.weight());
         sum += weight;
-        by_lobe_stratum[((u[0] * count as f64) as usize).min(count - 1)] = weight;
+        by_lobe_stratum[lobe_stratum] = weight;
         // Cells (a, 2c) and (a, 2c + 1) are neighbours in u₂.
         match previous.take() {
             None => previous = Some(weight),
@@ -172,19 +174,28 @@ fn single_crossing_batch(
 /// sampler's lobe choice) one point in each of n² strata of [0, 1), the
 /// strata dealt to the cells in random order (a Latin hypercube over u₀):
 /// the choice between lobes whose weights differ several-fold is then as
-/// stratified as the direction.
-fn for_each_jittered_uniform(seed: u64, stream: u64, n: usize, mut draw: impl FnMut([f64; 3])) {
+/// stratified as the direction. `draw` also takes u₀'s stratum.
+fn for_each_jittered_uniform(
+    seed: u64,
+    stream: u64,
+    n: usize,
+    mut draw: impl FnMut([f64; 3], usize),
+) {
     let mut rng = crate::sampling::Rng::new(seed, stream);
     let count = n * n;
     let mut strata: Vec<usize> = (0..count).collect();
     shuffle(&mut strata, &mut rng);
     for a in 0..n {
         for b in 0..n {
-            draw([
-                (strata[a * n + b] as f64 + rng.next_f64()) / count as f64,
-                (a as f64 + rng.next_f64()) / n as f64,
-                (b as f64 + rng.next_f64()) / n as f64,
-            ]);
+            let stratum = strata[a * n + b];
+            draw(
+                [
+                    (stratum as f64 + rng.next_f64()) / count as f64,
+                    (a as f64 + rng.next_f64()) / n as f64,
+                    (b as f64 + rng.next_f64()) / n as f64,
+                ],
+                stratum,
+            );
         }
     }
 }
@@ -534,8 +545,9 @@ impl<'a> TablePlan<'a> {
         TablePlan { materials, pairs }
     }
 
-    /// Every node to compute: the walks first (the longest jobs), then
-    /// direct and paired E_single.
+    /// Every node of the first parallel loop: the walks first (the longest
+    /// jobs), then direct and paired E_single from one batch (nodes that
+    /// need more follow in a second loop, once E_stack is known).
     fn jobs(&self) -> Vec<NodeJob> {
         let mut jobs = Vec::new();
         for (material, plan) in self.materials.iter().enumerate() {
@@ -646,7 +658,9 @@ impl Compensation {
     /// computed in one parallel loop: a gem's or a scene's materials keep
     /// every thread busy to the end instead of each table waiting on its
     /// slowest node, and a shared black/white pair does not hold the
-    /// others up. Each node is the same deterministic call either way, so the
+    /// others up; then the nodes whose stack keeps nearly all light take
+    /// the material's own E_single to its target error in a second
+    /// ([`needs_refined_single`]). Each node is the same deterministic call either way, so the
     /// tables are bit for bit those of one-by-one computation, whatever the
     /// number of threads. Bare Lambert surfaces ([`needs_no_table`]) get
     /// None without any work.
@@ -754,7 +768,8 @@ mod tests {
         // One u₀ in each of the n² strata, one (u₁, u₂) in each grid cell.
         let n = 16;
         let (mut lobe, mut cells) = (vec![0; n * n], vec![0; n * n]);
-        for_each_jittered_uniform(5, 0.3f64.to_bits(), n, |[u0, u1, u2]| {
+        for_each_jittered_uniform(5, 0.3f64.to_bits(), n, |[u0, u1, u2], stratum| {
+            assert_eq!((u0 * (n * n) as f64) as usize, stratum);
             lobe[(u0 * (n * n) as f64) as usize] += 1;
             cells[(u1 * n as f64) as usize * n + (u2 * n as f64) as usize] += 1;
         });
@@ -775,7 +790,7 @@ mod tests {
             for mu in [0.05, 0.5, 0.97] {
                 let wo = direction_at_cosine(mu);
                 let mut sum = Rgb::ZERO;
-                for_each_jittered_uniform(3, mu.to_bits(), side, |u| {
+                for_each_jittered_uniform(3, mu.to_bits(), side, |u, _| {
                     if let Some((_, weight)) = brdf.sample_single_crossing(wo, u) {
                         sum += weight;
                     }
