@@ -40,10 +40,11 @@ use crate::brdf::fresnel;
 use crate::brdf::layer::Base;
 use crate::brdf::reference::{trace_path_with, PresetUniforms, WalkTables};
 use crate::brdf::smooth_coat::{base_is_lambert_or_black, the_smooth_coat, SmoothCoatChain};
-use crate::brdf::stack::LayeredBrdf;
+use crate::brdf::stack::{BrdfAt, LayeredBrdf};
 use crate::brdf::Rgb;
 use glam::DVec3;
 use rayon::prelude::*;
+use std::borrow::Cow;
 
 pub use crate::brdf::compensation_lobe::{node_cosine, Compensation, TABLE_NODES};
 
@@ -88,9 +89,11 @@ fn direction_at_cosine(mu: f64) -> DVec3 {
 /// with a low mean also tends to have a low estimated error, so stopping
 /// early leans low, by up to about the target.
 pub fn single_crossing_albedo(brdf: &LayeredBrdf, mu: f64, seed: u64) -> Rgb {
+    let bare = without_compensation(brdf);
+    let at = bare.at(direction_at_cosine(mu));
     let (mut sum, mut variance_sum) = (Rgb::ZERO, Rgb::ZERO);
     for batch in 0..MAX_SINGLE_BATCHES {
-        let (mean, variance) = single_crossing_batch(brdf, mu, seed, batch, SINGLE_SAMPLES_SIDE);
+        let (mean, variance) = single_crossing_batch(&at, mu, seed, batch, SINGLE_SAMPLES_SIDE);
         sum += mean;
         variance_sum += variance;
         // The batches are independent: the variance of their average is
@@ -107,11 +110,25 @@ pub fn single_crossing_albedo(brdf: &LayeredBrdf, mu: f64, seed: u64) -> Rgb {
 /// `side` × `side` jittered grid over the two uniforms that pick the
 /// direction), so tests can compare the table's count with a finer one.
 pub fn single_crossing_albedo_sampled(brdf: &LayeredBrdf, mu: f64, seed: u64, side: usize) -> Rgb {
-    single_crossing_batch(brdf, mu, seed, 0, side).0
+    let bare = without_compensation(brdf);
+    single_crossing_batch(&bare.at(direction_at_cosine(mu)), mu, seed, 0, side).0
 }
 
-/// Batch number `batch` of E_single at cosine `mu` (`side`² stratified
-/// samples): its mean and the estimated variance of that mean. The
+/// The single crossing alone: `brdf` without its compensation lobe (its
+/// sampler and fused eval and pdf, the closed form for a coat over
+/// Lambert; equal to `sample_single_crossing`), copied only when it has one.
+fn without_compensation(brdf: &LayeredBrdf) -> Cow<'_, LayeredBrdf> {
+    if brdf.compensation.is_some() {
+        let mut bare = brdf.clone();
+        bare.compensation = None;
+        Cow::Owned(bare)
+    } else {
+        Cow::Borrowed(brdf)
+    }
+}
+
+/// Batch number `batch` of E_single at cosine `mu` from the single
+/// crossing prepared for it, `at` (`side`² stratified samples): its mean and the estimated variance of that mean. The
 /// variance is estimated from samples taken in pairs of neighbours:
 /// E[(w − w′)²] = σ² + σ′² + (m − m′)², so Σ(w − w′)²/N² over the N/2
 /// pairs bounds the stratified mean's variance Σσ²/N² from above by only
@@ -123,26 +140,12 @@ pub fn single_crossing_albedo_sampled(brdf: &LayeredBrdf, mu: f64, seed: u64, si
 /// 30-fold, as for a smooth coat over a polished metal), and neighbouring
 /// strata of the lobe choice (whose directions are unrelated).
 fn single_crossing_batch(
-    brdf: &LayeredBrdf,
+    at: &BrdfAt<'_>,
     mu: f64,
     seed: u64,
     batch: usize,
     side: usize,
 ) -> (Rgb, Rgb) {
-    let wo = direction_at_cosine(mu);
-    // The single crossing alone: the material without a compensation lobe,
-    // prepared once for wo (its sampler and fused eval and pdf, the closed
-    // form for a coat over Lambert; equal to `sample_single_crossing`).
-    let single;
-    let brdf = if brdf.compensation.is_some() {
-        let mut bare = brdf.clone();
-        bare.compensation = None;
-        single = bare;
-        &single
-    } else {
-        brdf
-    };
-    let at = brdf.at(wo);
     let n = side.max(1);
     let count = n * n;
     let (mut sum, mut cell_pairs) = (Rgb::ZERO, Rgb::ZERO);
@@ -728,22 +731,19 @@ impl Compensation {
         }
         // Where the stack keeps nearly all light, E_single again, in
         // batches to its target (`single_crossing_albedo`).
-        let refined: Vec<(usize, usize)> = plan
+        let refined: Vec<(usize, usize, &MaterialPlan)> = plan
             .materials
             .iter()
             .enumerate()
-            .filter(|(_, material)| material.is_some())
-            .flat_map(|(m, _)| (0..TABLE_NODES).map(move |k| (m, k)))
-            .filter(|&(m, k)| needs_refined_single(stack[m][k]))
+            .filter_map(|(m, material)| Some((m, material.as_ref()?)))
+            .flat_map(|(m, material)| (0..TABLE_NODES).map(move |k| (m, k, material)))
+            .filter(|&(m, k, _)| needs_refined_single(stack[m][k]))
             .collect();
         let values: Vec<Rgb> = refined
             .par_iter()
-            .map(|&(m, k)| {
-                let plan = plan.materials[m].as_ref().expect("planned materials only");
-                refined_single_albedo_at_node(plan.brdf, k, plan.seed)
-            })
+            .map(|&(_, k, material)| refined_single_albedo_at_node(material.brdf, k, material.seed))
             .collect();
-        for (&(m, k), value) in refined.iter().zip(values) {
+        for (&(m, k, _), value) in refined.iter().zip(values) {
             single[m][k] = value;
         }
         let tables = plan
