@@ -1,6 +1,10 @@
 //! What a file is from its first bytes, for the messages about a file
 //! given in the wrong place: an image given as a recipe, a PNG renamed
-//! `.hdr`, an OpenEXR map named `.hdr`.
+//! `.hdr`, an OpenEXR map named `.hdr`; and what a path is when it is no
+//! regular file (a pipe would keep a reader waiting, a device like
+//! `/dev/zero` never ends).
+
+use std::path::Path;
 
 /// A kind of file told by its first bytes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -53,5 +57,48 @@ impl FileKind {
             FileKind::RadianceHdr => "a Radiance HDR image",
             FileKind::Utf16 => "UTF-16 text",
         }
+    }
+}
+
+/// What `path` is, in words with their article, when it is not a regular
+/// file (after symbolic links): "a directory", "a pipe", "a device", "a
+/// socket". None for a regular file, and for a path that cannot be looked
+/// at (opening it then says why). Asked before a file is opened, since
+/// opening a pipe waits for a writer.
+pub(crate) fn not_a_regular_file(path: &Path) -> Option<&'static str> {
+    let kind = std::fs::metadata(path).ok()?.file_type();
+    if kind.is_file() {
+        return None;
+    }
+    if kind.is_dir() {
+        return Some("a directory");
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if kind.is_fifo() {
+            return Some("a pipe");
+        }
+        if kind.is_socket() {
+            return Some("a socket");
+        }
+        if kind.is_block_device() || kind.is_char_device() {
+            return Some("a device");
+        }
+    }
+    Some("not a regular file")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn directories_and_devices_are_no_regular_files() {
+        assert_eq!(not_a_regular_file(Path::new(".")), Some("a directory"));
+        assert_eq!(not_a_regular_file(Path::new("Cargo.toml")), None);
+        assert_eq!(not_a_regular_file(Path::new("no/such/file")), None);
+        #[cfg(unix)]
+        assert_eq!(not_a_regular_file(Path::new("/dev/zero")), Some("a device"));
     }
 }

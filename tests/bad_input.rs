@@ -1032,6 +1032,115 @@ fn a_directory_instead_of_a_file() {
     assert_refused("directory-brdf", &out, &needles);
 }
 
+/// Runs lapidary, failing the test (not hanging it) when the command is
+/// still running after 60 s.
+fn lapidary_within_a_minute(args: &[OsString]) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lapidary"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("binary runs");
+    let started = std::time::Instant::now();
+    while child.try_wait().expect("waits").is_none() {
+        if started.elapsed() > std::time::Duration::from_secs(60) {
+            let _ = child.kill();
+            panic!("lapidary {args:?} still runs after 60 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().expect("output")
+}
+
+#[cfg(unix)]
+#[test]
+fn a_pipe_or_a_device_instead_of_a_file_is_refused_without_waiting() {
+    let dir = scratch("pipe");
+    let made = |name: &str| {
+        let path = dir.join(name);
+        let status = Command::new("mkfifo")
+            .arg(&path)
+            .status()
+            .expect("mkfifo runs");
+        assert!(status.success(), "mkfifo {}", path.display());
+        path
+    };
+    let (recipe, map, tile) = (made("gem.ron"), made("sky.exr"), made("tile.exr"));
+    let small = ["--size", "8", "--spp", "1"].map(OsString::from);
+    let render = |extra: &[OsString]| {
+        let mut args = vec![OsString::from("render")];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&small);
+        args
+    };
+    let cases: [(&str, Vec<OsString>, String); 6] = [
+        (
+            "validate",
+            vec!["validate".into(), recipe.clone().into()],
+            format!("{}: is a pipe, expected a .ron", recipe.display()),
+        ),
+        (
+            "render",
+            render(&[recipe.clone().into()]),
+            format!(
+                "{}: is a pipe, expected a .ron gem recipe",
+                recipe.display()
+            ),
+        ),
+        (
+            "scene",
+            render(&["--scene".into(), recipe.clone().into()]),
+            format!("{}: is a pipe", recipe.display()),
+        ),
+        (
+            "device",
+            render(&["--scene".into(), "/dev/zero".into()]),
+            "/dev/zero: is a device".to_string(),
+        ),
+        (
+            "map",
+            render(&["--env".into(), map.clone().into()]),
+            format!("{}: is a pipe", map.display()),
+        ),
+        (
+            "merge",
+            vec![
+                "merge".into(),
+                tile.clone().into(),
+                "-o".into(),
+                dir.join("m.png").into(),
+            ],
+            format!("{}: is a pipe, not a tile file", tile.display()),
+        ),
+    ];
+    for (case, mut args, needle) in cases {
+        if args[0] == "render" {
+            args.extend(["-o".into(), dir.join(format!("{case}.png")).into()]);
+        }
+        let out = lapidary_within_a_minute(&args);
+        assert_refused(case, &out, &[needle]);
+    }
+    assert_eq!(files_in(&dir), ["gem.ron", "sky.exr", "tile.exr"]);
+}
+
+#[test]
+fn a_recipe_file_larger_than_any_recipe_is_refused_unread() {
+    let dir = scratch("huge");
+    let recipe = dir.join("huge.ron");
+    let mut text = GOOD_GEM.to_string();
+    text.push_str(&" ".repeat(17 << 20));
+    std::fs::write(&recipe, text).unwrap();
+    let out = lapidary(&[OsString::from("validate"), recipe.clone().into()]);
+    assert_refused(
+        "huge",
+        &out,
+        &[format!(
+            "{}: is larger than 16 MiB; allowed: a .ron recipe (gem, material, scene or job) of at most 16 MiB",
+            recipe.display()
+        )],
+    );
+}
+
 #[test]
 fn a_missing_recipe_file() {
     let dir = scratch("missing");
@@ -1315,6 +1424,23 @@ fn scene_with_an_empty_stone_list() {
         .and_then(|s| s.split("\n    ],").next())
         .unwrap();
     bad_scene("scene-no-stones", from, "", "stones: [", &["stones"]);
+}
+
+#[test]
+fn scene_with_more_lights_than_allowed() {
+    let lights: Vec<String> = (0..1025)
+        .map(|k| format!("Point(position: ({k}.0, 0.0, 30.0), intensity: (1.0, 1.0, 1.0))"))
+        .collect();
+    bad_scene(
+        "scene-lights",
+        "    environment:",
+        &format!(
+            "    lights: [\n        {}\n    ],\n    environment:",
+            lights.join(",\n        ")
+        ),
+        "lights: [",
+        &["`lights` has 1025 lights; allowed: 0 to 1024 lights"],
+    );
 }
 
 /// A scene made from [`GOOD_SCENE`] by replacing `from` with `to`, naming

@@ -212,12 +212,9 @@ fn switches_in_the_environment_are_read_in_any_case_and_others_are_said_to_be_ig
     );
 }
 
-#[test]
-fn an_output_through_a_symbolic_link_replaces_the_file_it_points_to() {
-    let dir = scratch("symlink");
-    let (target, link) = (dir.join("target.png"), dir.join("link.png"));
-    std::fs::write(&target, "old").unwrap();
-    std::os::unix::fs::symlink("target.png", &link).unwrap();
+/// `lapidary render --size 8 --spp 1 -q -o OUTPUT` of the default gem,
+/// which must succeed.
+fn render_tiny(output: &Path) {
     let out = lapidary(&[
         "render",
         "--size",
@@ -226,11 +223,30 @@ fn an_output_through_a_symbolic_link_replaces_the_file_it_points_to() {
         "1",
         "-q",
         "-o",
-        link.to_str().unwrap(),
+        output.to_str().unwrap(),
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
+}
+
+#[test]
+fn an_output_through_a_symbolic_link_replaces_the_file_it_points_to() {
+    let dir = scratch("symlink");
+    let (target, link) = (dir.join("target.png"), dir.join("link.png"));
+    std::fs::write(&target, "old").unwrap();
+    std::os::unix::fs::symlink("target.png", &link).unwrap();
+    render_tiny(&link);
     assert!(link.is_symlink(), "the link was replaced by a file");
     assert_eq!(&std::fs::read(&target).unwrap()[1..4], b"PNG");
+}
+
+#[test]
+fn an_output_name_of_the_longest_length_a_file_system_allows_is_written() {
+    // 255 bytes: the temporary file beside it cannot add `.NAME.PID.tmp`
+    // to that, so it takes a shortened name of its own.
+    let dir = scratch("long-name");
+    let name = format!("{}.png", "a".repeat(251));
+    render_tiny(&dir.join(&name));
+    assert_eq!(files_in(&dir), [name]);
 }
 
 #[test]

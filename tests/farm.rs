@@ -223,7 +223,7 @@ fn impossible_frames_and_tiles_are_refused_before_any_work() {
     let dir = scratch("flags");
     let exr = dir.join("x.exr");
     let png = dir.join("x.png");
-    let cases: [(&[&str], &str, &Path); 8] = [
+    let cases: [(&[&str], &str, &Path); 9] = [
         (&["--tile", "5/4"], "allowed 0 to 3", &exr),
         (&["--tile", "0/0"], "allowed 1 to 24", &exr),
         (&["--tile", "0/25"], "allowed 1 to 24", &exr),
@@ -232,6 +232,13 @@ fn impossible_frames_and_tiles_are_refused_before_any_work() {
         (&["--frames", "0"], "--frames 0: allowed 1 to 3600", &png),
         (&["--frame", "1"], "--frame needs a turntable", &png),
         (&["--turn", "camera"], "--turn needs a turntable", &png),
+        // Its film fits in 0.0001 GiB (105 KiB); its animation's 3600
+        // frames, kept until the last, do not.
+        (
+            &["--frames", "3600", "--max-memory", "0.0001"],
+            "an animated PNG of 3600 frames of 32 × 24 keeps every frame until the last",
+            &png,
+        ),
     ];
     for (extra, expected, out) in cases {
         let mut args = SMALL.to_vec();
@@ -410,6 +417,61 @@ fn merge_refuses_every_tile_that_does_not_belong_and_writes_nothing() {
         s(&t("file-gem.exr")),
     ]);
     assert_eq!(bytes(&from_file), bytes(&out));
+}
+
+#[test]
+fn a_tile_whose_record_or_header_lies_about_its_size_is_refused_before_its_pixels() {
+    use lapidary::farm::record::TILE_NOTE;
+    use lapidary::output::exr::{read_exr, write_exr_with_note, Band};
+    let dir = scratch("forged");
+    let t = |name: &str| dir.join(name);
+    tile(&t("a0.exr"), 0, 2, "2", &[]);
+    tile(&t("a1.exr"), 1, 2, "2", &[]);
+    let a0 = read_exr(&t("a0.exr")).unwrap();
+    let record = &a0.notes.iter().find(|(k, _)| k == TILE_NOTE).unwrap().1;
+    assert!(record.contains("size: 32x24\n") && record.contains("tile: 0 of 2\n"));
+    // The same pixels (rows 0 to 11 of a 32 × 24 image) under a record
+    // that says otherwise.
+    let forge = |name: &str, size: &str, tile: &str| {
+        let text = record
+            .replace("size: 32x24\n", &format!("size: {size}\n"))
+            .replace("tile: 0 of 2\n", &format!("tile: {tile}\n"));
+        let band = Band {
+            rows: 0..12,
+            image_height_px: 24,
+        };
+        write_exr_with_note(&t(name), 32, band, a0.channels.clone(), (TILE_NOTE, &text)).unwrap();
+    };
+    // An image no render makes, split into more tiles than any merge
+    // could list: refused at its record (it used to take gigabytes).
+    forge("tall.exr", "32x1600000000", "0 of 300000000");
+    forge("wide.exr", "4000000000x24", "0 of 2");
+    // A record of another size than the file's pixels.
+    forge("other.exr", "32x48", "0 of 2");
+    let out = t("out.png");
+    for (name, expected) in [
+        (
+            "tall.exr",
+            "tall.exr: damaged: its record says the image is 32×1600000000 pixels; allowed: 1 to 32768 a side",
+        ),
+        ("wide.exr", "allowed: 1 to 32768 a side"),
+        (
+            "other.exr",
+            "other.exr: damaged: it is 32×12 pixels, but tile 0 of 2 of a 32×48 image is 32×24",
+        ),
+    ] {
+        refused(&["merge", "-o", s(&out), s(&t(name)), s(&t("a1.exr"))], expected);
+        assert!(!out.exists(), "{name}: an output was written");
+    }
+    // Of a render split into many tiles, only a few are listed missing.
+    let mut args = SMALL.to_vec();
+    let many = t("many.exr");
+    args.extend(["--tile", "0/24", "-q", "-o", s(&many)]);
+    ok(&args);
+    refused(
+        &["merge", "-o", s(&out), s(&many)],
+        "tiles 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, … (23 in all) of 24 are missing",
+    );
 }
 
 #[test]
@@ -631,6 +693,16 @@ fn bad_jobs_are_refused_with_the_place_and_the_allowed_range() {
             JOB.replace("recipes: [\"sunstone\"]", "recipes: [\"sunstones\"]"),
             "job.ron:3:15: recipe `sunstones` does not load",
         ),
+        // A task's tile of 32768 × 16384 pixels needs 67 GiB; tiles of at
+        // most 978 rows fit in the 4 GiB a task may take.
+        (
+            JOB.replace("width: 32, height: 24", "width: 32768, height: 32768"),
+            "job.ron:6:",
+        ),
+        (
+            JOB.replace("width: 32, height: 24", "width: 32768, height: 32768"),
+            "allowed: `tiles` from 34 (`tiles` = 2 now)",
+        ),
     ];
     for (text, expected) in cases {
         std::fs::write(&job, &text).unwrap();
@@ -647,6 +719,18 @@ fn bad_jobs_are_refused_with_the_place_and_the_allowed_range() {
     refused(&["batch", s(&job), "--task", "4"], "allowed 0 to 3");
     refused(&["batch", s(&job), "--merge"], "4 of 4 tiles are missing");
     assert!(!dir.join("out").join("sunstone-studio.png").exists());
+    // With every tile there but the animation's path taken by a folder,
+    // the merge writes no frame either: all images or none.
+    for task in ["0", "1", "2", "3"] {
+        ok(&["batch", s(&job), "--task", task, "-q"]);
+    }
+    let animation = dir.join("out").join("sunstone-studio.png");
+    std::fs::create_dir(&animation).unwrap();
+    refused(&["batch", s(&job), "--merge", "-q"], "is a directory");
+    assert!(!dir.join("out").join("sunstone-studio-0000.png").exists());
+    std::fs::remove_dir(&animation).unwrap();
+    ok(&["batch", s(&job), "--merge", "-q"]);
+    assert!(animation.is_file() && dir.join("out").join("sunstone-studio-0001.png").is_file());
 }
 
 #[test]

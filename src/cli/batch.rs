@@ -197,6 +197,14 @@ fn merge_all(job: &Job, args: &BatchArgs) -> Result<(), String> {
             }
         }
     }
+    // Every image's file can be written, or none is: a merge that stops
+    // midway would leave some images new and the rest old.
+    for image in 0..job.images.len() {
+        let stills = frames.iter().map(|frame| job.image_path(image, *frame));
+        for path in stills.chain(job.animation_path(image)) {
+            lapidary::output::check_writable(&path).map_err(|e| e.to_string())?;
+        }
+    }
     for (image, _) in job.images.iter().enumerate() {
         let mut pictures = Vec::new();
         for (f, frame) in frames.iter().enumerate() {

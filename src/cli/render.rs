@@ -329,6 +329,34 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
     Ok((width, height))
 }
 
+/// Refuses, before any frame is rendered, an animated PNG whose frames
+/// (kept until the last is done, 3 bytes a pixel) and film would not fit
+/// in `--max-memory` or in the memory available.
+fn check_animation_memory(
+    args: &RenderArgs,
+    width: u32,
+    height: u32,
+    frames: usize,
+) -> Result<(), String> {
+    use super::memory::{amount, available_bytes, gib, render_needs};
+    let held = 3 * u64::from(width) * u64::from(height) * frames as u64;
+    let needed = render_needs(width, height).saturating_add(held);
+    let limit = if gib(needed) > args.max_memory {
+        format!("the --max-memory limit of {} GiB", args.max_memory)
+    } else if needed > available_bytes() {
+        format!("the {} available", amount(available_bytes()))
+    } else {
+        return Ok(());
+    };
+    Err(format!(
+        "{}: an animated PNG of {frames} frames of {width} × {height} keeps every frame until the last: \
+         {} with the film, above {limit}; render fewer --frames or a smaller --size, write .exr frames \
+         (no animation), or render frame by frame with --frame K",
+        args.output.display(),
+        amount(needed)
+    ))
+}
+
 /// Run `lapidary render`: a still, a turntable's frames (and its animated
 /// PNG), one frame, or one tile of any of them.
 pub fn run(args: RenderArgs) -> Result<(), String> {
@@ -377,6 +405,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     .then(|| args.output.clone());
     if let Some(path) = &animation {
         lapidary::output::check_writable(path).map_err(|e| e.to_string())?;
+        check_animation_memory(&args, width, height, frames.len())?;
     }
     let mut renderer = Renderer::prepare(&args, inputs, width, height, turntable)?;
     if let Some(split) = split {

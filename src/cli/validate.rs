@@ -31,6 +31,7 @@ use lapidary::render::prepare::stone_instances;
 use lapidary::render::world::World;
 use lapidary::scene::spec::{EnvironmentKind, SceneSpec};
 use lapidary::scene::{parse_scene, EnvironmentSpec, DEFAULT_SCENE_SOURCE};
+use std::collections::HashSet;
 use std::path::Path;
 
 /// Name under which `validate` accepts the built-in studio scene.
@@ -172,14 +173,14 @@ fn unused_definitions(gem: &Gem) -> Vec<String> {
     // Maps reached from the surface's root, through entries, ranges and
     // `per_cell_of`; the materials they, the glitter and the inclusions
     // name.
-    let mut reached: Vec<&str> = Vec::new();
-    let mut used_materials: Vec<&str> = vec![spec.surface.as_str()];
+    let mut reached: HashSet<&str> = HashSet::new();
+    let mut used_materials: HashSet<&str> = HashSet::from([spec.surface.as_str()]);
     let mut to_visit = vec![spec.surface.as_str()];
     while let Some(name) = to_visit.pop() {
         let Some(map) = spec.maps.get(name).filter(|_| !reached.contains(&name)) else {
             continue;
         };
-        reached.push(name);
+        reached.insert(name);
         let (maps, materials): (Vec<_>, Vec<_>) = match map {
             MapSpec::SurfaceMap { entries, .. } => entries
                 .iter()
@@ -204,18 +205,35 @@ fn unused_definitions(gem: &Gem) -> Vec<String> {
     if let BodySpec::Translucent { inclusions, .. } = &spec.body {
         used_materials.extend(inclusions.iter().map(|i| i.material.as_str()));
     }
-    let materials = spec
+    let materials: Vec<String> = spec
         .materials
         .keys()
-        .filter(|name| !used_materials.contains(&name.as_str()))
-        .map(|name| format!("material `{name}` is used nowhere"));
-    let maps = spec
+        .filter(|name| !used_materials.contains(name.as_str()))
+        .map(|name| format!("material `{name}` is used nowhere"))
+        .collect();
+    let maps: Vec<String> = spec
         .maps
         .keys()
-        .filter(|name| !reached.contains(&name.as_str()))
-        .map(|name| format!("map `{name}` is used nowhere (the surface does not reach it)"));
-    materials.chain(maps).collect()
+        .filter(|name| !reached.contains(name.as_str()))
+        .map(|name| format!("map `{name}` is used nowhere (the surface does not reach it)"))
+        .collect();
+    let mut warnings = Vec::new();
+    for (list, kind) in [(materials, "materials"), (maps, "maps")] {
+        let count = list.len();
+        warnings.extend(list.into_iter().take(MOST_UNUSED_NAMED));
+        if count > MOST_UNUSED_NAMED {
+            warnings.push(format!(
+                "… and {} more {kind} are used nowhere",
+                count - MOST_UNUSED_NAMED
+            ));
+        }
+    }
+    warnings
 }
+
+/// The most unused materials (and maps) named one by one; the rest are
+/// counted in one line.
+const MOST_UNUSED_NAMED: usize = 10;
 
 /// Validate a material file: parse and compile (without the compensation
 /// tables).
@@ -413,7 +431,32 @@ pub fn check_job_inputs(path: &str, text: &str, job: &Job) -> Result<Vec<String>
         .iter()
         .filter_map(|image| image.scene.as_ref())
         .map(|scene| ("scene", scene.display().to_string()));
-    let mut checked = std::collections::HashSet::new();
+    // A task renders one tile, whose film must fit in what a task may
+    // take; the tallest tile of each image decides.
+    for image in &job.images {
+        let settings = &image.settings;
+        let rows = settings.height.div_ceil(job.tiles);
+        let needed = super::memory::render_needs(settings.width, rows);
+        let limit = super::render::DEFAULT_MAX_MEMORY_GIB;
+        if super::memory::gib(needed) > limit {
+            let per_row = super::memory::render_needs(settings.width, 1) as f64;
+            let most_rows = ((limit * f64::from(1u32 << 30) / per_row).floor() as u32).max(1);
+            let tiles_needed = settings.height.div_ceil(most_rows);
+            return Err(RecipeError::at_text(
+                path,
+                text,
+                "tiles",
+                format!(
+                    "image `{}`: a tile of {} × {rows} pixels needs {} of memory for its film, above the {limit} GiB a task may take; allowed: `tiles` from {tiles_needed} (`tiles` = {} now)",
+                    image.name,
+                    settings.width,
+                    super::memory::amount(needed),
+                    job.tiles
+                ),
+            ));
+        }
+    }
+    let mut checked = HashSet::new();
     let mut warnings = Vec::new();
     for (what, spec) in recipes.chain(scenes) {
         if !checked.insert(spec.clone()) {

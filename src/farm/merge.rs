@@ -6,8 +6,10 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::output::exr::{read_exr, read_exr_notes, ChannelData, ExrChannel};
+use crate::file_kind::not_a_regular_file;
+use crate::output::exr::{read_exr, read_exr_header, ChannelData, ExrChannel, ExrHeader};
 use crate::output::tonemap::DisplayTransform;
+use crate::render::still::MAX_SIDE_PX;
 use crate::render::tiles::TileSplit;
 
 use super::record::{differing_line, pixels_sha256, ReadRecord, TILE_NOTE};
@@ -26,8 +28,40 @@ pub struct Tile {
 /// The record of the tile EXR at `path`, from its header alone (its pixels
 /// are neither read nor checked: [`read_tile`] does both).
 pub fn read_tile_record(path: &Path) -> Result<ReadRecord, String> {
-    let notes = read_exr_notes(path).map_err(|e| format!("{e} (a damaged or unfinished tile?)"))?;
-    record_in(path, &notes)
+    Ok(read_tile_header(path)?.1)
+}
+
+/// The header of the tile EXR at `path` and the record in it, checked
+/// against each other before a pixel is read: a record whose image is
+/// larger than a render can be, or a file whose size is not the tile's
+/// the record describes, is refused here, so that no damaged header makes
+/// [`read_tile`] allocate for pixels that no render wrote.
+fn read_tile_header(path: &Path) -> Result<(ExrHeader, ReadRecord), String> {
+    let name = path.display();
+    if let Some(kind) = not_a_regular_file(path) {
+        return Err(format!("{name}: is {kind}, not a tile file"));
+    }
+    let header =
+        read_exr_header(path).map_err(|e| format!("{e} (a damaged or unfinished tile?)"))?;
+    let record = record_in(path, &header.notes)?;
+    let (width, height) = record.size_px;
+    if !(1..=MAX_SIDE_PX).contains(&width) || !(1..=MAX_SIDE_PX).contains(&height) {
+        return Err(format!(
+            "{name}: damaged: its record says the image is {width}×{height} pixels; allowed: 1 to {MAX_SIDE_PX} a side"
+        ));
+    }
+    let (index, count) = record.tile;
+    let split = TileSplit::new(index, count, height)
+        .map_err(|e| format!("{name}: damaged: its record says {e}"))?;
+    let rows = split.rows();
+    let tile_height = rows.end - rows.start;
+    if (header.width, header.height) != (u64::from(width), u64::from(tile_height)) {
+        return Err(format!(
+            "{name}: damaged: it is {}×{} pixels, but tile {index} of {count} of a {width}×{height} image is {width}×{tile_height}",
+            header.width, header.height
+        ));
+    }
+    Ok((header, record))
 }
 
 /// The tile record among the EXR text attributes `notes` of the file at
@@ -44,26 +78,24 @@ fn record_in(path: &Path, notes: &[(String, String)]) -> Result<ReadRecord, Stri
 }
 
 /// Read the tile EXR at `path` and check it: a lapidary tile record, the
-/// size the record says, and pixels matching the checksum written with
-/// them. Errors name the file and what is wrong.
+/// size the record says (from the header, before the pixels are
+/// decoded), and pixels matching the checksum written with them. Errors
+/// name the file and what is wrong.
 pub fn read_tile(path: &Path) -> Result<Tile, String> {
     let name = path.display();
     if !path.exists() {
         return Err(format!("{name}: no such tile file"));
     }
+    let (_, record) = read_tile_header(path)?;
     let image = read_exr(path).map_err(|e| format!("{e} (a damaged or unfinished tile?)"))?;
-    let record = record_in(path, &image.notes)?;
-    let (width, height) = record.size_px;
-    let (index, count) = record.tile;
-    let split = TileSplit::new(index, count, height)
-        .map_err(|e| format!("{name}: damaged: its record says {e}"))?;
-    let rows = split.rows();
-    if (image.width, image.height) != (width, rows.end - rows.start) {
+    // The pixels decoded are the header's; a file changed between the two
+    // reads is caught here or by the checksum.
+    let rows = TileSplit::new(record.tile.0, record.tile.1, record.size_px.1)
+        .map_err(|e| format!("{name}: damaged: its record says {e}"))?
+        .rows();
+    if (image.width, image.height) != (record.size_px.0, rows.end - rows.start) {
         return Err(format!(
-            "{name}: damaged: it is {}×{} pixels, but tile {index} of {count} of a {width}×{height} image is {width}×{}",
-            image.width,
-            image.height,
-            rows.end - rows.start
+            "{name}: damaged: its pixels are not the tile its header describes"
         ));
     }
     if pixels_sha256(&image.channels) != record.pixels_sha256 {
@@ -166,15 +198,22 @@ pub fn merge(mut tiles: Vec<Tile>) -> Result<Merged, String> {
             pair[1].path.display()
         ));
     }
-    let missing: Vec<String> = (0..count)
-        .filter(|i| !tiles.iter().any(|t| t.record.tile.0 == *i))
-        .map(|i| i.to_string())
+    // The tiles are sorted and distinct: tile i is missing where fewer
+    // than i + 1 tiles have numbers up to i.
+    let mut given = tiles.iter().map(|t| t.record.tile.0).peekable();
+    let missing: Vec<u32> = (0..count)
+        .filter(|i| given.next_if_eq(i).is_none())
         .collect();
     if !missing.is_empty() {
+        const LISTED: usize = 12;
+        let mut listed: Vec<String> = missing.iter().take(LISTED).map(u32::to_string).collect();
+        if missing.len() > LISTED {
+            listed.push(format!("… ({} in all)", missing.len()));
+        }
         return Err(format!(
             "tile{} {} of {count} {} missing (tiles count from 0): the image would be incomplete",
             if missing.len() == 1 { "" } else { "s" },
-            missing.join(", "),
+            listed.join(", "),
             if missing.len() == 1 { "is" } else { "are" },
         ));
     }

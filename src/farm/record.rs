@@ -14,6 +14,7 @@ use std::path::Path;
 
 use sha2::{Digest, Sha256};
 
+use crate::file_kind::not_a_regular_file;
 use crate::output::exr::{ChannelData, ExrChannel};
 use crate::output::tonemap::{DisplayTransform, ToneCurve};
 use crate::recipe::gem::GemSource;
@@ -346,8 +347,10 @@ pub fn inputs_sha256(
             add("stone gem", source.text.as_bytes());
         }
     }
-    let read = |path: &Path| {
-        std::fs::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))
+    // A pipe would keep the render waiting here, a device never ends.
+    let read = |path: &Path| match not_a_regular_file(path) {
+        Some(kind) => Err(format!("{}: is {kind}, not a file", path.display())),
+        None => std::fs::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display())),
     };
     if let Some(ground) = &scene.ground {
         let path = Path::new(&ground.material);

@@ -391,18 +391,34 @@ fn text_notes<'a>(
     notes.sort();
     notes
 }
-/// The text attributes (name, text) of the first layer of the EXR at
-/// `path`, sorted, as [`read_exr`] gives them, from its header alone.
-pub fn read_exr_notes(path: &Path) -> Result<Vec<(String, String)>, OutputError> {
+/// What the header of an EXR says, read without its pixels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExrHeader {
+    /// Width of the first layer in pixels.
+    pub width: u64,
+    /// Height of the first layer in pixels.
+    pub height: u64,
+    /// Its text attributes (name, text), sorted, as [`read_exr`] gives them.
+    pub notes: Vec<(String, String)>,
+}
+
+/// The header of the EXR at `path` (its first layer's size and text
+/// attributes), without decoding a pixel: what a file claims can be
+/// checked before [`read_exr`] allocates for it.
+pub fn read_exr_header(path: &Path) -> Result<ExrHeader, OutputError> {
     let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| OutputError {
         path: path.display().to_string(),
         message: format!("cannot read EXR: {e}"),
     })?;
-    Ok(meta
-        .headers
-        .first()
-        .map(|header| text_notes(&header.own_attributes.other))
-        .unwrap_or_default())
+    let header = meta.headers.first();
+    let size = header.map_or(exr::math::Vec2(0, 0), |h| h.layer_size);
+    Ok(ExrHeader {
+        width: size.width() as u64,
+        height: size.height() as u64,
+        notes: header
+            .map(|header| text_notes(&header.own_attributes.other))
+            .unwrap_or_default(),
+    })
 }
 
 /// The EXR channels of a film: RGBA and the AOV layers, dotted names, plus

@@ -34,11 +34,31 @@ pub struct OutputError {
     pub message: String,
 }
 
+/// The temporary file beside `path` that its bytes are written to before
+/// the rename: `.NAME.PID.tmp`. A name too long to take the extra
+/// characters within a file system's 255 bytes keeps its first part and a
+/// hash of the whole (names that share a long start, such as a
+/// turntable's frames, still get temporary files of their own).
 fn temporary_sibling(path: &Path) -> PathBuf {
+    /// The longest name kept whole: 255 bytes less the dot, the process
+    /// number and `.tmp`.
+    const WHOLE_UP_TO: usize = 230;
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "output".into());
+    let name = if name.len() <= WHOLE_UP_TO {
+        name
+    } else {
+        use std::hash::{Hash, Hasher};
+        let mut hasher = std::hash::DefaultHasher::new();
+        name.hash(&mut hasher);
+        let cut = (0..=128)
+            .rev()
+            .find(|&k| name.is_char_boundary(k))
+            .unwrap_or(0);
+        format!("{}~{:016x}", &name[..cut], hasher.finish())
+    };
     path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
 }
 

@@ -4,7 +4,7 @@
 
 use crate::brdf::fresnel;
 use crate::brdf::{Base, Interface, LayeredBrdf, Microfacet, Rgb};
-use crate::file_kind::FileKind;
+use crate::file_kind::{not_a_regular_file, FileKind};
 use crate::recipe::error::{
     did_you_mean, field_before, find_position, folder_separator_hint, line_col_of_offset,
     with_ron_hints, RecipeError,
@@ -12,6 +12,7 @@ use crate::recipe::error::{
 use crate::recipe::library::{builtin_gem_source, builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
 use crate::recipe::table_cache::Tables;
+use std::io::Read;
 use std::path::Path;
 
 /// Seed of the compensation tables: they are part of the compiled material,
@@ -158,22 +159,43 @@ pub fn names_a_file(spec: &str) -> bool {
     Path::new(spec).exists() || spec.ends_with(".ron") || spec.contains('/')
 }
 
+/// The largest RON file read: recipes, scenes and jobs are kilobytes, a
+/// tray of 1024 stones a few hundred; anything near this is no recipe.
+const MAX_RON_BYTES: u64 = 16 << 20;
+
 /// Read a RON file as UTF-8 text; `what` names the kind of file expected in
-/// the message for a directory ("material file", "gem recipe").
+/// the message for a directory ("material file", "gem recipe"). A pipe, a
+/// device or a socket is refused before it is opened (a pipe would keep
+/// the command waiting, `/dev/zero` never ends), and so is a file above
+/// 16 MiB.
 pub fn read_ron_file(spec: &str, what: &str) -> Result<String, RecipeError> {
     let path = Path::new(spec);
-    if path.is_dir() {
+    if let Some(kind) = not_a_regular_file(path) {
         return Err(RecipeError::whole_file(
             spec,
-            format!("is a directory, expected a .ron {what}"),
+            format!("is {kind}, expected a .ron {what}"),
         ));
     }
-    let bytes = std::fs::read(path).map_err(|e| {
+    let cannot_read = |e: std::io::Error| {
         RecipeError::whole_file(
             spec,
             format!("cannot read: {e}{}", folder_separator_hint(spec)),
         )
-    })?;
+    };
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)
+        .and_then(|file| file.take(MAX_RON_BYTES + 1).read_to_end(&mut bytes))
+        .map_err(cannot_read)?;
+    if bytes.len() as u64 > MAX_RON_BYTES {
+        return Err(RecipeError::whole_file(
+            spec,
+            format!(
+                "is larger than {} MiB; allowed: a .ron {what} of at most {} MiB",
+                MAX_RON_BYTES >> 20,
+                MAX_RON_BYTES >> 20
+            ),
+        ));
+    }
     if let Some((kind, hint)) = file_of_another_kind(&bytes) {
         return Err(RecipeError::whole_file(
             spec,

@@ -5,6 +5,7 @@ use std::fmt;
 
 use crate::recipe::brackets::open_bracket_hint;
 pub(crate) use crate::recipe::ron_text::blank_comments_and_strings;
+use crate::recipe::ron_text::block_comment_end;
 pub use crate::recipe::ron_text::line_col_of_offset;
 
 /// A problem with a user's (or a built-in) RON file.
@@ -179,8 +180,28 @@ fn closes_its_item(text: &str) -> bool {
     false
 }
 
+/// The length of the RON attribute `#![…]` that `text` starts with, to its
+/// matching `]`; None when it is never closed.
+fn attribute_len(text: &str) -> Option<usize> {
+    let mut depth = 0usize;
+    for (k, c) in text.char_indices().skip(2) {
+        match c {
+            '[' | '(' => depth += 1,
+            ']' | ')' => {
+                depth = depth.checked_sub(1)?;
+                if depth == 0 {
+                    return (c == ']').then_some(k + 1);
+                }
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
 /// Byte offset of the first character of `text` that is not whitespace, a
-/// `//` or `/* */` comment, or a RON `#![enable(…)]` attribute.
+/// `//` or `/* */` comment (nested, as RON reads them), or a RON
+/// `#![enable(…)]` attribute.
 pub fn first_code_offset(text: &str) -> usize {
     let bytes = text.as_bytes();
     let mut i = 0;
@@ -190,10 +211,15 @@ pub fn first_code_offset(text: &str) -> usize {
             i += 1;
         } else if rest.starts_with("//") {
             i += rest.find('\n').map_or(rest.len(), |e| e + 1);
-        } else if let Some(body) = rest.strip_prefix("/*") {
-            i += body.find("*/").map_or(rest.len(), |e| e + 4);
-        } else if rest.starts_with("#!") {
-            i += rest.find(']').map_or(rest.len(), |e| e + 1);
+        } else if rest.starts_with("/*") {
+            i = block_comment_end(bytes, i);
+        } else if rest.starts_with("#![") {
+            // An attribute ends at its matching `]`; one left open is
+            // code, for the parser to place its error there.
+            match attribute_len(rest) {
+                Some(len) => i += len,
+                None => break,
+            }
         } else if rest.starts_with('\u{feff}') {
             i += '\u{feff}'.len_utf8();
         } else {
@@ -459,6 +485,25 @@ mod tests {
         );
         assert!(character_name('\u{2212}').contains("where RON takes `-`"));
         assert_eq!(character_name('\u{d7}'), "`\u{d7}` (U+00D7)");
+    }
+
+    #[test]
+    fn code_starts_after_nested_comments_and_closed_attributes_only() {
+        // RON's block comments nest: the code starts at `Gem(`, not at `c`.
+        let nested = "/* a /* b */ c */\nGem(surface: \"gold\")";
+        assert_eq!(first_code_offset(nested), nested.find("Gem(").unwrap());
+        let attribute = "#![enable(implicit_some)]\n// note\nGem()";
+        assert_eq!(
+            first_code_offset(attribute),
+            attribute.find("Gem(").unwrap()
+        );
+        // An attribute left open is code (the parser then says where),
+        // not a file of comments only.
+        assert_eq!(first_code_offset("#![enable(implicit_some)\nGem()"), 0);
+        assert_eq!(
+            first_code_offset(" /* never closed"),
+            " /* never closed".len()
+        );
     }
 
     #[test]

@@ -52,6 +52,7 @@ use crate::recipe::error::{did_you_mean, line_col_of_offset, RecipeError};
 use crate::recipe::library::{builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
 use crate::recipe::ranges;
+use crate::recipe::ron_text::{key_definitions, value_end, KeyDefinition};
 use crate::recipe::table_cache::Tables;
 use crate::render::dielectric::RoughInterface;
 use crate::sampling::unit_direction;
@@ -659,8 +660,14 @@ pub fn compile_gems(
         let (_, spec, brdfs, wants_table) = &mut recipes[index];
         let gem = compile_gem_spec(&source.path, &source.text, spec.clone(), seed)?;
         if brdfs.is_empty() {
+            // Where each inline material is defined, found in one pass.
+            let definitions = key_definitions(&source.text);
             for ((name, material), &ior_outside) in gem.materials.iter().zip(&gem.seen_from_ior) {
-                let inline = gem.spec.materials.contains_key(name);
+                let inline = gem
+                    .spec
+                    .materials
+                    .contains_key(name)
+                    .then(|| definitions.get(name.as_str()).copied());
                 brdfs.push(compile_gem_material(
                     &source.path,
                     &source.text,
@@ -730,33 +737,30 @@ pub fn parse_gem(path: &str, text: &str) -> Result<Gem, RecipeError> {
 }
 
 /// Compiles material `name` of a gem without its compensation table. An
-/// inline material is compiled against the gem text from its definition
-/// `"name":` on, so that its errors point into its own `Layer(`s; the
-/// position is then shifted back to the whole file. A library material is
-/// compiled from its own text.
+/// inline material (`inline`: Some, with where its `"name":` is defined,
+/// when found) is compiled against its own definition's text, so that its
+/// errors point into its own `Layer(`s; the position is then shifted back
+/// to the whole file. A library material is compiled from its own text.
 fn compile_gem_material(
     path: &str,
     text: &str,
     (name, material): (&str, &Material),
-    inline: bool,
+    inline: Option<Option<KeyDefinition>>,
     ior_outside: f64,
 ) -> Result<LayeredBrdf, RecipeError> {
-    if !inline {
+    let Some(definition) = inline else {
         return compile_material_seen_from(&locate_material(name)?, material, ior_outside);
-    }
-    let quoted = format!("\"{name}\"");
-    let definition = text
-        .match_indices(&quoted)
-        .find(|(i, _)| text[i + quoted.len()..].trim_start().starts_with(':'))
-        .map(|(i, _)| i);
-    let (base, from) = match definition {
-        Some(offset) => (line_col_of_offset(text, offset), offset),
-        None => ((1, 1), 0),
+    };
+    let (base, own_text) = match definition {
+        Some(KeyDefinition { offset, line_col }) => {
+            (line_col, &text[offset..value_end(text, offset)])
+        }
+        None => ((1, 1), text),
     };
     let source = MaterialSource {
         path: path.to_string(),
         name: name.to_string(),
-        text: text[from..].to_string(),
+        text: own_text.to_string(),
     };
     compile_material_seen_from(&source, material, ior_outside).map_err(|mut e| {
         if let Some((line, col)) = e.position {

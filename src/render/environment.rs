@@ -49,7 +49,7 @@ use super::cpu::prefetch;
 use super::distribution::{alias_table, bucket_of_draw, draw, AliasTable};
 use super::shared_exponent::{decode, encode, exponent_scales, TEXEL_BITS, TEXEL_MASK};
 use crate::brdf::Rgb;
-use crate::file_kind::FileKind;
+use crate::file_kind::{not_a_regular_file, FileKind};
 use crate::sampling::sin_cos_turns;
 
 /// Largest accepted map width in texels (a 16K panorama).
@@ -1806,13 +1806,15 @@ fn read_map_file(path: &Path) -> Result<PackedTexels, EnvironmentError> {
             })
         }
         Err(e) => return Err(io_error(path, &e)),
-        Ok(m) if m.is_dir() => {
-            return Err(EnvironmentError::Io {
-                path: path.to_path_buf(),
-                message: "it is a directory, not an image file".to_string(),
-            })
-        }
         Ok(_) => {}
+    }
+    // A pipe would keep the render waiting at its opening, a device never
+    // ends: neither is opened.
+    if let Some(kind) = not_a_regular_file(path) {
+        return Err(EnvironmentError::Io {
+            path: path.to_path_buf(),
+            message: format!("it is {kind}, not an image file"),
+        });
     }
     check_kind(path, &extension)?;
     // Decoders of untrusted files have panicked on malformed input before;

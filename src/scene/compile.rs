@@ -3,9 +3,10 @@
 //! quaternions computed, paths resolved, shapes validated).
 //!
 //! Rules that involve several fields or another module (camera position ≠
-//! look_at, 1 to `MAX_STONES` stones, Rect aim_at ≠ centre, the cabochon's
-//! own rules) are checked after parsing; their errors are located by a small
-//! walk over the RON text (`Locator`) at the field they concern.
+//! look_at, 1 to `MAX_STONES` stones, at most `MAX_LIGHTS` lights, Rect
+//! aim_at ≠ centre, the cabochon's own rules) are checked after parsing;
+//! their errors are located by a small walk over the RON text (`Locator`)
+//! at the field they concern.
 //!
 //! So are the scene's references: each stone's gem (a built-in name, or a
 //! `.ron` file that must exist), the ground's material (likewise) and the
@@ -20,7 +21,8 @@ use super::spec::{
     ShapeSpec, StoneSpec,
 };
 use super::{
-    Camera, EnvironmentSpec, Ground, LightSpec, Scene, StonePlacement, Turntable, MAX_STONES,
+    Camera, EnvironmentSpec, Ground, LightSpec, Scene, StonePlacement, Turntable, MAX_LIGHTS,
+    MAX_STONES,
 };
 use crate::brdf::Rgb;
 use crate::geometry::{Base, Cabochon, CabochonParams, GeometryError, Outline};
@@ -327,6 +329,15 @@ impl Compiler<'_> {
             .map(|(i, s)| self.stone(i, s))
             .collect::<Result<Vec<_>, _>>()?;
         let ground = spec.ground.as_ref().map(|g| self.ground(g)).transpose()?;
+        if spec.lights.len() > MAX_LIGHTS {
+            return Err(self.error(
+                &[Step::Field("lights")],
+                format!(
+                    "`lights` has {} lights; allowed: 0 to {MAX_LIGHTS} lights",
+                    spec.lights.len()
+                ),
+            ));
+        }
         let lights = spec
             .lights
             .iter()

@@ -35,6 +35,11 @@ use std::path::PathBuf;
 /// for a hand-written file; a typo like `1e9` copies cannot slip through).
 pub(crate) const MAX_STONES: usize = 1024;
 
+/// Most lights one scene may hold (each vertex chooses among them, and the
+/// checks of where they stand compare them in pairs; a typo like `1e9`
+/// copies cannot slip through).
+pub(crate) const MAX_LIGHTS: usize = 1024;
+
 /// A validated scene, ready for the renderer.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scene {
@@ -90,6 +95,12 @@ impl Scene {
             return fail(format!(
                 "{} stones; allowed: at most {MAX_STONES}",
                 self.stones.len()
+            ));
+        }
+        if self.lights.len() > MAX_LIGHTS {
+            return fail(format!(
+                "{} lights; allowed: at most {MAX_LIGHTS}",
+                self.lights.len()
             ));
         }
         for (k, stone) in self.stones.iter().enumerate() {

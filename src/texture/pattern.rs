@@ -817,10 +817,10 @@ impl Pattern {
             _ => Ok(()),
         };
         check(root)?;
-        for node in &nodes {
-            for child in node.children() {
-                check(child)?;
-            }
+        // Each node's children, listed once (a node may have many thousands).
+        let children: Vec<Vec<Entry>> = nodes.iter().map(Node::children).collect();
+        for child in children.iter().flatten() {
+            check(*child)?;
         }
         if let Some(g) = &glitter {
             for m in g.entries.items() {
@@ -836,7 +836,7 @@ impl Pattern {
             let mut stack = vec![(start, 0usize)];
             state[start] = 1;
             while let Some((n, k)) = stack.pop() {
-                let children = nodes[n].children();
+                let children = &children[n];
                 if k < children.len() {
                     stack.push((n, k + 1));
                     if let Entry::Node(c) = children[k] {
