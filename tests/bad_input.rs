@@ -1163,14 +1163,26 @@ fn an_empty_file() {
     let path = dir.join("empty.ron");
     std::fs::write(&path, "").unwrap();
     let out = lapidary(&[OsString::from("validate"), path.clone().into()]);
-    assert_refused("empty", &out, &[path.display().to_string()]);
+    assert_refused(
+        "empty",
+        &out,
+        &[format!("{}: the file is empty", path.display())],
+    );
     let render = [
         OsString::from("render"),
         path.clone().into(),
         "--size".into(),
         "8".into(),
     ];
-    assert_refused_writing("empty", &render, "gem.png", &[path.display().to_string()]);
+    assert_refused_writing(
+        "empty",
+        &render,
+        "gem.png",
+        &[format!(
+            "{}: the file is empty; expected a .ron gem recipe",
+            path.display()
+        )],
+    );
 }
 
 #[test]
@@ -1782,6 +1794,25 @@ fn negative_and_overflowing_counts_get_the_flag_s_range() {
             stderr.contains(&format!("{} -1: must be a positive", args[1])),
             "{stderr}"
         );
+    }
+    // A huge number is repeated as typed, not as its 309 digits.
+    for (args, expected) in [
+        (
+            &["render", "--exposure", "-1e308"][..],
+            "--exposure -1e308: allowed",
+        ),
+        (&["render", "--ao", "1e300"][..], "--ao 1e300: must be"),
+        (
+            &["maps", "gold", "--extent", "1e300"][..],
+            "--extent 1e300: allowed",
+        ),
+    ] {
+        let mut all = os(args);
+        all.extend([OsString::from("-o"), out.clone().into()]);
+        let run = lapidary(&all);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(stderr.contains(expected), "{args:?}: {stderr}");
     }
     assert!(files_in(&dir).is_empty());
 }

@@ -250,6 +250,36 @@ fn an_output_name_of_the_longest_length_a_file_system_allows_is_written() {
 }
 
 #[test]
+fn an_output_that_is_the_environment_map_read_is_refused() {
+    let dir = scratch("map-as-output");
+    let map = dir.join("sky.exr");
+    render_tiny(&map);
+    let before = std::fs::read(&map).unwrap();
+    let out = lapidary(&[
+        "render",
+        "--env",
+        map.to_str().unwrap(),
+        "--size",
+        "8",
+        "--spp",
+        "1",
+        "-o",
+        dir.join(".").join("sky.exr").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("the output is the environment map the render reads"),
+        "{}",
+        stderr(&out)
+    );
+    assert_eq!(
+        std::fs::read(&map).unwrap(),
+        before,
+        "the map was written over"
+    );
+}
+
+#[test]
 fn the_crate_docs_steps_render_the_command_s_bytes() {
     use lapidary::render::{film, prepare};
     use lapidary::{output, scene, GemSource, TableCache, Tables};

@@ -433,7 +433,10 @@ fn broken_files_name_the_file_and_what_was_expected() {
         "empty.ron",
         "",
         None,
-        &["empty", "`Gem(`", "`Material(`", "`Scene(`"],
+        &[
+            "the file is empty",
+            "expected a .ron recipe (gem, material, scene or job)",
+        ],
     );
     broken(
         &dir,

@@ -679,6 +679,15 @@ fn bad_jobs_are_refused_with_the_place_and_the_allowed_range() {
         (JOB.replace("spp: 2", "spp: 0"), "job.ron:4:"),
         (JOB.replace("spp: 2", "spq: 2"), "did you mean `spp`?"),
         (JOB.replace("tiles: 2", "tiles: 25"), "allowed: 1 to 24"),
+        // Below zero or past any integer type, the field's range still.
+        (
+            JOB.replace("tiles: 2", "tiles: -1"),
+            "`tiles` = -1 is out of range; allowed: 1 to 32768",
+        ),
+        (
+            JOB.replace("frames: 2", "frames: 99999999999999999999999"),
+            "`frames` = 99999999999999999999999 is out of range; allowed: 1 to 3600",
+        ),
         (JOB.replace("frames: 2", "frames: 0"), "allowed: 1 to 3600"),
         (
             JOB.replace("spp: 2)", "spp: 2, ao_mm: Some(1e6))"),

@@ -76,9 +76,10 @@ pub(super) fn parse_four_numbers(text: &str) -> Result<[f64; 4], String> {
 fn check_eval_angles(angles: [f64; 4]) -> Result<[f64; 4], String> {
     for (k, v) in angles.iter().enumerate() {
         if !v.is_finite() || ((k == 0 || k == 2) && !(0.0..=90.0).contains(v)) {
-            let [ti, pi, to, po] = angles;
+            let [ti, pi, to, po] = angles.map(super::typed);
             return Err(format!(
-                "--eval {ti},{pi},{to},{po}: `{v}` is out of range; θ must be in [0, 90] degrees, φ finite"
+                "--eval {ti},{pi},{to},{po}: `{}` is out of range; θ must be in [0, 90] degrees, φ finite",
+                super::typed(*v)
             ));
         }
     }

@@ -35,7 +35,7 @@ pub fn run(args: MapsArgs) -> Result<(), String> {
     if !(args.extent > 0.0 && args.extent <= MAX_EXTENT) {
         return Err(format!(
             "--extent {}: allowed above 0 up to {MAX_EXTENT} texture units (one is 10 mm of stone)",
-            args.extent
+            super::typed(args.extent)
         ));
     }
     let source = GemSource::load(&args.recipe).map_err(|e| e.to_string())?;

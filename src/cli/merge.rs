@@ -32,8 +32,11 @@ pub fn run(args: MergeArgs) -> Result<(), String> {
     let png = super::render::is_png_output(&args.output)?;
     super::check_threads(args.threads)?;
     // The output must not be one of the tiles (it would replace it).
-    let same_file = |a: &std::path::Path, b: &std::path::Path| matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b);
-    if let Some(tile) = args.tiles.iter().find(|t| same_file(t, &args.output)) {
+    if let Some(tile) = args
+        .tiles
+        .iter()
+        .find(|t| super::same_file(t, &args.output))
+    {
         return Err(format!(
             "{}: the output is one of the tiles ({}); allowed: a file that is not a tile",
             args.output.display(),

@@ -214,6 +214,22 @@ pub(crate) fn decimal(
     }
 }
 
+/// Whether paths `a` and `b` name one existing file (through links and
+/// `..`): an output that would replace an input.
+pub(crate) fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
+    matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b)
+}
+
+/// A number a person typed, as a message repeats it: as Rust prints it,
+/// or in exponent form where that is shorter (`-1e308`, not 309 digits).
+pub(crate) fn typed(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-6..1e16).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        v.to_string()
+    }
+}
+
 /// The rayon pool a command renders in: `threads` workers, or one per
 /// core when `None` (`--threads`); the message names what failed.
 pub fn worker_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> {

@@ -267,18 +267,14 @@ fn check_settings(args: &RenderArgs) -> Result<(u32, u32), String> {
     if !args.exposure.is_finite() || args.exposure.abs() > 64.0 {
         return Err(format!(
             "--exposure {}: allowed −64 to 64 stops",
-            args.exposure
+            super::typed(args.exposure)
         ));
     }
     if let Some(distance) = args.ao {
         if !(distance.is_finite() && distance > 0.0 && distance <= MAX_COORDINATE_MM) {
-            let typed = if distance.abs() >= 1e6 {
-                format!("{distance:e}")
-            } else {
-                distance.to_string()
-            };
             return Err(format!(
-                "--ao {typed}: must be a positive distance in scene units (mm), at most {MAX_COORDINATE_MM:e}"
+                "--ao {}: must be a positive distance in scene units (mm), at most {MAX_COORDINATE_MM:e}",
+                super::typed(distance)
             ));
         }
     }
@@ -396,6 +392,17 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         .collect();
     for path in &outputs {
         lapidary::output::check_writable(path).map_err(|e| e.to_string())?;
+    }
+    // Writing over the map the render reads would lose it.
+    let map = match (&args.env, &inputs.scene.environment) {
+        (Some(path), _) | (None, EnvironmentSpec::File { path, .. }) => Some(path),
+        _ => None,
+    };
+    if let Some(path) = map.and_then(|map| outputs.iter().find(|out| super::same_file(out, map))) {
+        return Err(format!(
+            "{}: the output is the environment map the render reads; allowed: another file",
+            path.display()
+        ));
     }
     // A PNG turntable rendered whole also becomes an animated PNG at OUT.
     let animation = (turntable.is_some()

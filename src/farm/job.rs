@@ -169,7 +169,8 @@ fn ranged_u32<'de, D: Deserializer<'de>>(
     min: u32,
     max: u32,
 ) -> Result<u32, D::Error> {
-    let v = u64::deserialize(d)?;
+    // Read wide, so that −1 or 10³⁰ is told its range too.
+    let v = i128::deserialize(d)?;
     u32::try_from(v)
         .ok()
         .filter(|v| (min..=max).contains(v))

@@ -6,8 +6,8 @@ use crate::brdf::fresnel;
 use crate::brdf::{Base, Interface, LayeredBrdf, Microfacet, Rgb};
 use crate::file_kind::{not_a_regular_file, FileKind};
 use crate::recipe::error::{
-    did_you_mean, field_before, find_position, folder_separator_hint, line_col_of_offset,
-    with_ron_hints, RecipeError,
+    did_you_mean, field_before, find_position, first_code_offset, folder_separator_hint,
+    line_col_of_offset, with_ron_hints, RecipeError,
 };
 use crate::recipe::library::{builtin_gem_source, builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
@@ -219,10 +219,23 @@ pub fn read_ron_file(spec: &str, what: &str) -> Result<String, RecipeError> {
         )
     })?;
     // A byte-order mark some editors write first is not RON: it is left out.
-    Ok(match text.strip_prefix('\u{feff}') {
+    let text = match text.strip_prefix('\u{feff}') {
         Some(rest) => rest.to_string(),
         None => text,
-    })
+    };
+    // Said in words, where RON would say it expected a `(`.
+    if first_code_offset(&text) >= text.len() {
+        let holds = if text.trim().is_empty() {
+            "the file is empty"
+        } else {
+            "the file holds only comments"
+        };
+        return Err(RecipeError::whole_file(
+            spec,
+            format!("{holds}; expected a .ron {what}"),
+        ));
+    }
+    Ok(text)
 }
 
 /// What a file that is not UTF-8 text is, from its first bytes (an image,

@@ -226,13 +226,14 @@ rgb_field!(direction, "direction", "finite, not all zero", |_| true);
 
 /// Deserialize `octaves`, allowed: 1 to 16.
 pub fn octaves<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    let v = u32::deserialize(d)?;
-    if !(1..=16).contains(&v) {
-        return Err(D::Error::custom(format!(
+    // Read wide, so that −1 or 10³⁰ is told its range too.
+    let v = i128::deserialize(d)?;
+    match u32::try_from(v) {
+        Ok(v) if (1..=16).contains(&v) => Ok(v),
+        _ => Err(D::Error::custom(format!(
             "`octaves` = {v} is out of range; allowed: 1 <= octaves <= 16"
-        )));
+        ))),
     }
-    Ok(v)
 }
 
 /// A name → definition map whose names are each given once: a name given

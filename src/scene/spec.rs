@@ -84,7 +84,8 @@ pub const MAX_FRAMES: u32 = 3600;
 
 /// Deserialize `frames`, allowed 1 to [`MAX_FRAMES`].
 fn frames<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    let v = u64::deserialize(d)?;
+    // Read wide, so that −1 or 10³⁰ is told its range too.
+    let v = i128::deserialize(d)?;
     u32::try_from(v)
         .ok()
         .filter(|v| (1..=MAX_FRAMES).contains(v))
