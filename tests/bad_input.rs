@@ -712,6 +712,19 @@ fn a_layer_with_two_iors() {
 }
 
 #[test]
+fn a_layer_with_two_iors_after_a_raw_string_with_a_quote() {
+    // The raw string's quote and bracket must not hide where the
+    // material is defined.
+    bad_gem(
+        "two-iors-raw",
+        "    seed: 3,\n    materials: {\n        \"lilac\": Material(\n            layers: [\n                Layer(ior: 1.5,",
+        "    seed: 3,\n    description: r#\"a 6\" (stone\"#,\n    materials: {\n        \"lilac\": Material(\n            layers: [\n                Layer(ior: 1.5, reflectivity: 0.3,",
+        "reflectivity: 0.3",
+        &["exactly one of `ior`, `reflectivity` or `varnish`"],
+    );
+}
+
+#[test]
 fn an_unknown_metal() {
     bad_gem(
         "unknown-metal",

@@ -799,4 +799,21 @@ fn new_never_overwrites_and_refuses_unknown_templates() {
         text(&out.stderr)
     );
     assert!(!Path::new("-").exists() && !Path::new("-x.ron").exists());
+    // RON text is not written into a file named as an image.
+    let picture = dir.join("stone.png");
+    let out = lapidary(&[
+        "new",
+        "stone",
+        "--from",
+        "gold",
+        "-o",
+        picture.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        text(&out.stderr).contains("allowed: a path ending in .ron"),
+        "{}",
+        text(&out.stderr)
+    );
+    assert!(!picture.exists());
 }

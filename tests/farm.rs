@@ -712,6 +712,14 @@ fn bad_jobs_are_refused_with_the_place_and_the_allowed_range() {
             JOB.replace("width: 32, height: 24", "width: 32768, height: 32768"),
             "allowed: `tiles` from 34 (`tiles` = 2 now)",
         ),
+        // Beside an image 24 rows high, no tile count fits both.
+        (
+            JOB.replace(
+                "Settings(width: 32,",
+                "Settings(width: 32768, height: 32768), Settings(width: 32,",
+            ),
+            "it needs 34 tiles, but an image 24 rows high allows at most 24",
+        ),
     ];
     for (text, expected) in cases {
         std::fs::write(&job, &text).unwrap();
@@ -733,6 +741,20 @@ fn bad_jobs_are_refused_with_the_place_and_the_allowed_range() {
     for task in ["0", "1", "2", "3"] {
         ok(&["batch", s(&job), "--task", task, "-q"]);
     }
+    // A damaged last tile stops the merge before the first frame is
+    // written.
+    let last = dir.join("out/tiles/sunstone-studio-0001.tile1of2.exr");
+    let good = bytes(&last);
+    let mut damaged = good.clone();
+    let at = damaged.len() - 40;
+    damaged[at] ^= 0x5a;
+    std::fs::write(&last, damaged).unwrap();
+    refused(
+        &["batch", s(&job), "--merge", "-q"],
+        "sunstone-studio-0001.tile1of2.exr",
+    );
+    assert!(!dir.join("out").join("sunstone-studio-0000.png").exists());
+    std::fs::write(&last, good).unwrap();
     let animation = dir.join("out").join("sunstone-studio.png");
     std::fs::create_dir(&animation).unwrap();
     refused(&["batch", s(&job), "--merge", "-q"], "is a directory");

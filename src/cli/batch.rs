@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use lapidary::farm::job::{FilterSpec, FormatSpec, Job, TonemapSpec};
-use lapidary::farm::merge::{merge, read_tile, read_tile_record};
+use lapidary::farm::merge::{merge, read_tile};
 use lapidary::farm::record::differing_line;
 use lapidary::output::animation::write_apng;
 use lapidary::recipe::compile::read_ron_file;
@@ -171,21 +171,21 @@ fn merge_all(job: &Job, args: &BatchArgs) -> Result<(), String> {
     let tiles_per_image = u64::from(job.tiles);
     let frame_count = frames.len() as u64;
     // Tiles of an earlier version of the job (its settings or files changed
-    // since) are not this job's: every tile's record is read from its
-    // header and checked before any image is written; their tasks must
-    // run again.
+    // since) are not this job's: every tile's record is checked before any
+    // image is written; their tasks must run again.
     for image in 0..job.images.len() {
         for (f, frame) in frames.iter().enumerate() {
             let first = (image as u64 * frame_count + f as u64) * tiles_per_image;
             let wanted = render_args(job, image, job.image_path(image, *frame), args);
             let expected = super::render::expected_record(&wanted, job.turntable, *frame)?;
+            let mut tiles = Vec::new();
             for (task, t) in
                 (first..first + tiles_per_image).filter_map(|i| Some((i, job.task(i)?)))
             {
                 let path = job.tile_path(t);
-                let record = read_tile_record(&path)?;
+                let tile = read_tile(&path)?;
                 if let Some(((key, theirs), (_, ours))) =
-                    differing_line(&record.render_lines, &expected.text_lines())
+                    differing_line(&tile.record.render_lines, &expected.text_lines())
                 {
                     return Err(format!(
                         "{} is a tile of another render than {} asks for now (its {key} is {theirs}, not {ours}): run its task again (`lapidary batch {} --task {task}`)",
@@ -194,11 +194,17 @@ fn merge_all(job: &Job, args: &BatchArgs) -> Result<(), String> {
                         args.job.display()
                     ));
                 }
+                tiles.push(tile);
             }
+            // The frame's tiles merge (the result is made again below).
+            merge(tiles)?;
         }
     }
     // Every image's file can be written, or none is: a merge that stops
-    // midway would leave some images new and the rest old.
+    // midway would leave some images new and the rest old. So every tile
+    // is read whole and checked (its pixels' checksum, its record, the
+    // merge) above, before any image is written, at the cost of reading
+    // each tile twice.
     for image in 0..job.images.len() {
         let stills = frames.iter().map(|frame| job.image_path(image, *frame));
         for path in stills.chain(job.animation_path(image)) {

@@ -221,9 +221,10 @@ pub(crate) fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
 }
 
 /// A number a person typed, as a message repeats it: as Rust prints it,
-/// or in exponent form where that is shorter (`-1e308`, not 309 digits).
+/// or in exponent form from a million up and below a millionth (`5e6`,
+/// `-1e308`, not 309 digits).
 pub(crate) fn typed(v: f64) -> String {
-    if v != 0.0 && v.is_finite() && !(1e-6..1e16).contains(&v.abs()) {
+    if v != 0.0 && v.is_finite() && !(1e-6..1e6).contains(&v.abs()) {
         format!("{v:e}")
     } else {
         v.to_string()

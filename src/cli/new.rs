@@ -204,6 +204,12 @@ pub fn run(args: NewArgs) -> Result<(), String> {
             "-o -: `lapidary new` writes a file; give its path (e.g. -o my-gem.ron)".into(),
         );
     }
+    if path.extension().is_none_or(|e| e != "ron") {
+        return Err(format!(
+            "{}: `lapidary new` writes RON text; allowed: a path ending in .ron",
+            path.display()
+        ));
+    }
     if path.symlink_metadata().is_ok() {
         return Err(format!(
             "{}: already exists; not overwriting it (choose another NAME or -o PATH)",

@@ -433,6 +433,13 @@ pub fn check_job_inputs(path: &str, text: &str, job: &Job) -> Result<Vec<String>
         .map(|scene| ("scene", scene.display().to_string()));
     // A task renders one tile, whose film must fit in what a task may
     // take; the tallest tile of each image decides.
+    // Tiles hold whole rows: no more of them than the lowest image's rows.
+    let most_tiles = job
+        .images
+        .iter()
+        .map(|i| i.settings.height)
+        .min()
+        .unwrap_or(1);
     for image in &job.images {
         let settings = &image.settings;
         let rows = settings.height.div_ceil(job.tiles);
@@ -442,16 +449,25 @@ pub fn check_job_inputs(path: &str, text: &str, job: &Job) -> Result<Vec<String>
             let per_row = super::memory::render_needs(settings.width, 1) as f64;
             let most_rows = ((limit * f64::from(1u32 << 30) / per_row).floor() as u32).max(1);
             let tiles_needed = settings.height.div_ceil(most_rows);
+            let allowed = if tiles_needed <= most_tiles {
+                format!(
+                    "allowed: `tiles` from {tiles_needed} (`tiles` = {} now)",
+                    job.tiles
+                )
+            } else {
+                format!(
+                    "it needs {tiles_needed} tiles, but an image {most_tiles} rows high allows at most {most_tiles}: give the large image a job of its own"
+                )
+            };
             return Err(RecipeError::at_text(
                 path,
                 text,
                 "tiles",
                 format!(
-                    "image `{}`: a tile of {} × {rows} pixels needs {} of memory for its film, above the {limit} GiB a task may take; allowed: `tiles` from {tiles_needed} (`tiles` = {} now)",
+                    "image `{}`: a tile of {} × {rows} pixels needs {} of memory for its film, above the {limit} GiB a task may take; {allowed}",
                     image.name,
                     settings.width,
-                    super::memory::amount(needed),
-                    job.tiles
+                    super::memory::amount(needed)
                 ),
             ));
         }

@@ -73,8 +73,7 @@ fn record_in(path: &Path, notes: &[(String, String)]) -> Result<ReadRecord, Stri
             "{name}: not a lapidary tile (no `{TILE_NOTE}` record; tiles come from `lapidary render --tile I/N`)"
         ));
     };
-    ReadRecord::parse(text)
-        .ok_or_else(|| format!("{name}: damaged: its tile record cannot be read"))
+    ReadRecord::parse(text).map_err(|e| format!("{name}: damaged: its tile record: {e}"))
 }
 
 /// Read the tile EXR at `path` and check it: a lapidary tile record, the

@@ -222,55 +222,86 @@ pub struct ReadRecord {
 }
 
 impl ReadRecord {
-    /// Parse the text of [`TileRecord::to_text`]; `None` when it is not one
-    /// (another layout, a line missing, a value that does not parse).
-    pub fn parse(text: &str) -> Option<ReadRecord> {
+    /// Parse the text of [`TileRecord::to_text`]; the error says what is
+    /// not as written (another layout, a line missing or out of place, a
+    /// value that does not parse), naming the line.
+    pub fn parse(text: &str) -> Result<ReadRecord, String> {
         let mut lines = text.lines();
-        if lines.next()? != RECORD_HEADER {
-            return None;
+        let first = lines.next().unwrap_or_default();
+        if first != RECORD_HEADER {
+            return Err(format!(
+                "its first line is `{first}`, not `{RECORD_HEADER}` (another version's record?)"
+            ));
         }
         let mut pairs: Vec<(String, String)> = Vec::new();
-        for line in lines {
-            let (key, value) = line.split_once(": ")?;
+        for (k, line) in lines.enumerate() {
+            let (key, value) = line
+                .split_once(": ")
+                .ok_or_else(|| format!("line {} is `{line}`, not `key: value`", k + 2))?;
             pairs.push((key.to_string(), value.to_string()));
         }
-        let get = |key: &str| {
-            pairs
-                .iter()
-                .find(|(k, _)| k == key)
-                .map(|(_, v)| v.as_str())
-        };
         // The same keys in the same order as written, nothing else.
-        let expected = RenderRecord::example_keys();
+        let mut expected = RenderRecord::example_keys();
+        expected.extend(["tile", "pixels_sha256", "bad_samples"]);
         let written: Vec<&str> = pairs.iter().map(|(k, _)| k.as_str()).collect();
-        if written.len() != expected.len() + 3
-            || written[..expected.len()] != expected[..]
-            || written[expected.len()..] != ["tile", "pixels_sha256", "bad_samples"]
+        if let Some(k) =
+            (0..expected.len().max(written.len())).find(|&k| written.get(k) != expected.get(k))
         {
-            return None;
+            return Err(match (written.get(k), expected.get(k)) {
+                (Some(found), Some(wanted)) => {
+                    format!("line {} is `{found}`, where `{wanted}` belongs", k + 2)
+                }
+                (Some(found), None) => format!("line {} (`{found}`) is one too many", k + 2),
+                (None, Some(wanted)) => format!("its `{wanted}` line is missing"),
+                (None, None) => unreachable!("k is below the longer length"),
+            });
         }
-        let (width, height) = get("size")?.split_once('x')?;
-        let (tile, tiles) = get("tile")?.split_once(" of ")?;
-        let curve = match get("tonemap")? {
+        let get = |key: &str| {
+            let at = written.iter().position(|k| *k == key).unwrap_or_default();
+            (at + 2, pairs[at].1.as_str())
+        };
+        let value = |key: &str| get(key).1;
+        let bad = |key: &str, allowed: &str| {
+            let (line, value) = get(key);
+            format!("line {line}: `{key}` is `{value}`; allowed: {allowed}")
+        };
+        let number = |key: &str| -> Result<u64, String> {
+            value(key)
+                .parse()
+                .map_err(|_| bad(key, "a whole number from 0"))
+        };
+        let pair = |key: &str, separator: &str, allowed: &str| -> Result<(u32, u32), String> {
+            value(key)
+                .split_once(separator)
+                .and_then(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?)))
+                .ok_or_else(|| bad(key, allowed))
+        };
+        let size_px = pair("size", "x", "WIDTHxHEIGHT in pixels")?;
+        let tile = pair("tile", " of ", "I of N")?;
+        let curve = match value("tonemap") {
             "Filmic" => ToneCurve::Filmic,
             "Linear" => ToneCurve::Linear,
-            _ => return None,
+            _ => return Err(bad("tonemap", "Filmic or Linear")),
         };
-        let ao = match get("ao_mm")? {
+        let ao = match value("ao_mm") {
             "off" => None,
-            d => Some(d.parse::<f64>().ok()?),
+            d => Some(
+                d.parse::<f64>()
+                    .map_err(|_| bad("ao_mm", "off or a distance"))?,
+            ),
         };
-        let exposure_ev: f64 = get("exposure_ev")?.parse().ok()?;
-        let seed: u64 = get("seed")?.parse().ok()?;
+        let exposure_ev: f64 = value("exposure_ev")
+            .parse()
+            .map_err(|_| bad("exposure_ev", "a number of stops"))?;
+        let seed = number("seed")?;
         let display = display_of(exposure_ev, curve, ao.is_some(), seed);
-        let sha = get("pixels_sha256")?.to_string();
-        Some(ReadRecord {
-            size_px: (width.parse().ok()?, height.parse().ok()?),
-            tile: (tile.parse().ok()?, tiles.parse().ok()?),
-            pixels_sha256: sha,
-            bad_samples: get("bad_samples")?.parse().ok()?,
+        Ok(ReadRecord {
+            size_px,
+            tile,
+            pixels_sha256: value("pixels_sha256").to_string(),
+            bad_samples: number("bad_samples")?,
             display: (display, ao.is_some()),
-            render_lines: pairs.into_iter().take(expected.len()).collect(),
+            render_lines: pairs.into_iter().take(expected.len() - 3).collect(),
         })
     }
 }
@@ -489,8 +520,14 @@ mod tests {
             .iter()
             .any(|(k, v)| k == "recipe" && v == "\"my\\ngem.ron\""));
         // A missing or extra line, or another header, is not a record.
-        assert!(ReadRecord::parse(&text.replace("seed: 9\n", "")).is_none());
-        assert!(ReadRecord::parse(&format!("{text}extra: 1\n")).is_none());
-        assert!(ReadRecord::parse(&text.replace("record 1", "record 2")).is_none());
+        let refused = |text: &str| ReadRecord::parse(text).unwrap_err();
+        assert!(refused(&text.replace("seed: 9\n", "")).contains("where `seed` belongs"));
+        assert!(refused(&format!("{text}extra: 1\n")).contains("(`extra`) is one too many"));
+        assert!(refused(&text.replace("record 1", "record 2")).starts_with("its first line is"));
+        let seed_line = text.lines().position(|l| l.starts_with("seed: ")).unwrap() + 1;
+        assert_eq!(
+            refused(&text.replace("seed: 9\n", "seed: -9\n")),
+            format!("line {seed_line}: `seed` is `-9`; allowed: a whole number from 0")
+        );
     }
 }

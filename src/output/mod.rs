@@ -42,12 +42,12 @@ pub struct OutputError {
 fn temporary_sibling(path: &Path) -> PathBuf {
     /// The longest name kept whole: 255 bytes less the dot, the process
     /// number and `.tmp`.
-    const WHOLE_UP_TO: usize = 230;
+    const WHOLE_UP_TO_BYTES: usize = 230;
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "output".into());
-    let name = if name.len() <= WHOLE_UP_TO {
+    let name = if name.len() <= WHOLE_UP_TO_BYTES {
         name
     } else {
         use std::hash::{Hash, Hasher};

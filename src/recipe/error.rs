@@ -5,7 +5,6 @@ use std::fmt;
 
 use crate::recipe::brackets::open_bracket_hint;
 pub(crate) use crate::recipe::ron_text::blank_comments_and_strings;
-use crate::recipe::ron_text::block_comment_end;
 pub use crate::recipe::ron_text::line_col_of_offset;
 
 /// A problem with a user's (or a built-in) RON file.
@@ -180,17 +179,30 @@ fn closes_its_item(text: &str) -> bool {
     false
 }
 
-/// The length of the RON attribute `#![…]` that `text` starts with, to its
-/// matching `]`; None when it is never closed.
-fn attribute_len(text: &str) -> Option<usize> {
+/// The offset just past the RON attribute `#![…]` (whitespace allowed
+/// between `#`, `!` and `[`) that starts at `start` in `code` (the text
+/// with comments and strings blanked, so that their brackets do not
+/// count); None when none starts there or it is never closed.
+fn attribute_end(code: &[u8], start: usize) -> Option<usize> {
+    let skip = |k: usize| {
+        k + code[k.min(code.len())..]
+            .iter()
+            .take_while(|c| c.is_ascii_whitespace())
+            .count()
+    };
+    let bang = skip(start + 1);
+    let open = skip(bang + 1);
+    if code.get(bang) != Some(&b'!') || code.get(open) != Some(&b'[') {
+        return None;
+    }
     let mut depth = 0usize;
-    for (k, c) in text.char_indices().skip(2) {
+    for (k, &c) in code.iter().enumerate().skip(open) {
         match c {
-            '[' | '(' => depth += 1,
-            ']' | ')' => {
+            b'[' | b'(' => depth += 1,
+            b']' | b')' => {
                 depth = depth.checked_sub(1)?;
                 if depth == 0 {
-                    return (c == ']').then_some(k + 1);
+                    return (c == b']').then_some(k + 1);
                 }
             }
             _ => {}
@@ -200,28 +212,20 @@ fn attribute_len(text: &str) -> Option<usize> {
 }
 
 /// Byte offset of the first character of `text` that is not whitespace, a
-/// `//` or `/* */` comment (nested, as RON reads them), or a RON
-/// `#![enable(…)]` attribute.
+/// `//` or `/* */` comment (nested, as RON reads them), a byte-order mark
+/// or a RON `#![enable(…)]` attribute; an attribute left open is code, for
+/// the parser to place its error there.
 pub fn first_code_offset(text: &str) -> usize {
-    let bytes = text.as_bytes();
+    const BYTE_ORDER_MARK: &[u8] = "\u{feff}".as_bytes();
+    let code = blank_comments_and_strings(text);
     let mut i = 0;
-    while i < bytes.len() {
-        let rest = &text[i..];
-        if bytes[i].is_ascii_whitespace() {
+    while i < code.len() {
+        if code[i].is_ascii_whitespace() {
             i += 1;
-        } else if rest.starts_with("//") {
-            i += rest.find('\n').map_or(rest.len(), |e| e + 1);
-        } else if rest.starts_with("/*") {
-            i = block_comment_end(bytes, i);
-        } else if rest.starts_with("#![") {
-            // An attribute ends at its matching `]`; one left open is
-            // code, for the parser to place its error there.
-            match attribute_len(rest) {
-                Some(len) => i += len,
-                None => break,
-            }
-        } else if rest.starts_with('\u{feff}') {
-            i += '\u{feff}'.len_utf8();
+        } else if code[i..].starts_with(BYTE_ORDER_MARK) {
+            i += BYTE_ORDER_MARK.len();
+        } else if let Some(end) = (code[i] == b'#').then(|| attribute_end(&code, i)).flatten() {
+            i = end;
         } else {
             break;
         }
@@ -500,6 +504,15 @@ mod tests {
         // An attribute left open is code (the parser then says where),
         // not a file of comments only.
         assert_eq!(first_code_offset("#![enable(implicit_some)\nGem()"), 0);
+        // Space after `#` and `!`, a bracket in a string: still attributes.
+        for attribute in ["#! [enable(implicit_some)]", "#![type = \"gem (v1\"]"] {
+            let text = format!("{attribute}\nGem()");
+            assert_eq!(
+                first_code_offset(&text),
+                text.find("Gem(").unwrap(),
+                "{text}"
+            );
+        }
         assert_eq!(
             first_code_offset(" /* never closed"),
             " /* never closed".len()

@@ -52,7 +52,7 @@ use crate::recipe::error::{did_you_mean, line_col_of_offset, RecipeError};
 use crate::recipe::library::{builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
 use crate::recipe::ranges;
-use crate::recipe::ron_text::{key_definitions, value_end, KeyDefinition};
+use crate::recipe::ron_text::{key_definitions, KeyDefinition};
 use crate::recipe::table_cache::Tables;
 use crate::render::dielectric::RoughInterface;
 use crate::sampling::unit_direction;
@@ -752,9 +752,11 @@ fn compile_gem_material(
         return compile_material_seen_from(&locate_material(name)?, material, ior_outside);
     };
     let (base, own_text) = match definition {
-        Some(KeyDefinition { offset, line_col }) => {
-            (line_col, &text[offset..value_end(text, offset)])
-        }
+        Some(KeyDefinition {
+            offset,
+            line_col,
+            value_end,
+        }) => (line_col, &text[offset..value_end]),
         None => ((1, 1), text),
     };
     let source = MaterialSource {
