@@ -447,12 +447,15 @@ fn broken_files_name_the_file_and_what_was_expected() {
     );
     // A folder: each of its .ron files (the broken ones above), in name
     // order; a folder without any is an error of its own.
+    // A link to nothing is not skipped in silence.
+    std::os::unix::fs::symlink("nowhere.ron", dir.join("gone.ron")).unwrap();
     let out = lapidary(&["validate", dir.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1));
     let err = text(&out.stderr);
     let anonymous = err.find("anonymous.ron:2:1: found `(`");
     let empty = err.find("empty.ron: the file is empty");
     assert!(anonymous.is_some() && anonymous < empty, "{err}");
+    assert!(err.contains("gone.ron: cannot read"), "{err}");
     let none = dir.join("none");
     std::fs::create_dir_all(&none).unwrap();
     std::fs::write(none.join("notes.txt"), "not a recipe").unwrap();

@@ -560,8 +560,10 @@ fn inputs(specs: &[String]) -> Vec<Result<String, RecipeError>> {
         let files = std::fs::read_dir(spec).map(|entries| {
             let mut files: Vec<String> = entries
                 .filter_map(|entry| entry.ok().map(|entry| entry.path()))
+                // Files, and what is not a folder (a link to nothing, a
+                // pipe), which reading then reports.
                 .filter(|path| {
-                    path.is_file()
+                    !path.is_dir()
                         && path
                             .extension()
                             .is_some_and(|e| e.eq_ignore_ascii_case("ron"))
