@@ -163,37 +163,20 @@ fn bounces_default() -> u32 {
     4
 }
 
-fn ranged_u32<'de, D: Deserializer<'de>>(
-    d: D,
-    field: &str,
-    min: u32,
-    max: u32,
-) -> Result<u32, D::Error> {
-    // Read wide, so that −1 or 10³⁰ is told its range too.
-    let v = i128::deserialize(d)?;
-    u32::try_from(v)
-        .ok()
-        .filter(|v| (min..=max).contains(v))
-        .ok_or_else(|| {
-            D::Error::custom(format!(
-                "`{field}` = {v} is out of range; allowed: {min} to {max}"
-            ))
-        })
-}
 fn width<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    ranged_u32(d, "width", 1, MAX_SIDE_PX)
+    crate::recipe::ranges::whole_in(d, "width", 1, MAX_SIDE_PX)
 }
 fn height<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    ranged_u32(d, "height", 1, MAX_SIDE_PX)
+    crate::recipe::ranges::whole_in(d, "height", 1, MAX_SIDE_PX)
 }
 fn spp<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    ranged_u32(d, "spp", 1, MAX_SPP)
+    crate::recipe::ranges::whole_in(d, "spp", 1, MAX_SPP)
 }
 fn bounces<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    ranged_u32(d, "bounces", 0, MAX_BOUNCES)
+    crate::recipe::ranges::whole_in(d, "bounces", 0, MAX_BOUNCES)
 }
 fn tiles<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    ranged_u32(d, "tiles", 1, MAX_SIDE_PX)
+    crate::recipe::ranges::whole_in(d, "tiles", 1, MAX_SIDE_PX)
 }
 fn exposure_ev<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
     crate::recipe::ranges::checked(d, "exposure_ev", "-64 to 64 (stops)", |v| v.abs() <= 64.0)

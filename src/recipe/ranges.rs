@@ -28,6 +28,26 @@ pub fn checked<'de, D: Deserializer<'de>>(
     Ok(v)
 }
 
+/// Parse a whole number from `min` to `max`, else an error naming `field`
+/// and the range. Read wide (as 128 bits), so that −1 or 10³⁰ is told the
+/// range too, not RON's "Integer is out of bounds".
+pub(crate) fn whole_in<'de, D: Deserializer<'de>>(
+    d: D,
+    field: &str,
+    min: u32,
+    max: u32,
+) -> Result<u32, D::Error> {
+    let v = i128::deserialize(d)?;
+    u32::try_from(v)
+        .ok()
+        .filter(|v| (min..=max).contains(v))
+        .ok_or_else(|| {
+            D::Error::custom(format!(
+                "`{field}` = {v} is out of range; allowed: {min} to {max}"
+            ))
+        })
+}
+
 /// Parse an RGB triple, each component checked (public like [`checked`]).
 pub(crate) fn checked_rgb<'de, D: Deserializer<'de>>(
     d: D,

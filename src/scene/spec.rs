@@ -27,7 +27,7 @@
 //! recipes' object space).
 
 use crate::message::number;
-use crate::recipe::ranges::{checked, checked_rgb};
+use crate::recipe::ranges::{checked, checked_rgb, whole_in};
 use serde::de::Error;
 use serde::{Deserialize, Deserializer};
 
@@ -84,16 +84,7 @@ pub const MAX_FRAMES: u32 = 3600;
 
 /// Deserialize `frames`, allowed 1 to [`MAX_FRAMES`].
 fn frames<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    // Read wide, so that −1 or 10³⁰ is told its range too.
-    let v = i128::deserialize(d)?;
-    u32::try_from(v)
-        .ok()
-        .filter(|v| (1..=MAX_FRAMES).contains(v))
-        .ok_or_else(|| {
-            D::Error::custom(format!(
-                "`frames` = {v} is out of range; allowed: 1 to {MAX_FRAMES}"
-            ))
-        })
+    whole_in(d, "frames", 1, MAX_FRAMES)
 }
 
 fn studio() -> EnvironmentKind {
