@@ -405,6 +405,26 @@ fn ior_below_one() {
 }
 
 #[test]
+fn a_hexadecimal_number_where_a_fraction_belongs() {
+    // RON reads `0x…` for whole numbers only: it reads the 0, then stops at
+    // the `x` (or the range check refuses the 0 first).
+    bad_gem(
+        "hex-ior",
+        "ior: 1.5,",
+        "ior: 0x2,",
+        "ior: 0x2",
+        &["`0x2` is read as 0 followed by `x2`", "decimal digits"],
+    );
+    bad_gem(
+        "binary-thickness",
+        "thickness: 0.1,",
+        "thickness: 0b1,",
+        "thickness: 0b1",
+        &["field `thickness`", "`0b1` is read as 0 followed by `b1`"],
+    );
+}
+
+#[test]
 fn negative_thickness() {
     bad_gem(
         "negative-thickness",
@@ -887,6 +907,11 @@ fn an_invisible_character_pasted_into_a_recipe_is_named_at_its_place() {
             "roughness_deg\u{a0}: 3.0",
             "line 5 holds a no-break space (U+00A0) at column 26",
         ),
+        (
+            "nul",
+            "roughness_deg:\0 3.0",
+            "line 5 holds a NUL byte (U+0000) at column 27",
+        ),
     ] {
         let dir = scratch(name);
         let path = dir.join("pasted.ron");
@@ -897,6 +922,26 @@ fn an_invisible_character_pasted_into_a_recipe_is_named_at_its_place() {
         assert!(stderr.contains("pasted.ron:5:"), "{stderr}");
         assert!(stderr.contains(found), "{stderr}");
     }
+}
+
+#[test]
+fn a_control_character_in_a_name_is_written_as_its_escape() {
+    // A NUL inside a quoted name reaches the message through the name: it
+    // is shown as `\u{0}`, not sent to the terminal.
+    let dir = scratch("nul-name");
+    let path = dir.join("nul.ron");
+    let text = GOOD_SCENE.replacen(
+        "environment: Constant(radiance: (0.5, 0.5, 0.5))",
+        "environment: File(path: \"sky\0.exr\")",
+        1,
+    );
+    assert_ne!(text, GOOD_SCENE);
+    std::fs::write(&path, text).unwrap();
+    let out = lapidary(&[OsString::from("validate"), path.into()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(!stderr.contains('\0'), "{stderr:?}");
+    assert!(stderr.contains("sky\\u{0}.exr"), "{stderr}");
 }
 
 #[test]
@@ -957,11 +1002,12 @@ fn a_path_written_with_backslashes_gets_a_hint() {
 
 #[test]
 fn a_negative_or_exponent_seed_says_what_a_whole_number_is() {
-    bad_scene(
+    // Placed at the sign, where the number starts (RON places it after).
+    bad_scene_reference(
         "negative-seed",
         "position: (0.0, 0.0, 0.5),",
         "position: (0.0, 0.0, 0.5),\n            seed: Some(-1),",
-        "seed: Some(-1)",
+        "-1),",
         &["field `seed`: Integer is out of bounds; allowed: a whole number from 0"],
     );
     bad_scene(

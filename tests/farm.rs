@@ -336,10 +336,29 @@ fn merge_refuses_every_tile_that_does_not_belong_and_writes_nothing() {
     aged[at..at + version.len()].copy_from_slice(other.as_bytes());
     std::fs::write(t("version.exr"), aged).unwrap();
     std::fs::write(t("text.exr"), "not an image").unwrap();
+    // Two parts: the header checked would be the first, the layer decoded
+    // the first valid one.
+    {
+        use exr::prelude::*;
+        let layer = |name: &str| {
+            let red = AnyChannel::new("R", FlatSamples::F32(vec![0.5; 64]));
+            Layer::new(
+                (8, 8),
+                LayerAttributes::named(name),
+                Encoding::UNCOMPRESSED,
+                AnyChannels::sort(SmallVec::from_vec(vec![red])),
+            )
+        };
+        let bounds = IntegerBounds::from_dimensions((8, 8));
+        Image::from_layers(ImageAttributes::new(bounds), vec![layer("a"), layer("b")])
+            .write()
+            .to_file(t("two-parts.exr"))
+            .unwrap();
+    }
 
     let out = t("out.png");
     std::fs::write(&out, "existing").unwrap();
-    let cases: [(&[&str], &str); 15] = [
+    let cases: [(&[&str], &str); 16] = [
         (
             &["a0.exr", "spp.exr"],
             "spp.exr belongs to another render than",
@@ -363,6 +382,10 @@ fn merge_refuses_every_tile_that_does_not_belong_and_writes_nothing() {
         (&["version.exr", "a1.exr"], "its version is"),
         (&["plain.exr", "a1.exr"], "plain.exr: not a lapidary tile"),
         (&["text.exr", "a1.exr"], "text.exr"),
+        (
+            &["two-parts.exr", "a1.exr"],
+            "two-parts.exr: holds 2 parts, where lapidary writes one",
+        ),
         (&["gone.exr", "a1.exr"], "gone.exr: no such tile file"),
     ];
     for (tiles, expected) in cases {

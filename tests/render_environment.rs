@@ -875,6 +875,39 @@ fn bad_files_give_errors_naming_the_file() {
     let err = error_text(&cut);
     assert!(err.contains("the file ends early"), "{err}");
 
+    // An offset table whose entries all point at the first block: the
+    // decoder delivers that block's rows again and again, and the rest of
+    // the map would stay black. The table starts where its first entry
+    // points 8 bytes a block before.
+    let tall = dir.join("tall.exr");
+    exr::prelude::write_rgba_file(&tall, 4, 256, |_, y| (1.0f32, y as f32, 1.0f32, 1.0f32))
+        .unwrap();
+    assert!(Environment::from_file(&tall, 0.0, 1.0).is_ok());
+    let whole = std::fs::read(&tall).unwrap();
+    let blocks = exr::meta::MetaData::read_from_file(&tall, false)
+        .unwrap()
+        .headers[0]
+        .chunk_count;
+    let table = (0..whole.len() - 8)
+        .find(|&at| {
+            let first = u64::from_le_bytes(whole[at..at + 8].try_into().unwrap());
+            first == (at + 8 * blocks) as u64
+        })
+        .expect("the offset table");
+    assert!(blocks > 1, "{blocks} blocks");
+    let mut forged = whole.clone();
+    let first_block = whole[table..table + 8].to_vec();
+    for k in 1..blocks {
+        forged[table + 8 * k..table + 8 * (k + 1)].copy_from_slice(&first_block);
+    }
+    let path = dir.join("one-block.exr");
+    std::fs::write(&path, &forged).unwrap();
+    let err = error_text(&path);
+    assert!(
+        err.contains("is stored twice (a damaged offset table?)"),
+        "{err}"
+    );
+
     // A directory with an allowed extension is not a file.
     let subdir = dir.join("folder.hdr");
     std::fs::create_dir(&subdir).unwrap();

@@ -402,14 +402,25 @@ pub struct ExrHeader {
     pub notes: Vec<(String, String)>,
 }
 
-/// The header of the EXR at `path` (its first layer's size and text
-/// attributes), without decoding a pixel: what a file claims can be
-/// checked before [`read_exr`] allocates for it.
+/// The header of the EXR at `path` (its layer's size and text attributes),
+/// without decoding a pixel: what a file claims can be checked before
+/// [`read_exr`] allocates for it. A file of several parts is refused.
 pub fn read_exr_header(path: &Path) -> Result<ExrHeader, OutputError> {
     let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| OutputError {
         path: path.display().to_string(),
         message: format!("cannot read EXR: {e}"),
     })?;
+    // One part, so that the size checked here is the layer `read_exr`
+    // decodes (its first valid layer could be a later part's).
+    if meta.headers.len() > 1 {
+        return Err(OutputError {
+            path: path.display().to_string(),
+            message: format!(
+                "holds {} parts, where lapidary writes one",
+                meta.headers.len()
+            ),
+        });
+    }
     let header = meta.headers.first();
     let size = header.map_or(exr::math::Vec2(0, 0), |h| h.layer_size);
     Ok(ExrHeader {

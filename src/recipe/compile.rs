@@ -43,7 +43,19 @@ pub(crate) fn parse_ron<T: serde::de::DeserializeOwned>(
 /// Turn a RON error into a [`RecipeError`] a person can act on.
 pub(crate) fn ron_error(path: &str, source: &str, e: ron::error::SpannedError) -> RecipeError {
     use ron::error::Error as E;
-    let (line, col) = (e.span.start.line, e.span.start.col);
+    let (line, mut col) = (e.span.start.line, e.span.start.col);
+    // RON places a negative whole number's error after its sign: place it
+    // at the sign, where the number starts.
+    if matches!(e.code, E::IntegerOutOfBounds)
+        && col > 1
+        && source
+            .lines()
+            .nth(line.saturating_sub(1))
+            .and_then(|text| text.chars().nth(col - 2))
+            == Some('-')
+    {
+        col -= 1;
+    }
     let message = match &e.code {
         E::NoSuchStructField {
             expected,

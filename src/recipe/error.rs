@@ -55,9 +55,19 @@ impl RecipeError {
 impl fmt::Display for RecipeError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self.position {
-            Some((line, col)) => write!(f, "{}:{}:{}: {}", self.path, line, col, self.message),
-            None => write!(f, "{}: {}", self.path, self.message),
+            Some((line, col)) => write!(f, "{}:{}:{}: ", self.path, line, col)?,
+            None => write!(f, "{}: ", self.path)?,
         }
+        // A control character quoted from the file (a NUL in a name) is
+        // written as its escape, not sent to the terminal.
+        for c in self.message.chars() {
+            match c {
+                '\n' | '\t' => write!(f, "{c}")?,
+                c if c.is_control() => write!(f, "{}", c.escape_unicode())?,
+                c => write!(f, "{c}")?,
+            }
+        }
+        Ok(())
     }
 }
 
@@ -322,6 +332,18 @@ pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col
             " (is `{mark}` a comment? RON's comments are `// …` and `/* … */`)"
         ));
     }
+    // `0x2`, `0b1`, `0o7` where a number with a fraction belongs: RON reads
+    // these forms for whole numbers only, so it reads the `0` and stops
+    // at the letter (or a range check refuses the 0).
+    let radix_number = radix_number_at(source, offset)
+        .filter(|&(_, start)| offset == start + 1 || message.contains("` = 0 is out of range"));
+    if let Some((number, _)) = radix_number {
+        message.push_str(&format!(
+            " (`{number}` is read as 0 followed by `{}`: this field takes a number in \
+             decimal digits, such as 1.5)",
+            &number[1..]
+        ));
+    }
     if message == "Non-whitespace trailing characters" {
         message.push_str(
             " after the end of the recipe (is a closing bracket before it one too many?)",
@@ -344,6 +366,38 @@ pub(crate) fn with_ron_hints(mut message: String, source: &str, line: usize, col
     message
 }
 
+/// The word of letters, digits, `_` and `.` around byte `offset` of
+/// `source` (the character there or just before it), when it is a whole
+/// number in RON's hexadecimal, binary or octal form (`0x…`, `0b…`, `0o…`),
+/// and the byte offset where it starts.
+fn radix_number_at(source: &str, offset: usize) -> Option<(&str, usize)> {
+    let bytes = source.as_bytes();
+    let in_word = |b: u8| b.is_ascii_alphanumeric() || b == b'_' || b == b'.';
+    let mut start = offset.min(bytes.len());
+    while start > 0 && in_word(bytes[start - 1]) {
+        start -= 1;
+    }
+    let end = (start..bytes.len())
+        .find(|&i| !in_word(bytes[i]))
+        .unwrap_or(bytes.len());
+    let word = &source[start..end];
+    let digits_after = |prefix: &str, digit: fn(&u8) -> bool| {
+        word.strip_prefix(prefix)
+            .is_some_and(|rest| !rest.is_empty() && rest.bytes().all(|b| b == b'_' || digit(&b)))
+    };
+    let radix = [
+        ("0x", u8::is_ascii_hexdigit as fn(&u8) -> bool),
+        ("0b", |b| matches!(b, b'0' | b'1')),
+        ("0o", |b| matches!(b, b'0'..=b'7')),
+    ];
+    radix
+        .into_iter()
+        .any(|(prefix, digit)| {
+            digits_after(prefix, digit) || digits_after(&prefix.to_uppercase(), digit)
+        })
+        .then_some((word, start))
+}
+
 /// The byte offset where line `line` (1-based) of `source` starts (the
 /// text's length past its last line).
 fn line_start_offset(source: &str, line: usize) -> usize {
@@ -354,18 +408,21 @@ fn line_start_offset(source: &str, line: usize) -> usize {
         .sum()
 }
 
-/// The first character outside the ASCII set on line `line` (1-based) of
+/// The first character outside the ASCII set, or an ASCII control
+/// character other than a tab or a line end, on line `line` (1-based) of
 /// `source`, outside comments and string literals, and its column: RON
-/// reads names, numbers and brackets in ASCII only, so such a character
-/// (often invisible, pasted from a web page or a word processor) stops
-/// the parse there or splits a name in two.
+/// reads names, numbers and brackets in printable ASCII only, so such a
+/// character (often invisible, pasted from a web page or a word
+/// processor, or a NUL from a damaged file) stops the parse there or
+/// splits a name in two.
 fn stray_character_on_line(source: &str, line: usize) -> Option<(usize, char)> {
     let code = blank_comments_and_strings(source);
     let line_start = line_start_offset(source, line);
     let line_end = source[line_start.min(source.len())..]
         .find('\n')
         .map_or(source.len(), |end| line_start + end);
-    let offset = (line_start..line_end).find(|&i| !code[i].is_ascii())?;
+    let stray = |b: u8| !b.is_ascii() || (b.is_ascii_control() && !b"\t\r\n".contains(&b));
+    let offset = (line_start..line_end).find(|&i| stray(code[i]))?;
     let c = source[offset..].chars().next()?;
     Some((source[line_start..offset].chars().count() + 1, c))
 }
@@ -389,6 +446,8 @@ fn character_name(c: char) -> String {
         '\u{2212}' | '\u{2013}' | '\u{2014}' => {
             format!("a typographic minus or dash ({code}, where RON takes `-`)")
         }
+        '\0' => format!("a NUL byte ({code})"),
+        c if c.is_control() => format!("a control character ({code})"),
         _ => format!("`{c}` ({code})"),
     }
 }

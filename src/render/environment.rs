@@ -2056,11 +2056,16 @@ fn read_exr(path: &Path) -> Result<PackedTexels, EnvironmentError> {
     let (width, height) = (header.layer_size.width(), header.layer_size.height());
     let origin = path.display().to_string();
     check_size(&origin, width, height)?;
-    /// The texels so far, and the first (row-major) that cannot be stored.
+    /// The texels so far, the first (row-major) that cannot be stored, a
+    /// bit per texel delivered (a damaged file's blocks may repeat a part
+    /// of the image and leave another out: its offset table points twice
+    /// at one block) and the first texel delivered twice.
     struct Packing {
         width: usize,
         texels: Vec<u64>,
         first_bad: Option<(usize, BadTexel)>,
+        delivered: Vec<u64>,
+        first_repeated: Option<usize>,
     }
     let image = exr::prelude::read_first_rgba_layer_from_file(
         path,
@@ -2068,9 +2073,16 @@ fn read_exr(path: &Path) -> Result<PackedTexels, EnvironmentError> {
             width: size.width(),
             texels: vec![0; size.area()],
             first_bad: None,
+            delivered: vec![0; size.area().div_ceil(64)],
+            first_repeated: None,
         },
         |packing: &mut Packing, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
             let i = pos.y() * packing.width + pos.x();
+            let (word, bit) = (i / 64, 1u64 << (i % 64));
+            if packing.delivered[word] & bit != 0 && packing.first_repeated.is_none() {
+                packing.first_repeated = Some(i);
+            }
+            packing.delivered[word] |= bit;
             match pack_texel([r, g, b].map(f64::from)) {
                 Ok(bits) => packing.texels[i] = bits,
                 Err(bad) => {
@@ -2090,6 +2102,27 @@ fn read_exr(path: &Path) -> Result<PackedTexels, EnvironmentError> {
         other => decode_error(other.to_string()),
     })?;
     let packing = image.layer_data.channel_data.pixels;
+    let row_of = |i: usize| i / packing.width.max(1);
+    if let Some(i) = packing.first_repeated {
+        return Err(decode_error(format!(
+            "row {} is stored twice (a damaged offset table?)",
+            row_of(i)
+        )));
+    }
+    let delivered: usize = packing
+        .delivered
+        .iter()
+        .map(|w| w.count_ones() as usize)
+        .sum();
+    if delivered != packing.texels.len() {
+        let missing = (0..packing.texels.len())
+            .find(|&i| packing.delivered[i / 64] & (1 << (i % 64)) == 0)
+            .unwrap_or(0);
+        return Err(decode_error(format!(
+            "row {} is missing from the file (a damaged offset table?)",
+            row_of(missing)
+        )));
+    }
     if let Some((i, bad)) = packing.first_bad {
         let x = i % packing.width.max(1);
         return Err(bad.into_error(origin, x, i / packing.width.max(1)));
