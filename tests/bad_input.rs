@@ -688,6 +688,65 @@ fn an_unknown_material_name() {
 }
 
 #[test]
+fn every_unknown_name_of_a_recipe_is_reported_at_once() {
+    // Three typos: a map entry's material, a switch range's map and the
+    // glitter's material; each named at its place, in the file's order,
+    // by `validate` and by `render` alike.
+    let text = GOOD_GEM
+        .replacen(
+            "(material: \"lilac\", weight: 2.0),",
+            "(material: \"lilak\", weight: 2.0),",
+            1,
+        )
+        .replacen("map: \"tiles\"),", "map: \"tils\"),", 1)
+        .replacen(
+            "entries: [(material: \"foil\")],",
+            "entries: [(material: \"foyl\")],",
+            1,
+        );
+    let dir = scratch("three-typos");
+    let path = dir.join("typos.ron");
+    std::fs::write(&path, &text).unwrap();
+    let place = |written: &str| {
+        let offset = text.find(written).expect("written");
+        let line = text[..offset].matches('\n').count() + 1;
+        let col = offset - text[..offset].rfind('\n').map_or(0, |i| i + 1) + 1;
+        format!("{}:{line}:{col}: ", path.display())
+    };
+    let expected = [
+        format!("{}unknown material `lilak`", place("\"lilak\"")),
+        format!("{}unknown map `tils`", place("\"tils\"")),
+        format!("{}unknown material `foyl`", place("\"foyl\"")),
+    ];
+    let render = lapidary(&[
+        OsString::from("render"),
+        path.clone().into(),
+        "--size".into(),
+        "8".into(),
+        "-o".into(),
+        dir.join("gem.png").into(),
+    ]);
+    for out in [lapidary(&[OsString::from("validate"), path.into()]), render] {
+        assert_eq!(out.status.code(), Some(1));
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let at: Vec<usize> = expected
+            .iter()
+            .map(|e| {
+                stderr
+                    .find(e.as_str())
+                    .unwrap_or_else(|| panic!("no `{e}`:\n{stderr}"))
+            })
+            .collect();
+        assert!(
+            at.windows(2).all(|w| w[0] < w[1]),
+            "out of order:\n{stderr}"
+        );
+    }
+    assert!(!dir.join("gem.png").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn an_unknown_surface_map() {
     bad_gem(
         "unknown-surface",

@@ -16,6 +16,9 @@ pub struct RecipeError {
     pub position: Option<(usize, usize)>,
     /// What is wrong and what is allowed.
     pub message: String,
+    /// Further problems found in the same file by the same pass (every
+    /// unknown name a recipe uses), written after this one.
+    pub further: Vec<RecipeError>,
 }
 
 impl RecipeError {
@@ -25,6 +28,7 @@ impl RecipeError {
             path: path.to_string(),
             position: Some((line, col)),
             message: message.into(),
+            further: Vec::new(),
         }
     }
 
@@ -34,7 +38,21 @@ impl RecipeError {
             path: path.to_string(),
             position: None,
             message: message.into(),
+            further: Vec::new(),
         }
+    }
+
+    /// `one` and `others` as one error: the first written in the file
+    /// (those without a place last), the others, each once, as its
+    /// [`RecipeError::further`].
+    pub(crate) fn gathered(one: RecipeError, mut others: Vec<RecipeError>) -> Self {
+        others.push(one);
+        others.sort_by_key(|e| e.position.unwrap_or((usize::MAX, usize::MAX)));
+        others.dedup();
+        // Not empty: it holds `one`.
+        let mut first = others.remove(0);
+        first.further.extend(others);
+        first
     }
 
     /// An error at the first place `needle` is written in `source` as code
@@ -66,6 +84,9 @@ impl fmt::Display for RecipeError {
                 c if c.is_control() => write!(f, "{}", c.escape_unicode())?,
                 c => write!(f, "{c}")?,
             }
+        }
+        for more in &self.further {
+            write!(f, "\n{more}")?;
         }
         Ok(())
     }

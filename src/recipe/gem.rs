@@ -840,6 +840,9 @@ struct Compiler<'a> {
     /// Per material index, the index of the medium it is seen from (None:
     /// an inline material not used yet).
     seen_from_ior: Vec<Option<f64>>,
+    /// Unknown names met so far, each reported at the end with the rest
+    /// (a recipe's typos are listed at once, not one a run).
+    deferred: Vec<RecipeError>,
 }
 
 impl<'a> Compiler<'a> {
@@ -851,7 +854,17 @@ impl<'a> Compiler<'a> {
             map_names: spec.maps.keys().cloned().collect(),
             materials: Vec::new(),
             seen_from_ior: Vec::new(),
+            deferred: Vec::new(),
         }
+    }
+
+    /// The index `found`, or where it names nothing, 0 in its place and its
+    /// error kept for the end ([`Compiler::compile`] reports them together).
+    fn or_deferred(&mut self, found: Result<u32, RecipeError>) -> u32 {
+        found.unwrap_or_else(|e| {
+            self.deferred.push(e);
+            0
+        })
     }
 
     fn error_at(&self, needle: &str, message: String) -> RecipeError {
@@ -999,8 +1012,14 @@ impl<'a> Compiler<'a> {
         map: &Option<String>,
     ) -> Result<Entry, RecipeError> {
         match (material, map) {
-            (Some(m), None) => Ok(Entry::Material(self.material_index(m)?)),
-            (None, Some(m)) => Ok(Entry::Node(self.map_index(m)?)),
+            (Some(m), None) => {
+                let found = self.material_index(m);
+                Ok(Entry::Material(self.or_deferred(found)))
+            }
+            (None, Some(m)) => {
+                let found = self.map_index(m);
+                Ok(Entry::Node(self.or_deferred(found)))
+            }
             _ => Err(self.error_at_map(
                 owner,
                 format!("an entry of `{owner}` needs exactly one of `material` or `map`"),
@@ -1294,7 +1313,10 @@ impl<'a> Compiler<'a> {
         let mut entries = Vec::with_capacity(g.entries.len());
         for e in &g.entries {
             match (&e.material, &e.map) {
-                (Some(m), None) => entries.push((self.material_index(m)?, e.weight)),
+                (Some(m), None) => {
+                    let found = self.material_index(m);
+                    entries.push((self.or_deferred(found), e.weight));
+                }
                 _ => return Err(self.error_at(
                     "GlitterMap",
                     "a glitter entry needs `material` (and no `map`): glitter cells hold materials"
@@ -1376,7 +1398,10 @@ impl<'a> Compiler<'a> {
                 size_spread: inclusion.size_spread,
                 cell_mm,
                 aligned,
-                material: self.material_index_seen_from(&inclusion.material, *ior)?,
+                material: {
+                    let found = self.material_index_seen_from(&inclusion.material, *ior);
+                    self.or_deferred(found)
+                },
                 seed: derive_stream(seed_key(spec.seed ^ inclusion.seed), 16 + k as u64),
             });
         }
@@ -1406,7 +1431,19 @@ impl<'a> Compiler<'a> {
         })
     }
 
+    /// The gem, or every unknown name it uses with the first other error
+    /// (in the order they are written).
     fn compile(mut self, spec: GemSpec) -> Result<Gem, RecipeError> {
+        let compiled = self.compile_all(spec);
+        if self.deferred.is_empty() {
+            return compiled;
+        }
+        let mut unknown = std::mem::take(&mut self.deferred);
+        let first = compiled.err().unwrap_or_else(|| unknown.remove(0));
+        Err(RecipeError::gathered(first, unknown))
+    }
+
+    fn compile_all(&mut self, spec: GemSpec) -> Result<Gem, RecipeError> {
         // Inline materials first, in name order, so their indices are stable.
         for name in self.spec.materials.keys() {
             self.materials
@@ -1447,7 +1484,7 @@ impl<'a> Compiler<'a> {
             )
             .map(|s| format!(" (did you mean `{s}`?)"))
             .unwrap_or_default();
-            return Err(self.error_at(
+            let unknown = self.error_at(
                 "surface",
                 format!(
                     "`surface` names `{surface}`, which is neither a map nor a material{hint}; allowed: a name from `maps` ({}) or a material",
@@ -1457,7 +1494,8 @@ impl<'a> Compiler<'a> {
                         self.map_names.join(", ")
                     }
                 ),
-            ));
+            );
+            Entry::Material(self.or_deferred(Err(unknown)))
         };
         let glitter = match &self.spec.glitter {
             Some(g) => Some(self.glitter(g)?),
@@ -1470,6 +1508,10 @@ impl<'a> Compiler<'a> {
             ));
         }
         let body = self.body(&spec)?;
+        // Placeholders stand for unknown names: no pattern of them.
+        if let Some(unknown) = self.deferred.pop() {
+            return Err(unknown);
+        }
         let pattern = Pattern::new(nodes, root, glitter, self.materials.len() as u32)
             .map_err(|e| RecipeError::whole_file(self.path, e.to_string()))?;
         Ok(Gem {
@@ -1479,13 +1521,12 @@ impl<'a> Compiler<'a> {
             seed: spec.seed,
             body,
             pattern,
-            materials: self.materials,
-            seen_from_ior: self
-                .seen_from_ior
+            materials: std::mem::take(&mut self.materials),
+            seen_from_ior: std::mem::take(&mut self.seen_from_ior)
                 .into_iter()
                 .map(|ior| ior.unwrap_or(1.0))
                 .collect(),
-            map_names: self.map_names,
+            map_names: std::mem::take(&mut self.map_names),
             spec,
         })
     }
