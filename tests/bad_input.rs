@@ -747,6 +747,70 @@ fn every_unknown_name_of_a_recipe_is_reported_at_once() {
 }
 
 #[test]
+fn every_part_of_a_scene_is_checked_and_its_problems_reported_together() {
+    // A stone naming a missing recipe, a ground of an unknown material and
+    // a camera looking at itself: three problems in one run, in order.
+    let text = GOOD_SCENE
+        .replacen(
+            "look_at: (0.0, 0.0, 1.0),",
+            "look_at: (30.0, -30.0, 25.0),",
+            1,
+        )
+        .replacen(
+            STONE_SHAPE,
+            &format!("            recipe: Some(\"nowhere.ron\"),\n{STONE_SHAPE}"),
+            1,
+        )
+        .replacen(
+            "    environment:",
+            "    ground: Some(Ground(height: 0.0, material: \"teflom\")),\n    environment:",
+            1,
+        );
+    let dir = scratch("scene-problems");
+    let path = dir.join("problems.ron");
+    std::fs::write(&path, &text).unwrap();
+    let line_of = |written: &str| {
+        text[..text.find(written).expect("written")]
+            .matches('\n')
+            .count()
+            + 1
+    };
+    let expected = [
+        format!("problems.ron:{}:", line_of("look_at: (30.0")),
+        format!("problems.ron:{}:", line_of("nowhere.ron")),
+        format!("problems.ron:{}:", line_of("teflom")),
+    ];
+    let render = lapidary(&[
+        OsString::from("render"),
+        "--scene".into(),
+        path.clone().into(),
+        "--size".into(),
+        "8".into(),
+        "-o".into(),
+        dir.join("scene.png").into(),
+    ]);
+    for out in [lapidary(&[OsString::from("validate"), path.into()]), render] {
+        assert_eq!(out.status.code(), Some(1));
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let at: Vec<usize> = expected
+            .iter()
+            .map(|e| {
+                stderr
+                    .find(e.as_str())
+                    .unwrap_or_else(|| panic!("no `{e}`:\n{stderr}"))
+            })
+            .collect();
+        assert!(
+            at.windows(2).all(|w| w[0] < w[1]),
+            "out of order:\n{stderr}"
+        );
+        assert!(stderr.contains("unknown material `teflom`"), "{stderr}");
+    }
+    assert!(!dir.join("scene.png").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn an_unknown_surface_map() {
     bad_gem(
         "unknown-surface",

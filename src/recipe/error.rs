@@ -70,6 +70,11 @@ impl RecipeError {
     }
 }
 
+/// How many of an error's [`RecipeError::further`] problems its message
+/// shows (a scene of 1000 stones, each naming a missing recipe, says so in
+/// a screenful).
+const MAX_FURTHER_SHOWN: usize = 19;
+
 impl fmt::Display for RecipeError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self.position {
@@ -85,8 +90,12 @@ impl fmt::Display for RecipeError {
                 c => write!(f, "{c}")?,
             }
         }
-        for more in &self.further {
+        for more in self.further.iter().take(MAX_FURTHER_SHOWN) {
             write!(f, "\n{more}")?;
+        }
+        if self.further.len() > MAX_FURTHER_SHOWN {
+            let left = self.further.len() - MAX_FURTHER_SHOWN;
+            write!(f, "\n{}: {left} more problems like these", self.path)?;
         }
         Ok(())
     }

@@ -313,8 +313,10 @@ impl Compiler<'_> {
         }
     }
 
+    /// The scene, or every problem found in its camera, stones, ground,
+    /// lights and environment, each part checked whatever the others gave
+    /// (reported together, in the file's order).
     fn scene(&self, spec: &SceneSpec, path: Option<&Path>) -> Result<Scene, RecipeError> {
-        let camera = self.camera(&spec.camera)?;
         let count = spec.stones.len();
         if count == 0 || count > MAX_STONES {
             return Err(self.error(
@@ -322,13 +324,6 @@ impl Compiler<'_> {
                 format!("`stones` has {count} stones; allowed: 1 to {MAX_STONES} stones"),
             ));
         }
-        let stones = spec
-            .stones
-            .iter()
-            .enumerate()
-            .map(|(i, s)| self.stone(i, s))
-            .collect::<Result<Vec<_>, _>>()?;
-        let ground = spec.ground.as_ref().map(|g| self.ground(g)).transpose()?;
         if spec.lights.len() > MAX_LIGHTS {
             return Err(self.error(
                 &[Step::Field("lights")],
@@ -338,24 +333,37 @@ impl Compiler<'_> {
                 ),
             ));
         }
-        let lights = spec
-            .lights
-            .iter()
-            .enumerate()
-            .map(|(i, l)| self.light(i, l))
-            .collect::<Result<Vec<_>, _>>()?;
+        /// The value, or `None` with its error added to `errors`.
+        fn kept<T>(errors: &mut Vec<RecipeError>, checked: Result<T, RecipeError>) -> Option<T> {
+            checked.map_err(|e| errors.push(e)).ok()
+        }
+        let mut errors = Vec::new();
+        let camera = kept(&mut errors, self.camera(&spec.camera));
+        let stones: Vec<_> = (spec.stones.iter().enumerate())
+            .filter_map(|(i, s)| kept(&mut errors, self.stone(i, s)))
+            .collect();
+        let ground = (spec.ground.as_ref()).map(|g| kept(&mut errors, self.ground(g)));
+        let lights: Vec<_> = (spec.lights.iter().enumerate())
+            .filter_map(|(i, l)| kept(&mut errors, self.light(i, l)))
+            .collect();
         let environment = match self.environment_given {
-            Some(map) => EnvironmentSpec::File {
+            Some(map) => Some(EnvironmentSpec::File {
                 path: map.to_path_buf(),
                 rotation_deg: 0.0,
                 intensity: 1.0,
-            },
-            None => self.environment(&spec.environment)?,
+            }),
+            None => kept(&mut errors, self.environment(&spec.environment)),
+        };
+        let (Some(camera), Some(environment), true) = (camera, environment, errors.is_empty())
+        else {
+            // Not empty: a part is `None` only where `kept` added its error.
+            let first = errors.remove(0);
+            return Err(RecipeError::gathered(first, errors));
         };
         Ok(Scene {
             camera,
             stones,
-            ground,
+            ground: ground.flatten(),
             lights,
             environment,
             turntable: spec.turntable.as_ref().map(|t| Turntable {
