@@ -668,6 +668,51 @@ fn scenes_are_checked_with_the_gems_and_materials_they_name() {
 }
 
 #[test]
+fn a_scene_or_job_reports_every_input_that_does_not_load() {
+    let dir = scratch("every-input");
+    // Two gem files, each with an unknown material.
+    std::fs::write(dir.join("a.ron"), GOOD_GEM.replace("\"gold\"", "\"golt\"")).unwrap();
+    std::fs::write(
+        dir.join("b.ron"),
+        GOOD_GEM.replace("\"lilac\", weight", "\"lilak\", weight"),
+    )
+    .unwrap();
+    // A scene of three stones: a.ron twice (reported once) and b.ron.
+    let stone = |gem: &str, x: f64| {
+        format!("        Stone(recipe: Some(\"{gem}\"), shape: Cabochon(outline: Oval, length: 10.0, width: 8.0), position: ({x:.1}, 0.0, 0.5)),\n")
+    };
+    let stones = [
+        stone("a.ron", 0.0),
+        stone("a.ron", 20.0),
+        stone("b.ron", 40.0),
+    ]
+    .concat();
+    let scene = GOOD_SCENE.replace(
+        &GOOD_SCENE[GOOD_SCENE.find("        Stone(").unwrap()..GOOD_SCENE.find("    ],").unwrap()],
+        &stones,
+    );
+    let (code, _, err) = validate_file(&dir, "scene.ron", scene.as_bytes());
+    assert_eq!(code, 1, "{err}");
+    assert_eq!(err.matches("unknown material `golt`").count(), 1, "{err}");
+    let (golt, lilak) = (err.find("`golt`"), err.find("`lilak`"));
+    assert!(golt.is_some() && lilak.is_some() && golt < lilak, "{err}");
+    // A job naming a gem that is no gem, a broken gem and the scene.
+    let job = "Job(\n    output: \"out\",\n    recipes: [\"goldstonee\", \"b.ron\"],\n    scenes: [\"scene.ron\"],\n)\n";
+    let (code, _, err) = validate_file(&dir, "job.ron", job.as_bytes());
+    assert_eq!(code, 1, "{err}");
+    for needle in [
+        "job.ron:3:15: recipe `goldstonee` does not load",
+        "job.ron:3:30: recipe `",
+        "b.ron` does not load",
+        "job.ron:4:15: scene `",
+        "scene.ron` does not load",
+        "unknown material `golt`",
+    ] {
+        assert!(err.contains(needle), "`{needle}` missing:\n{err}");
+    }
+}
+
+#[test]
 fn several_inputs_one_bad_fail_and_still_report_the_good_ones() {
     let dir = scratch("several");
     let good = dir.join("good.ron");

@@ -312,8 +312,18 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<Checked
     // The names as written (the compiled scene holds resolved paths).
     let spec: SceneSpec = ron::from_str(text)
         .map_err(|e| RecipeError::whole_file(path, format!("cannot re-read: {e}")))?;
+    // Every stone's gem (each once), the ground's material and the map
+    // are checked, and every one that does not load reported.
+    let mut errors = Vec::new();
+    let mut checked_gems = HashSet::new();
     for (stone, written) in scene.stones.iter().zip(&spec.stones) {
-        if let (Some(resolved), Some(written)) = (&stone.recipe, &written.recipe) {
+        let (Some(resolved), Some(written)) = (&stone.recipe, &written.recipe) else {
+            continue;
+        };
+        if !checked_gems.insert(resolved.clone()) {
+            continue;
+        }
+        let check = || -> Result<(), RecipeError> {
             let GemSource {
                 path: gem_path,
                 text: gem_text,
@@ -331,15 +341,18 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<Checked
             }
             validate_gem(&gem_path, &gem_text)
                 .map_err(|e| reference_error(path, text, written, "gem", e))?;
-        }
+            Ok(())
+        };
+        errors.extend(check().err());
     }
     if let (Some(ground), Some(written)) = (&scene.ground, &spec.ground) {
         let check = || -> Result<Checked, RecipeError> {
             let source = locate_material(&ground.material)?;
             validate_material(&source.path, &source.name, &source.text)
         };
-        check()
-            .map_err(|e| reference_error(path, text, &written.material, "ground material", e))?;
+        let checked = check()
+            .map_err(|e| reference_error(path, text, &written.material, "ground material", e));
+        errors.extend(checked.err());
     }
     // The map is read as a render reads it: a damaged file is found here,
     // not by every task of a farm array.
@@ -353,11 +366,17 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<Checked
         EnvironmentKind::File { path: written, .. },
     ) = (&scene.environment, &spec.environment)
     {
-        let environment = Environment::from_file(map, *rotation_deg, *intensity)
-            .map_err(|e| environment_error_at(path, text, written, e.to_string()))?;
-        map_warning = environment
-            .proportion_warning()
-            .map(|w| format!("{path}: warning: environment map {written}: {w}"));
+        match Environment::from_file(map, *rotation_deg, *intensity) {
+            Ok(environment) => {
+                map_warning = environment
+                    .proportion_warning()
+                    .map(|w| format!("{path}: warning: environment map {written}: {w}"));
+            }
+            Err(e) => errors.push(environment_error_at(path, text, written, e.to_string())),
+        }
+    }
+    if let Some(last) = errors.pop() {
+        return Err(RecipeError::gathered(last, errors));
     }
     let n = scene.stones.len();
     let l = scene.lights.len();
@@ -474,6 +493,8 @@ pub fn check_job_inputs(path: &str, text: &str, job: &Job) -> Result<Vec<String>
     }
     let mut checked = HashSet::new();
     let mut warnings = Vec::new();
+    // Every input is checked, and every one that does not load reported.
+    let mut errors = Vec::new();
     for (what, spec) in recipes.chain(scenes) {
         if !checked.insert(spec.clone()) {
             continue;
@@ -484,26 +505,31 @@ pub fn check_job_inputs(path: &str, text: &str, job: &Job) -> Result<Vec<String>
             read_ron_file(&spec, "scene file")
                 .and_then(|text| validate_scene(&spec, Some(Path::new(&spec)), &text))
         };
-        let checked = checked_ok.map_err(|e| {
-            // Where the job names it: a built-in's name in quotes, a
-            // file's name (the job may write a folder before it).
-            let written = if names_a_file(&spec) {
-                Path::new(&spec)
-                    .file_name()
-                    .map_or(spec.clone(), |n| n.to_string_lossy().into_owned())
-            } else {
-                format!("\"{spec}\"")
-            };
-            RecipeError::at_text(
-                path,
-                text,
-                &written,
-                format!("{what} `{spec}` does not load: {e}"),
-            )
-        })?;
-        warnings.extend(checked.warnings);
+        match checked_ok {
+            Ok(checked) => warnings.extend(checked.warnings),
+            Err(e) => {
+                // Where the job names it: a built-in's name in quotes, a
+                // file's name (the job may write a folder before it).
+                let written = if names_a_file(&spec) {
+                    Path::new(&spec)
+                        .file_name()
+                        .map_or(spec.clone(), |n| n.to_string_lossy().into_owned())
+                } else {
+                    format!("\"{spec}\"")
+                };
+                errors.push(RecipeError::at_text(
+                    path,
+                    text,
+                    &written,
+                    format!("{what} `{spec}` does not load: {e}"),
+                ));
+            }
+        }
     }
-    Ok(warnings)
+    match errors.pop() {
+        Some(last) => Err(RecipeError::gathered(last, errors)),
+        None => Ok(warnings),
+    }
 }
 
 /// Validate one command-line argument (a file or a built-in name); returns

@@ -45,7 +45,7 @@ impl RecipeError {
     /// `one` and `others` as one error: the first written in the file
     /// (those without a place last), the others, each once, as its
     /// [`RecipeError::further`].
-    pub(crate) fn gathered(one: RecipeError, mut others: Vec<RecipeError>) -> Self {
+    pub fn gathered(one: RecipeError, mut others: Vec<RecipeError>) -> Self {
         others.push(one);
         others.sort_by_key(|e| e.position.unwrap_or((usize::MAX, usize::MAX)));
         others.dedup();
