@@ -696,6 +696,23 @@ fn a_scene_or_job_reports_every_input_that_does_not_load() {
     assert_eq!(err.matches("unknown material `golt`").count(), 1, "{err}");
     let (golt, lilak) = (err.find("`golt`"), err.find("`lilak`"));
     assert!(golt.is_some() && lilak.is_some() && golt < lilak, "{err}");
+    // `render` compiles every gem before it stops, and says so of both.
+    let picture = dir.join("scene.png");
+    let scene_path = dir.join("scene.ron");
+    let out = lapidary(&[
+        "render",
+        "--scene",
+        scene_path.to_str().unwrap(),
+        "--size",
+        "8",
+        "-o",
+        picture.to_str().unwrap(),
+    ]);
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    let (golt, lilak) = (err.find("`golt`"), err.find("`lilak`"));
+    assert!(golt.is_some() && lilak.is_some() && golt < lilak, "{err}");
+    assert!(!picture.exists());
     // A job naming a gem that is no gem, a broken gem and the scene.
     let job = "Job(\n    output: \"out\",\n    recipes: [\"goldstonee\", \"b.ron\"],\n    scenes: [\"scene.ron\"],\n)\n";
     let (code, _, err) = validate_file(&dir, "job.ron", job.as_bytes());

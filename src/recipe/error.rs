@@ -42,12 +42,22 @@ impl RecipeError {
         }
     }
 
-    /// `one` and `others` as one error: the first written in the file
-    /// (those without a place last), the others, each once, as its
-    /// [`RecipeError::further`].
+    /// `others` and then `one` as one error, file by file in the order
+    /// they first appear and in each file in the order written (those
+    /// without a place last): the first, with the others, each once, as
+    /// its [`RecipeError::further`].
     pub fn gathered(one: RecipeError, mut others: Vec<RecipeError>) -> Self {
         others.push(one);
-        others.sort_by_key(|e| e.position.unwrap_or((usize::MAX, usize::MAX)));
+        let mut files: Vec<String> = Vec::new();
+        for e in &others {
+            if !files.contains(&e.path) {
+                files.push(e.path.clone());
+            }
+        }
+        others.sort_by_key(|e| {
+            let file = files.iter().position(|path| *path == e.path);
+            (file, e.position.unwrap_or((usize::MAX, usize::MAX)))
+        });
         others.dedup();
         // Not empty: it holds `one`.
         let mut first = others.remove(0);

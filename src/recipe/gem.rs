@@ -648,38 +648,56 @@ pub fn compile_gems(
     let mut recipes: Vec<(&GemSource, GemSpec, Vec<LayeredBrdf>, Vec<bool>)> = Vec::new();
     let mut recipe_of = Vec::with_capacity(requests.len());
     let mut compiled = Vec::with_capacity(requests.len());
+    // Every distinct recipe is compiled; the errors of all that fail are
+    // reported together (each once: a recipe that failed is not tried again).
+    let mut errors = Vec::new();
+    let mut failed: Vec<&GemSource> = Vec::new();
     for &(source, seed) in requests {
-        let index = match recipes.iter().position(|r| r.0 == source) {
-            Some(index) => index,
-            None => {
-                let spec = parse_gem_spec(&source.path, &source.text)?;
-                recipes.push((source, spec, Vec::new(), Vec::new()));
-                recipes.len() - 1
-            }
-        };
-        let (_, spec, brdfs, wants_table) = &mut recipes[index];
-        let gem = compile_gem_spec(&source.path, &source.text, spec.clone(), seed)?;
-        if brdfs.is_empty() {
-            // Where each inline material is defined, found in one pass.
-            let definitions = key_definitions(&source.text);
-            for ((name, material), &ior_outside) in gem.materials.iter().zip(&gem.seen_from_ior) {
-                let inline = gem
-                    .spec
-                    .materials
-                    .contains_key(name)
-                    .then(|| definitions.get(name.as_str()).copied());
-                brdfs.push(compile_gem_material(
-                    &source.path,
-                    &source.text,
-                    (name, material),
-                    inline,
-                    ior_outside,
-                )?);
-                wants_table.push(material.multiple_scattering);
-            }
+        if failed.contains(&source) {
+            continue;
         }
-        recipe_of.push(index);
-        compiled.push(gem);
+        let mut compile_one = || -> Result<(), RecipeError> {
+            let index = match recipes.iter().position(|r| r.0 == source) {
+                Some(index) => index,
+                None => {
+                    let spec = parse_gem_spec(&source.path, &source.text)?;
+                    recipes.push((source, spec, Vec::new(), Vec::new()));
+                    recipes.len() - 1
+                }
+            };
+            let (_, spec, brdfs, wants_table) = &mut recipes[index];
+            let gem = compile_gem_spec(&source.path, &source.text, spec.clone(), seed)?;
+            if brdfs.is_empty() {
+                // Where each inline material is defined, found in one pass.
+                let definitions = key_definitions(&source.text);
+                for ((name, material), &ior_outside) in gem.materials.iter().zip(&gem.seen_from_ior)
+                {
+                    let inline = gem
+                        .spec
+                        .materials
+                        .contains_key(name)
+                        .then(|| definitions.get(name.as_str()).copied());
+                    brdfs.push(compile_gem_material(
+                        &source.path,
+                        &source.text,
+                        (name, material),
+                        inline,
+                        ior_outside,
+                    )?);
+                    wants_table.push(material.multiple_scattering);
+                }
+            }
+            recipe_of.push(index);
+            compiled.push(gem);
+            Ok(())
+        };
+        if let Err(e) = compile_one() {
+            errors.push(e);
+            failed.push(source);
+        }
+    }
+    if let Some(last) = errors.pop() {
+        return Err(RecipeError::gathered(last, errors));
     }
     if let Tables::Computed(cache) = tables {
         let mut wanting: Vec<&mut LayeredBrdf> = recipes
