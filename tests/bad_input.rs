@@ -687,6 +687,26 @@ fn an_unknown_material_name() {
     );
 }
 
+/// Exit status 1 and every one of `expected` on stderr, in that order;
+/// returns stderr.
+fn refused_in_order(out: &Output, expected: &[String]) -> String {
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    let at: Vec<usize> = expected
+        .iter()
+        .map(|e| {
+            stderr
+                .find(e.as_str())
+                .unwrap_or_else(|| panic!("no `{e}`:\n{stderr}"))
+        })
+        .collect();
+    assert!(
+        at.windows(2).all(|w| w[0] < w[1]),
+        "out of order:\n{stderr}"
+    );
+    stderr
+}
+
 #[test]
 fn every_unknown_name_of_a_recipe_is_reported_at_once() {
     // Three typos: a map entry's material, a switch range's map and the
@@ -727,20 +747,7 @@ fn every_unknown_name_of_a_recipe_is_reported_at_once() {
         dir.join("gem.png").into(),
     ]);
     for out in [lapidary(&[OsString::from("validate"), path.into()]), render] {
-        assert_eq!(out.status.code(), Some(1));
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        let at: Vec<usize> = expected
-            .iter()
-            .map(|e| {
-                stderr
-                    .find(e.as_str())
-                    .unwrap_or_else(|| panic!("no `{e}`:\n{stderr}"))
-            })
-            .collect();
-        assert!(
-            at.windows(2).all(|w| w[0] < w[1]),
-            "out of order:\n{stderr}"
-        );
+        refused_in_order(&out, &expected);
     }
     assert!(!dir.join("gem.png").exists());
     let _ = std::fs::remove_dir_all(&dir);
@@ -790,20 +797,7 @@ fn every_part_of_a_scene_is_checked_and_its_problems_reported_together() {
         dir.join("scene.png").into(),
     ]);
     for out in [lapidary(&[OsString::from("validate"), path.into()]), render] {
-        assert_eq!(out.status.code(), Some(1));
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        let at: Vec<usize> = expected
-            .iter()
-            .map(|e| {
-                stderr
-                    .find(e.as_str())
-                    .unwrap_or_else(|| panic!("no `{e}`:\n{stderr}"))
-            })
-            .collect();
-        assert!(
-            at.windows(2).all(|w| w[0] < w[1]),
-            "out of order:\n{stderr}"
-        );
+        let stderr = refused_in_order(&out, &expected);
         assert!(stderr.contains("unknown material `teflom`"), "{stderr}");
     }
     assert!(!dir.join("scene.png").exists());
