@@ -708,6 +708,62 @@ fn refused_in_order(out: &Output, expected: &[String]) -> String {
 }
 
 #[test]
+fn every_value_out_of_range_is_reported_at_its_place() {
+    // Each refused value is placed where RON places the first: the parse
+    // runs again past the ones found so far.
+    // The place of the first `written` in `text`, `at` bytes into it (RON
+    // places a tuple's error at its closing bracket).
+    let place = |text: &str, path: &Path, written: &str, at: usize| {
+        let offset = text.find(written).expect("written") + at;
+        let line = text[..offset].matches('\n').count() + 1;
+        let col = offset - text[..offset].rfind('\n').map_or(0, |i| i + 1) + 1;
+        format!("{}:{line}:{col}: ", path.display())
+    };
+    let dir = scratch("ranges");
+    let gem = GOOD_GEM.replacen("ior: 1.5,", "ior: 9.5,", 1).replacen(
+        "roughness_deg: 4.0",
+        "roughness_deg: -4.5",
+        1,
+    );
+    let gem_path = dir.join("gem.ron");
+    std::fs::write(&gem_path, &gem).unwrap();
+    let expected = [
+        format!(
+            "{}`ior` = 9.5 is out of range",
+            place(&gem, &gem_path, "9.5", 0)
+        ),
+        format!(
+            "{}`roughness_deg` = -4.5 is out of range",
+            place(&gem, &gem_path, "-4.5", 0)
+        ),
+    ];
+    refused_in_order(
+        &lapidary(&[OsString::from("validate"), gem_path.into()]),
+        &expected,
+    );
+    let scene = GOOD_SCENE
+        .replacen("vertical_fov_deg: 25.0", "vertical_fov_deg: 250.0", 1)
+        .replacen("position: (0.0, 0.0, 0.5)", "position: (0.0, 0.0, 7e5)", 1);
+    let scene_path = dir.join("scene.ron");
+    std::fs::write(&scene_path, &scene).unwrap();
+    let expected = [
+        format!(
+            "{}`vertical_fov_deg` = 250 is out of range",
+            place(&scene, &scene_path, "250.0", 0)
+        ),
+        format!(
+            "{}`position` = (0, 0, 700000) is out of range",
+            place(&scene, &scene_path, "7e5)", 3)
+        ),
+    ];
+    refused_in_order(
+        &lapidary(&[OsString::from("validate"), scene_path.into()]),
+        &expected,
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn every_unknown_name_of_a_recipe_is_reported_at_once() {
     // Three typos: a map entry's material, a switch range's map and the
     // glitter's material; each named at its place, in the file's order,

@@ -20,10 +20,9 @@
 
 use std::path::{Path, PathBuf};
 
-use serde::de::Error;
 use serde::{Deserialize, Deserializer};
 
-use crate::recipe::compile::{parse_ron, read_ron_file, ron_error};
+use crate::recipe::compile::{parse_ron_all, read_ron_file, ron_error};
 use crate::recipe::error::RecipeError;
 use crate::render::still::{MAX_BOUNCES, MAX_SIDE_PX, MAX_SPP};
 use crate::scene::spec::{TurntableSpec, MAX_COORDINATE_MM};
@@ -185,10 +184,13 @@ fn ao_mm<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
     let v = Option::<f64>::deserialize(d)?;
     match v {
         Some(v) if !(v.is_finite() && v > 0.0 && v <= MAX_COORDINATE_MM) => {
-            Err(D::Error::custom(format!(
-                "`ao_mm` = {v} is out of range; allowed: a positive distance (mm), at most \
-                 {MAX_COORDINATE_MM:e}"
-            )))
+            crate::recipe::ranges::refuse(
+                Some(v),
+                format!(
+                    "`ao_mm` = {v} is out of range; allowed: a positive distance (mm), at most \
+                     {MAX_COORDINATE_MM:e}"
+                ),
+            )
         }
         _ => Ok(v),
     }
@@ -240,7 +242,7 @@ impl Job {
     pub fn load(path: &Path) -> Result<Job, RecipeError> {
         let display = path.display().to_string();
         let text = read_ron_file(&display, "job file")?;
-        let spec: JobSpec = parse_ron(&text).map_err(|e| ron_error(&display, &text, e))?;
+        let spec: JobSpec = parse_ron_all(&text, |e| ron_error(&display, &text, e))?;
         let dir = path.parent().unwrap_or(Path::new(""));
         Job::from_spec(&spec, dir)
             .map_err(|(needle, message)| RecipeError::at_text(&display, &text, needle, message))

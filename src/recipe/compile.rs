@@ -22,7 +22,20 @@ pub const COMPENSATION_SEED: u64 = 0x1a9d_a41e;
 /// Parse RON text into a [`Material`], mapping every RON/serde error to
 /// `path:line:col: message` with the field name added where RON omits it.
 pub fn parse_material(path: &str, source: &str) -> Result<Material, RecipeError> {
-    parse_ron::<Material>(source).map_err(|e| ron_error(path, source, e))
+    parse_ron_all::<Material>(source, |e| ron_error(path, source, e))
+}
+
+/// [`parse_ron`], and where it fails, its error and every later value out
+/// of range in `text` ([`crate::recipe::ranges::every_refusal`]), each made
+/// a [`RecipeError`] by `error`, as one.
+pub(crate) fn parse_ron_all<T: serde::de::DeserializeOwned>(
+    text: &str,
+    error: impl Fn(ron::error::SpannedError) -> RecipeError,
+) -> Result<T, RecipeError> {
+    crate::recipe::ranges::every_refusal(|| parse_ron::<T>(text)).map_err(|errors| {
+        let (first, later) = *errors;
+        RecipeError::gathered(error(first), later.into_iter().map(&error).collect())
+    })
 }
 
 /// `ron::from_str` of a user's file `text`, read as if it ended with a

@@ -45,7 +45,7 @@
 
 use crate::brdf::{LayeredBrdf, Rgb};
 use crate::recipe::compile::{
-    compile_material_seen_from, locate_material, parse_material, parse_ron, ron_error,
+    compile_material_seen_from, locate_material, parse_material, parse_ron_all, ron_error,
     MaterialSource, COMPENSATION_SEED,
 };
 use crate::recipe::error::{did_you_mean, line_col_of_offset, RecipeError};
@@ -796,7 +796,7 @@ fn compile_gem_material(
 
 /// Gem recipe `text` (from `path`) read into its spec, not yet compiled.
 fn parse_gem_spec(path: &str, text: &str) -> Result<GemSpec, RecipeError> {
-    parse_ron::<GemSpec>(text).map_err(|e| match &e.code {
+    parse_ron_all::<GemSpec>(text, |e| match &e.code {
         ron::error::Error::NoSuchStructField { found, outer, .. }
             if found == "host_ior" && outer.as_deref() == Some("Gem") =>
         {

@@ -2,6 +2,7 @@
 //! every out-of-range, NaN or infinite value is reported at its own line and
 //! column with the field's name and allowed range.
 
+use std::cell::Cell;
 use std::collections::BTreeMap;
 use std::marker::PhantomData;
 
@@ -9,6 +10,66 @@ use serde::de::{Error, MapAccess, Visitor};
 use serde::{Deserialize, Deserializer};
 
 use crate::message::number;
+
+thread_local! {
+    /// For the parse running on this thread: how many more refused values
+    /// it lets through, and whether its last refusal stopped it.
+    static REFUSALS: Cell<(usize, bool)> = const { Cell::new((0, false)) };
+}
+
+/// The most refusals [`every_refusal`] looks for after the first.
+const MAX_LATER_REFUSALS: usize = 19;
+
+/// A value out of its range: `Ok(value)` where the parse lets this refusal
+/// through ([`every_refusal`]'s later runs, whose result is thrown away),
+/// else the error `message`. Every range check of a RON schema refuses
+/// through here.
+pub(crate) fn refuse<T, E: Error>(value: T, message: String) -> Result<T, E> {
+    REFUSALS.with(|refusals| match refusals.get() {
+        (left @ 1.., _) => {
+            refusals.set((left - 1, false));
+            Ok(value)
+        }
+        (0, _) => {
+            refusals.set((0, true));
+            Err(E::custom(message))
+        }
+    })
+}
+
+/// `parse`'s value, or its error and, where a range check stopped it, the
+/// next ones: `parse` runs again with every refusal so far let through, so
+/// that each run stops at the next refused value, placed by RON as the
+/// first was. Stops at a run that passes, at an error of another kind
+/// (kept), or after [`MAX_LATER_REFUSALS`].
+pub(crate) fn every_refusal<T>(
+    parse: impl Fn() -> Result<T, ron::error::SpannedError>,
+) -> Result<T, Box<(ron::error::SpannedError, Vec<ron::error::SpannedError>)>> {
+    let run = |let_through: usize| {
+        REFUSALS.with(|refusals| refusals.set((let_through, false)));
+        let result = parse();
+        let (_, refused) = REFUSALS.with(|refusals| refusals.replace((0, false)));
+        (result, refused)
+    };
+    let (first, mut refused) = match run(0) {
+        (Ok(value), _) => return Ok(value),
+        (Err(first), refused) => (first, refused),
+    };
+    let place = |e: &ron::error::SpannedError| (e.span.start.line, e.span.start.col);
+    let mut later: Vec<ron::error::SpannedError> = Vec::new();
+    while refused && later.len() < MAX_LATER_REFUSALS {
+        let (Err(next), next_refused) = run(later.len() + 1) else {
+            break;
+        };
+        // Each run stops further on (a guard: it always should).
+        if place(&next) <= later.last().map_or(place(&first), place) {
+            break;
+        }
+        refused = next_refused;
+        later.push(next);
+    }
+    Err(Box::new((first, later)))
+}
 
 /// Parse a finite f64 and check `ok`, else an error naming `field` and `allowed`.
 /// Public so that other RON schemas (the scene) report ranges the same way.
@@ -20,10 +81,13 @@ pub fn checked<'de, D: Deserializer<'de>>(
 ) -> Result<f64, D::Error> {
     let v = f64::deserialize(d)?;
     if !v.is_finite() || !ok(v) {
-        return Err(D::Error::custom(format!(
-            "`{field}` = {} is out of range; allowed: {allowed}",
-            number(v)
-        )));
+        return refuse(
+            v,
+            format!(
+                "`{field}` = {} is out of range; allowed: {allowed}",
+                number(v)
+            ),
+        );
     }
     Ok(v)
 }
@@ -38,14 +102,13 @@ pub(crate) fn whole_in<'de, D: Deserializer<'de>>(
     max: u32,
 ) -> Result<u32, D::Error> {
     let v = i128::deserialize(d)?;
-    u32::try_from(v)
-        .ok()
-        .filter(|v| (min..=max).contains(v))
-        .ok_or_else(|| {
-            D::Error::custom(format!(
-                "`{field}` = {v} is out of range; allowed: {min} to {max}"
-            ))
-        })
+    match u32::try_from(v).ok().filter(|v| (min..=max).contains(v)) {
+        Some(v) => Ok(v),
+        None => refuse(
+            min,
+            format!("`{field}` = {v} is out of range; allowed: {min} to {max}"),
+        ),
+    }
 }
 
 /// Parse an RGB triple, each component checked (public like [`checked`]).
@@ -71,12 +134,15 @@ pub(crate) fn checked_rgb<'de, D: Deserializer<'de>>(
         } else {
             String::new()
         };
-        return Err(D::Error::custom(format!(
-            "`{field}` = ({}, {}, {}) has a component out of range; allowed: {allowed} per channel{hint}",
-            number(v.0),
-            number(v.1),
-            number(v.2)
-        )));
+        return refuse(
+            rgb,
+            format!(
+                "`{field}` = ({}, {}, {}) has a component out of range; allowed: {allowed} per channel{hint}",
+                number(v.0),
+                number(v.1),
+                number(v.2)
+            ),
+        );
     }
     Ok(rgb)
 }
@@ -250,9 +316,10 @@ pub fn octaves<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
     let v = i128::deserialize(d)?;
     match u32::try_from(v) {
         Ok(v) if (1..=16).contains(&v) => Ok(v),
-        _ => Err(D::Error::custom(format!(
-            "`octaves` = {v} is out of range; allowed: 1 <= octaves <= 16"
-        ))),
+        _ => refuse(
+            1,
+            format!("`octaves` = {v} is out of range; allowed: 1 <= octaves <= 16"),
+        ),
     }
 }
 
@@ -291,4 +358,49 @@ pub(crate) fn named_once<'de, D: Deserializer<'de>, V: Deserialize<'de>>(
         what,
         value: PhantomData,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, Deserialize)]
+    struct Thicknesses {
+        #[allow(dead_code)]
+        all: Vec<Thickness>,
+    }
+
+    #[derive(Debug, Deserialize)]
+    #[allow(dead_code)]
+    struct Thickness(#[serde(deserialize_with = "thickness")] f64);
+
+    fn parse(text: &str) -> Result<Thicknesses, ron::error::SpannedError> {
+        ron::from_str(text)
+    }
+
+    #[test]
+    fn every_refusal_finds_each_value_out_of_range_up_to_its_cap() {
+        let values: Vec<String> = (0..30)
+            .map(|k| {
+                if k % 2 == 0 {
+                    format!("({k}.0)")
+                } else {
+                    format!("(-{k}.0)")
+                }
+            })
+            .collect();
+        let text = format!("(all: [{}])", values.join(", "));
+        let (first, later) = *every_refusal(|| parse(&text)).expect_err("refused");
+        assert!(first.to_string().contains("`thickness` = -1 is"), "{first}");
+        // 15 refused values: the first and 14 later, each further on.
+        assert_eq!(later.len(), 14);
+        assert!(later[13].to_string().contains("= -29 is"), "{}", later[13]);
+        // Forty refused values: the first and at most 19 later.
+        let text = format!("(all: [{}])", vec!["(-1.0)"; 40].join(", "));
+        let (_, later) = *every_refusal(|| parse(&text)).expect_err("refused");
+        assert_eq!(later.len(), MAX_LATER_REFUSALS);
+        // A parse afterwards lets nothing through; a good text passes.
+        assert!(parse("(all: [(-1.0)])").is_err());
+        assert!(every_refusal(|| parse("(all: [(1.0)])")).is_ok());
+    }
 }

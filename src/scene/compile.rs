@@ -26,7 +26,7 @@ use super::{
 };
 use crate::brdf::Rgb;
 use crate::geometry::{Base, Cabochon, CabochonParams, GeometryError, Outline};
-use crate::recipe::compile::{parse_ron, read_ron_file, ron_error};
+use crate::recipe::compile::{parse_ron_all, read_ron_file, ron_error};
 use crate::recipe::error::{
     blank_comments_and_strings, did_you_mean, folder_separator_hint, line_col_of_offset,
     RecipeError,
@@ -97,7 +97,7 @@ fn compile_named(
     path: Option<&Path>,
     environment: Option<&Path>,
 ) -> Result<Scene, RecipeError> {
-    let spec: SceneSpec = parse_ron(text).map_err(|e| scene_ron_error(display, text, e))?;
+    let spec: SceneSpec = parse_ron_all(text, |e| scene_ron_error(display, text, e))?;
     Compiler {
         display,
         locator: Locator::new(text),

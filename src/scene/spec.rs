@@ -28,7 +28,6 @@
 
 use crate::message::number;
 use crate::recipe::ranges::{checked, checked_rgb, whole_in};
-use serde::de::Error;
 use serde::{Deserialize, Deserializer};
 
 /// A whole scene file as written.
@@ -378,12 +377,15 @@ fn finite_vec3<'de, D: Deserializer<'de>>(
         } else {
             format!("three finite numbers (x, y, z) within ±{max_abs} (mm)")
         };
-        return Err(D::Error::custom(format!(
-            "`{field}` = ({}, {}, {}) is out of range; allowed: {allowed}",
-            number(v.0),
-            number(v.1),
-            number(v.2)
-        )));
+        return crate::recipe::ranges::refuse(
+            [v.0, v.1, v.2],
+            format!(
+                "`{field}` = ({}, {}, {}) is out of range; allowed: {allowed}",
+                number(v.0),
+                number(v.1),
+                number(v.2)
+            ),
+        );
     }
     Ok([v.0, v.1, v.2])
 }
