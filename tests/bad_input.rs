@@ -1181,7 +1181,7 @@ fn a_negative_or_exponent_seed_says_what_a_whole_number_is() {
         "position: (0.0, 0.0, 0.5),",
         "position: (0.0, 0.0, 0.5),\n            seed: Some(-1),",
         "-1),",
-        &["field `seed`: Integer is out of bounds; allowed: a whole number from 0"],
+        &["`seed` = -1 is out of range; allowed: a whole number from 0 to 18446744073709551615"],
     );
     bad_scene(
         "exponent-seed",

@@ -78,7 +78,7 @@ pub struct SettingsSpec {
     #[serde(default = "spp_default", deserialize_with = "spp")]
     pub spp: u32,
     /// Seed of the sample pattern (default 0).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "crate::recipe::ranges::seed")]
     pub seed: u64,
     /// Bounces after the first hit, 0 to [`MAX_BOUNCES`] (default 4).
     #[serde(default = "bounces_default", deserialize_with = "bounces")]

@@ -57,15 +57,18 @@ pub(crate) fn parse_ron<T: serde::de::DeserializeOwned>(
 pub(crate) fn ron_error(path: &str, source: &str, e: ron::error::SpannedError) -> RecipeError {
     use ron::error::Error as E;
     let (line, mut col) = (e.span.start.line, e.span.start.col);
-    // RON places a negative whole number's error after its sign: place it
+    // RON places an error in a negative number after its sign: place it
     // at the sign, where the number starts.
-    if matches!(e.code, E::IntegerOutOfBounds)
-        && col > 1
-        && source
-            .lines()
-            .nth(line.saturating_sub(1))
-            .and_then(|text| text.chars().nth(col - 2))
-            == Some('-')
+    let at_line = source
+        .lines()
+        .nth(line.saturating_sub(1))
+        .unwrap_or_default();
+    let mut before_and_at = at_line.chars().skip(col.saturating_sub(2));
+    if col > 1
+        && before_and_at.next() == Some('-')
+        && before_and_at
+            .next()
+            .is_some_and(|c| c.is_ascii_digit() || ".iN".contains(c))
     {
         col -= 1;
     }

@@ -113,7 +113,7 @@ pub struct GemSpec {
     #[serde(default)]
     pub description: String,
     /// Seed of every texture of the stone.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "ranges::seed")]
     pub seed: u64,
     /// Inline materials by name (library names work without this).
     #[serde(default, deserialize_with = "materials_named_once")]
@@ -207,7 +207,7 @@ pub struct InclusionsSpec {
     /// The flakes' material: inline or built-in, as a map entry's.
     pub material: String,
     /// Seed of the population (with the gem's).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "ranges::seed")]
     pub seed: u64,
     /// Patches: a cell keeps its flake with probability clamp(f, 0, 1), f
     /// this switch function at the flake's centre (None, the default:

@@ -323,6 +323,43 @@ pub fn octaves<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
     }
 }
 
+/// Deserialize a `seed`: a whole number from 0 to 2⁶⁴ − 1 (read wide, so
+/// that −1 is told the range as every other field is).
+pub fn seed<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
+    seed_of(i128::deserialize(d)?)
+}
+
+/// [`seed`] of a field written `Some(n)` or `None` (checked inside the
+/// `Some`, so that RON places a refusal at the number).
+pub fn optional_seed<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u64>, D::Error> {
+    struct SomeSeed;
+    impl<'de> Visitor<'de> for SomeSeed {
+        type Value = Option<u64>;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("`Some(seed)` or `None`")
+        }
+        fn visit_none<E: Error>(self) -> Result<Self::Value, E> {
+            Ok(None)
+        }
+        fn visit_some<S: Deserializer<'de>>(self, d: S) -> Result<Self::Value, S::Error> {
+            seed(d).map(Some)
+        }
+    }
+    d.deserialize_option(SomeSeed)
+}
+
+fn seed_of<E: Error>(v: i128) -> Result<u64, E> {
+    u64::try_from(v).or_else(|_| {
+        refuse(
+            0,
+            format!(
+                "`seed` = {v} is out of range; allowed: a whole number from 0 to {}",
+                u64::MAX
+            ),
+        )
+    })
+}
+
 /// A name → definition map whose names are each given once: a name given
 /// twice (an entry copied and not renamed) is an error naming it, where a
 /// map would keep the last silently. `what` is "material" or "map".

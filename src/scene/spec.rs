@@ -164,7 +164,7 @@ pub struct StoneSpec {
     pub rotation_deg: [f64; 3],
     /// `None`: the gem's own seed; `Some(n)` replaces it, so two stones of
     /// one gem look different.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "crate::recipe::ranges::optional_seed")]
     pub seed: Option<u64>,
 }
 
