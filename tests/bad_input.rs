@@ -708,6 +708,30 @@ fn refused_in_order(out: &Output, expected: &[String]) -> String {
 }
 
 #[test]
+fn a_map_that_does_not_compile_is_reported_with_the_unknown_names() {
+    let text = GOOD_GEM
+        .replacen("weight: 2.0", "weight: 0.0", 1)
+        .replacen("weight: 1.0", "weight: 0.0", 1)
+        .replacen(
+            "entries: [(material: \"foil\")],",
+            "entries: [(material: \"foyl\")],",
+            1,
+        );
+    let dir = scratch("map-and-name");
+    let path = dir.join("gem.ron");
+    std::fs::write(&path, &text).unwrap();
+    let expected = [
+        "the `weight`s of `tiles` sum to 0".to_string(),
+        "unknown material `foyl`".to_string(),
+    ];
+    refused_in_order(
+        &lapidary(&[OsString::from("validate"), path.into()]),
+        &expected,
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn every_value_out_of_range_is_reported_at_its_place() {
     // Each refused value is placed where RON places the first: the parse
     // runs again past the ones found so far.

@@ -858,8 +858,9 @@ struct Compiler<'a> {
     /// Per material index, the index of the medium it is seen from (None:
     /// an inline material not used yet).
     seen_from_ior: Vec<Option<f64>>,
-    /// Unknown names met so far, each reported at the end with the rest
-    /// (a recipe's typos are listed at once, not one a run).
+    /// Unknown names and maps that did not compile so far, each reported
+    /// at the end with the rest (a recipe's mistakes are listed at once,
+    /// not one a run).
     deferred: Vec<RecipeError>,
 }
 
@@ -1482,7 +1483,11 @@ impl<'a> Compiler<'a> {
         self.check_cycles()?;
         let mut nodes = Vec::with_capacity(self.spec.maps.len());
         for (name, map) in &self.spec.maps {
-            nodes.push(self.node(name, map)?);
+            // A map that does not compile is reported with the rest.
+            match self.node(name, map) {
+                Ok(node) => nodes.push(node),
+                Err(e) => self.deferred.push(e),
+            }
         }
         let surface = &self.spec.surface;
         let root = if self.spec.maps.contains_key(surface) {
@@ -1516,7 +1521,10 @@ impl<'a> Compiler<'a> {
             Entry::Material(self.or_deferred(Err(unknown)))
         };
         let glitter = match &self.spec.glitter {
-            Some(g) => Some(self.glitter(g)?),
+            Some(g) => {
+                let glitter = self.glitter(g);
+                glitter.map_err(|e| self.deferred.push(e)).ok()
+            }
             None => None,
         };
         if glitter.is_some() && matches!(spec.body, BodySpec::Translucent { .. }) {
