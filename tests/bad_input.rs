@@ -687,6 +687,19 @@ fn an_unknown_material_name() {
     );
 }
 
+/// `path:line:col: ` of byte `offset` of `text` (columns in characters).
+fn place_of(path: &Path, text: &str, offset: usize) -> String {
+    let line = text[..offset].matches('\n').count() + 1;
+    let col = text[..offset]
+        .rsplit('\n')
+        .next()
+        .unwrap_or_default()
+        .chars()
+        .count()
+        + 1;
+    format!("{}:{line}:{col}: ", path.display())
+}
+
 /// Exit status 1 and every one of `expected` on stderr, in that order;
 /// returns stderr.
 fn refused_in_order(out: &Output, expected: &[String]) -> String {
@@ -734,14 +747,10 @@ fn a_map_that_does_not_compile_is_reported_with_the_unknown_names() {
 #[test]
 fn every_value_out_of_range_is_reported_at_its_place() {
     // Each refused value is placed where RON places the first: the parse
-    // runs again past the ones found so far.
-    // The place of the first `written` in `text`, `at` bytes into it (RON
-    // places a tuple's error at its closing bracket).
+    // runs again past the ones found so far. The place is `at` bytes into
+    // what is written (RON places a tuple's error at its closing bracket).
     let place = |text: &str, path: &Path, written: &str, at: usize| {
-        let offset = text.find(written).expect("written") + at;
-        let line = text[..offset].matches('\n').count() + 1;
-        let col = offset - text[..offset].rfind('\n').map_or(0, |i| i + 1) + 1;
-        format!("{}:{line}:{col}: ", path.display())
+        place_of(path, text, text.find(written).expect("written") + at)
     };
     let dir = scratch("ranges");
     let gem = GOOD_GEM.replacen("ior: 1.5,", "ior: 9.5,", 1).replacen(
@@ -807,12 +816,7 @@ fn every_unknown_name_of_a_recipe_is_reported_at_once() {
     let dir = scratch("three-typos");
     let path = dir.join("typos.ron");
     std::fs::write(&path, &text).unwrap();
-    let place = |written: &str| {
-        let offset = text.find(written).expect("written");
-        let line = text[..offset].matches('\n').count() + 1;
-        let col = offset - text[..offset].rfind('\n').map_or(0, |i| i + 1) + 1;
-        format!("{}:{line}:{col}: ", path.display())
-    };
+    let place = |written: &str| place_of(&path, &text, text.find(written).expect("written"));
     let expected = [
         format!("{}unknown material `lilak`", place("\"lilak\"")),
         format!("{}unknown map `tils`", place("\"tils\"")),
@@ -1725,10 +1729,11 @@ fn bad_scene_reference(case: &str, from: &str, to: &str, written: &str, needles:
     let dir = scratch(case);
     let path = dir.join(format!("{case}.ron"));
     std::fs::write(&path, &text).unwrap();
-    let offset = text.find(written).expect("the name is written");
-    let line = text[..offset].matches('\n').count() + 1;
-    let col = text[..offset].rsplit('\n').next().unwrap().chars().count() + 1;
-    let place = format!("{}:{line}:{col}: ", path.display());
+    let place = place_of(
+        &path,
+        &text,
+        text.find(written).expect("the name is written"),
+    );
     let mut expected = vec![place.clone()];
     expected.extend(
         needles

@@ -1450,8 +1450,8 @@ impl<'a> Compiler<'a> {
         })
     }
 
-    /// The gem, or every unknown name it uses with the first other error
-    /// (in the order they are written).
+    /// The gem, or every unknown name and every map that does not compile,
+    /// with the first other error (in the order they are written).
     fn compile(mut self, spec: GemSpec) -> Result<Gem, RecipeError> {
         let compiled = self.compile_all(spec);
         if self.deferred.is_empty() {
@@ -1518,7 +1518,8 @@ impl<'a> Compiler<'a> {
                     }
                 ),
             );
-            Entry::Material(self.or_deferred(Err(unknown)))
+            self.deferred.push(unknown);
+            Entry::Material(0)
         };
         let glitter = match &self.spec.glitter {
             Some(g) => {

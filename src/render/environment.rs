@@ -2125,7 +2125,7 @@ fn read_exr(path: &Path) -> Result<PackedTexels, EnvironmentError> {
     }
     if let Some((i, bad)) = packing.first_bad {
         let x = i % packing.width.max(1);
-        return Err(bad.into_error(origin, x, i / packing.width.max(1)));
+        return Err(bad.into_error(origin, x, row_of(i)));
     }
     let w = packing.width;
     let h = packing.texels.len().checked_div(w).unwrap_or(0);
