@@ -37,14 +37,14 @@
 //!
 //! ```
 //! use std::sync::Arc;
-//! use lapidary::render::{film, prepare};
+//! use lapidary::render::{film, prepare, still};
 //! use lapidary::{output, scene, GemSource, TableCache, Tables};
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! let gem = GemSource::load("goldstone")?; // a built-in name or a .ron path
 //! let scene = scene::default_scene(); // or scene::load_scene(path)?
 //! let cache = Arc::new(TableCache::in_memory()); // or TableCache::with_folder(dir)
 //! let tables = Tables::Computed(&cache);
-//! let bounces = 4; // after the first hit
+//! let bounces = still::DEFAULT_BOUNCES; // after the first hit (the command's default)
 //! let mut traced = prepare::prepare_scene(&scene, &gem, None, bounces, tables, &|_| {})?;
 //! // Flakes and glitter shaded by each pixel's footprint, as the command
 //! // does unless `--exact-flakes` (leave it out for that).

@@ -290,8 +290,16 @@ fn the_crate_docs_steps_render_the_command_s_bytes() {
     let gem = GemSource::load("goldstone").unwrap();
     let scene = scene::default_scene();
     let cache = Arc::new(TableCache::in_memory());
-    let mut traced =
-        prepare::prepare_scene(&scene, &gem, None, 4, Tables::Computed(&cache), &|_| {}).unwrap();
+    let bounces = lapidary::render::still::DEFAULT_BOUNCES;
+    let mut traced = prepare::prepare_scene(
+        &scene,
+        &gem,
+        None,
+        bounces,
+        Tables::Computed(&cache),
+        &|_| {},
+    )
+    .unwrap();
     traced.shade_flakes_by_footprint(Some(Arc::clone(&cache)));
     let camera = prepare::camera_for(&scene, 24, 24);
     let settings = film::FilmSettings::new(24, 24, 4, 0);

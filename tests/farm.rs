@@ -364,7 +364,7 @@ fn merge_refuses_every_tile_that_does_not_belong_and_writes_nothing() {
             "spp.exr belongs to another render than",
         ),
         (&["a0.exr", "seed.exr"], "its seed is 1, not 0"),
-        (&["a0.exr", "gem.exr"], "its bounces is 3, not 4"),
+        (&["a0.exr", "gem.exr"], "its bounces is 3, not 8"),
         (&["a0.exr", "box.exr"], "its filter is Box, not Tent"),
         (&["a0.exr", "frame-0001.exr"], "its frame is 1 of 2"),
         (

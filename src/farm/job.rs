@@ -24,7 +24,7 @@ use serde::{Deserialize, Deserializer};
 
 use crate::recipe::compile::{parse_ron_all, read_ron_file, ron_error};
 use crate::recipe::error::RecipeError;
-use crate::render::still::{MAX_BOUNCES, MAX_SIDE_PX, MAX_SPP};
+use crate::render::still::{DEFAULT_BOUNCES, MAX_BOUNCES, MAX_SIDE_PX, MAX_SPP};
 use crate::scene::spec::{TurntableSpec, MAX_COORDINATE_MM};
 use crate::scene::Turntable;
 
@@ -80,7 +80,8 @@ pub struct SettingsSpec {
     /// Seed of the sample pattern (default 0).
     #[serde(default, deserialize_with = "crate::recipe::ranges::seed")]
     pub seed: u64,
-    /// Bounces after the first hit, 0 to [`MAX_BOUNCES`] (default 4).
+    /// Bounces after the first hit, 0 to [`MAX_BOUNCES`] (default
+    /// [`DEFAULT_BOUNCES`]).
     #[serde(default = "bounces_default", deserialize_with = "bounces")]
     pub bounces: u32,
     /// PNG exposure in stops, −64 to 64 (default 0).
@@ -107,7 +108,7 @@ impl Default for SettingsSpec {
             height: 512,
             spp: 64,
             seed: 0,
-            bounces: 4,
+            bounces: DEFAULT_BOUNCES,
             exposure_ev: 0.0,
             tonemap: TonemapSpec::Filmic,
             filter: FilterSpec::Tent,
@@ -159,7 +160,7 @@ fn spp_default() -> u32 {
     64
 }
 fn bounces_default() -> u32 {
-    4
+    DEFAULT_BOUNCES
 }
 
 fn width<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {

@@ -43,7 +43,7 @@ use crate::render::film::{render, FilmSettings};
 use crate::render::flake_lobe::FlakeLobes;
 use crate::render::prepare::{camera_for, environment_for_spec, stone_instances};
 use crate::render::render_scene::RenderScene;
-use crate::render::still::{MAX_BOUNCES, MAX_SPP as MAX_SAMPLES_PER_PIXEL};
+use crate::render::still::{DEFAULT_BOUNCES, MAX_BOUNCES, MAX_SPP as MAX_SAMPLES_PER_PIXEL};
 use crate::render::world::World;
 use crate::sampling::direction_from_degrees;
 use crate::scene::{default_scene, Camera, Scene, StonePlacement};
@@ -164,13 +164,13 @@ pub struct GallerySettings {
 }
 
 impl Default for GallerySettings {
-    /// 768 px, 256 spp, seed 0, 4 bounces: the committed gallery.
+    /// 768 px, 256 spp, seed 0, [`DEFAULT_BOUNCES`] bounces.
     fn default() -> Self {
         Self {
             size_px: 768,
             samples_per_pixel: 256,
             seed: 0,
-            max_bounces: 4,
+            max_bounces: DEFAULT_BOUNCES,
             draft: false,
         }
     }

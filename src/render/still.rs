@@ -19,6 +19,11 @@ pub const MAX_SIDE_PX: u32 = 32_768;
 pub const MAX_SPP: u32 = 1 << 20;
 /// Most bounces after the first hit (the command's `--bounces`).
 pub const MAX_BOUNCES: u32 = 64;
+/// Bounces after the first hit when none are asked for (the command's
+/// `--bounces`, a job's `bounces`, the gallery's): a flaked translucent
+/// stone's light reflected inside its surface is within about 0.3 % of
+/// its value at 32 bounces (at 4, up to 4 % below).
+pub const DEFAULT_BOUNCES: u32 = 8;
 
 /// What [`render_still`] renders besides the scene and the gem; its
 /// [`Default`] is `lapidary render`'s.
@@ -33,8 +38,8 @@ pub struct StillSettings {
     /// Seed of the sample pattern (default 0); the picture's flakes are
     /// the recipe's, whatever this is.
     pub seed: u64,
-    /// Bounces after the first hit, 0 to [`MAX_BOUNCES`] (default 4; a
-    /// translucent stone's inside needs at least 2).
+    /// Bounces after the first hit, 0 to [`MAX_BOUNCES`] (default
+    /// [`DEFAULT_BOUNCES`]; a translucent stone's inside needs at least 2).
     pub bounces: u32,
     /// Flakes and glitter shaded by each pixel's footprint (default on);
     /// off, every flake by its own normal (the command's `--exact-flakes`).
@@ -52,7 +57,7 @@ impl Default for StillSettings {
             height_px: 512,
             samples_per_pixel: 64,
             seed: 0,
-            bounces: 4,
+            bounces: DEFAULT_BOUNCES,
             flake_footprints: true,
             tables: None,
         }
