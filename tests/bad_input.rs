@@ -745,6 +745,80 @@ fn a_map_that_does_not_compile_is_reported_with_the_unknown_names() {
 }
 
 #[test]
+fn every_inclusion_population_that_does_not_compile_is_reported_at_its_entry() {
+    // goldstone's two populations of copper crystals, each made too large
+    // for its cells, the second also aligned along a zero direction: every
+    // problem at its own entry (the second's were placed at the first's
+    // `size_mm`, and the run stopped at the first).
+    let text = include_str!("../gem-recipes/goldstone.ron")
+        .replacen("size_mm: 0.12,", "size_mm: 0.5,", 1)
+        .replacen("size_mm: 0.1,", "size_mm: 0.6,", 1)
+        .replacen(
+            "density_per_mm3: 100.0, orientation: Isotropic",
+            "density_per_mm3: 100.0, orientation: Aligned(direction: (0.0, 0.0, 0.0), spread_deg: 3.0)",
+            1,
+        );
+    let dir = scratch("inclusions-every-problem");
+    let path = dir.join("gem.ron");
+    std::fs::write(&path, &text).unwrap();
+    let at = |written: &str| place_of(&path, &text, text.find(written).expect("written"));
+    let expected = [
+        format!(
+            "{}inclusions 1: flakes up to 0.7000 mm do not fit",
+            at("size_mm: 0.5,")
+        ),
+        format!(
+            "{}inclusions 2: flakes up to 0.7200 mm do not fit",
+            at("size_mm: 0.6,")
+        ),
+        format!("{}inclusions 2: `direction` is zero", at("Aligned(")),
+    ];
+    refused_in_order(
+        &lapidary(&[OsString::from("validate"), path.into()]),
+        &expected,
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_marble_along_a_zero_direction_is_placed_at_the_field_that_holds_it() {
+    // patterned sunstone's zoning and its platelets' density modulation,
+    // each a marble along (0, 0, 0): both said, each at its field (they
+    // were "`#inclusions-1`", placed nowhere in the file, one a run).
+    let marble = "Marble(frequency: 3.0, amplitude: 1.0, direction: (0.0, 0.0, 0.0), octaves: 2, turbulence_frequency: 1.0)";
+    let text = include_str!("../gem-recipes/patterned-sunstone.ron")
+        .replacen(
+            "function: Perlin(frequency: 1.8),",
+            &format!("function: {marble},"),
+            1,
+        )
+        .replacen(
+            "density_modulation: Some(Perlin(frequency: 3.0)),",
+            &format!("density_modulation: Some({marble}),"),
+            1,
+        );
+    let dir = scratch("zero-marble");
+    let path = dir.join("gem.ron");
+    std::fs::write(&path, &text).unwrap();
+    let at = |written: &str| place_of(&path, &text, text.find(written).expect("written"));
+    let expected = [
+        format!(
+            "{}marble `direction` of the `zoning` function is (0, 0, 0)",
+            at("zoning:")
+        ),
+        format!(
+            "{}inclusions 1: marble `direction` of `density_modulation` is (0, 0, 0)",
+            at("density_modulation:")
+        ),
+    ];
+    refused_in_order(
+        &lapidary(&[OsString::from("validate"), path.into()]),
+        &expected,
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn every_value_out_of_range_is_reported_at_its_place() {
     // Each refused value is placed where RON places the first: the parse
     // runs again past the ones found so far. The place is `at` bytes into

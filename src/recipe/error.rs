@@ -160,6 +160,17 @@ pub(crate) fn find_in_code(source: &str, needle: &str) -> Option<usize> {
     key
 }
 
+/// Byte offset of the `nth` (0-based) place `needle` is written in RON
+/// `source` as code: outside comments and string literals.
+pub(crate) fn nth_in_code(source: &str, needle: &str, nth: usize) -> Option<usize> {
+    let code = blank_comments_and_strings(source);
+    source
+        .match_indices(needle)
+        .filter(|(i, _)| &code[*i..*i + needle.len()] == needle.as_bytes())
+        .nth(nth)
+        .map(|(i, _)| i)
+}
+
 /// The name of the field whose value starts at or before (line, col): the
 /// last `identifier:` in the text up to that point, unless the item that
 /// field belongs to closed before it (a stray bracket after the last

@@ -48,7 +48,9 @@ use crate::recipe::compile::{
     compile_material_seen_from, locate_material, parse_material, parse_ron_all, ron_error,
     MaterialSource, COMPENSATION_SEED,
 };
-use crate::recipe::error::{did_you_mean, line_col_of_offset, RecipeError};
+use crate::recipe::error::{
+    did_you_mean, find_in_code, line_col_of_offset, nth_in_code, RecipeError,
+};
 use crate::recipe::library::{builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
 use crate::recipe::ranges;
@@ -849,6 +851,15 @@ const GLITTER_NAME: &str = "#glitter";
 const FACETS_NAME: &str = "#facets";
 const ZONING_NAME: &str = "#zoning";
 
+/// A marble switch function written along the zero vector.
+struct ZeroDirection;
+
+/// What is wrong with a marble function along a zero direction, `of_what`
+/// naming its owner.
+fn zero_marble_direction(of_what: &str) -> String {
+    format!("marble `direction` of {of_what} is (0, 0, 0); allowed: any non-zero vector")
+}
+
 struct Compiler<'a> {
     path: &'a str,
     text: &'a str,
@@ -888,6 +899,21 @@ impl<'a> Compiler<'a> {
 
     fn error_at(&self, needle: &str, message: String) -> RecipeError {
         RecipeError::at_text(self.path, self.text, needle, message)
+    }
+
+    /// Error at `field` of the body's inclusion population `index`
+    /// (0-based, the `index`-th `Inclusions(` written), or at that entry
+    /// when the field is left to its default; as [`Compiler::error_at`]
+    /// where the entries are written without their name.
+    fn error_at_inclusion(&self, index: usize, field: &str, message: String) -> RecipeError {
+        const ENTRY: &str = "Inclusions(";
+        let Some(start) = nth_in_code(self.text, ENTRY, index) else {
+            return self.error_at(field, message);
+        };
+        let end = nth_in_code(self.text, ENTRY, index + 1).unwrap_or(self.text.len());
+        let offset = find_in_code(&self.text[start..end], field).map_or(start, |at| start + at);
+        let (line, col) = line_col_of_offset(self.text, offset);
+        RecipeError::at(self.path, line, col, message)
     }
 
     /// Error at the definition `"name":` of a map (else its first mention).
@@ -1155,7 +1181,10 @@ impl<'a> Compiler<'a> {
         }
     }
 
-    fn function(&self, owner: &str, f: &FunctionSpec) -> Result<SwitchFunction, RecipeError> {
+    /// The switch function `f` of `owner` (its name seeds the noise); Err
+    /// for a marble along a zero direction, which the caller places
+    /// ([`zero_marble_direction`] says it).
+    fn function(&self, owner: &str, f: &FunctionSpec) -> Result<SwitchFunction, ZeroDirection> {
         let source = PerlinSource::new(named_seed(self.spec.seed, owner, PURPOSE_NOISE));
         Ok(match *f {
             FunctionSpec::Perlin { frequency } => {
@@ -1192,12 +1221,8 @@ impl<'a> Compiler<'a> {
                 octaves,
                 turbulence_frequency,
             } => {
-                let Some(direction) = unit_direction(DVec3::from_array(direction)) else {
-                    return Err(self.error_at_map(
-                        owner,
-                        format!("marble `direction` of `{owner}` is (0, 0, 0); allowed: any non-zero vector"),
-                    ));
-                };
+                let direction =
+                    unit_direction(DVec3::from_array(direction)).ok_or(ZeroDirection)?;
                 SwitchFunction::Marble(Marble {
                     direction,
                     frequency,
@@ -1256,7 +1281,9 @@ impl<'a> Compiler<'a> {
                 per_cell_size,
                 per_cell_of,
             } => {
-                let f = self.function(name, function)?;
+                let f = self.function(name, function).map_err(|ZeroDirection| {
+                    self.error_at_map(name, zero_marble_direction(&format!("`{name}`")))
+                })?;
                 let (lo, hi) = f.range();
                 let pairs: Vec<(f64, f64)> = ranges.iter().map(|r| (r.from, r.to)).collect();
                 check_partition(&pairs, lo, hi).map_err(|e| {
@@ -1358,7 +1385,13 @@ impl<'a> Compiler<'a> {
         let mut map = GlitterMap::new(cells, g.fill_fraction, entries, facets)
             .map_err(|e| self.error_at("GlitterMap", e.to_string()))?;
         if let Some(f) = &g.fill_modulation {
-            map.fill_modulation = Some(self.function(GLITTER_NAME, f)?);
+            let function = self.function(GLITTER_NAME, f).map_err(|ZeroDirection| {
+                self.error_at(
+                    "fill_modulation",
+                    zero_marble_direction("the glitter's `fill_modulation`"),
+                )
+            })?;
+            map.fill_modulation = Some(function);
         }
         Ok(map)
     }
@@ -1380,16 +1413,20 @@ impl<'a> Compiler<'a> {
         let mut compiled = Vec::with_capacity(inclusions.len());
         for (k, inclusion) in inclusions.iter().enumerate() {
             let cell_mm = inclusion.density_per_mm3.powf(-1.0 / 3.0);
+            // Each population's problems are reported with the gem's other
+            // gathered ones (the compile goes on; no gem is returned).
             let largest = inclusion.size_mm * (1.0 + inclusion.size_spread);
             if largest > 0.9 * cell_mm {
-                return Err(self.error_at(
+                let error = self.error_at_inclusion(
+                    k,
                     "size_mm",
                     format!(
                         "inclusions {}: flakes up to {largest:.4} mm do not fit the {cell_mm:.4} mm cells of density {} per mm³; allowed: size_mm × (1 + size_spread) ≤ 0.9 × density_per_mm3^(−1/3)",
                         k + 1,
                         inclusion.density_per_mm3
                     ),
-                ));
+                );
+                self.deferred.push(error);
             }
             let aligned = match &inclusion.orientation {
                 OrientationSpec::Isotropic => None,
@@ -1397,19 +1434,31 @@ impl<'a> Compiler<'a> {
                     direction,
                     spread_deg,
                 } => {
-                    let Some(axis) = unit_direction(DVec3::from_array(*direction)) else {
-                        return Err(self.error_at(
+                    let axis = unit_direction(DVec3::from_array(*direction)).unwrap_or_else(|| {
+                        let error = self.error_at_inclusion(
+                            k,
                             "Aligned",
                             format!("inclusions {}: `direction` is zero; allowed: any non-zero direction", k + 1),
-                        ));
-                    };
+                        );
+                        self.deferred.push(error);
+                        DVec3::Z
+                    });
                     Some((axis, spread_deg.to_radians().cos()))
                 }
             };
-            let density_modulation = match &inclusion.density_modulation {
-                Some(f) => Some(self.function(&format!("#inclusions-{}", k + 1), f)?),
-                None => None,
-            };
+            let density_modulation = inclusion.density_modulation.as_ref().and_then(|f| {
+                let function = self.function(&format!("#inclusions-{}", k + 1), f);
+                if function.is_err() {
+                    let message = format!(
+                        "inclusions {}: {}",
+                        k + 1,
+                        zero_marble_direction("`density_modulation`")
+                    );
+                    let error = self.error_at_inclusion(k, "density_modulation", message);
+                    self.deferred.push(error);
+                }
+                function.ok()
+            });
             compiled.push(Inclusions {
                 density_modulation,
                 shape: inclusion.shape,
@@ -1426,7 +1475,11 @@ impl<'a> Compiler<'a> {
         }
         let (zoning, absorption_per_mm) = match zoning {
             Some(z) => {
-                let function = self.function(ZONING_NAME, &z.function)?;
+                let function =
+                    self.function(ZONING_NAME, &z.function)
+                        .map_err(|ZeroDirection| {
+                            self.error_at("zoning", zero_marble_direction("the `zoning` function"))
+                        })?;
                 let (zoning, minimum) = Zoning::new(
                     function,
                     Rgb::from_array(*absorption),
