@@ -744,6 +744,27 @@ fn a_map_that_does_not_compile_is_reported_with_the_unknown_names() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `validate` refuses the gem `text` (written as `name`/gem.ron) with each
+/// `(written, message)`: the message at the place where `written` first
+/// occurs, in that order.
+fn validate_refuses_at(name: &str, text: &str, expected: &[(&str, &str)]) {
+    let dir = scratch(name);
+    let path = dir.join("gem.ron");
+    std::fs::write(&path, text).unwrap();
+    let expected: Vec<String> = expected
+        .iter()
+        .map(|(written, message)| {
+            let at = text.find(written).expect("written");
+            format!("{}{message}", place_of(&path, text, at))
+        })
+        .collect();
+    refused_in_order(
+        &lapidary(&[OsString::from("validate"), path.into()]),
+        &expected,
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn every_inclusion_population_that_does_not_compile_is_reported_at_its_entry() {
     // goldstone's two populations of copper crystals, each made too large
@@ -758,26 +779,21 @@ fn every_inclusion_population_that_does_not_compile_is_reported_at_its_entry() {
             "density_per_mm3: 100.0, orientation: Aligned(direction: (0.0, 0.0, 0.0), spread_deg: 3.0)",
             1,
         );
-    let dir = scratch("inclusions-every-problem");
-    let path = dir.join("gem.ron");
-    std::fs::write(&path, &text).unwrap();
-    let at = |written: &str| place_of(&path, &text, text.find(written).expect("written"));
-    let expected = [
-        format!(
-            "{}inclusions 1: flakes up to 0.7000 mm do not fit",
-            at("size_mm: 0.5,")
-        ),
-        format!(
-            "{}inclusions 2: flakes up to 0.7200 mm do not fit",
-            at("size_mm: 0.6,")
-        ),
-        format!("{}inclusions 2: `direction` is zero", at("Aligned(")),
-    ];
-    refused_in_order(
-        &lapidary(&[OsString::from("validate"), path.into()]),
-        &expected,
+    validate_refuses_at(
+        "inclusions-every-problem",
+        &text,
+        &[
+            (
+                "size_mm: 0.5,",
+                "inclusions 1: flakes up to 0.7000 mm do not fit",
+            ),
+            (
+                "size_mm: 0.6,",
+                "inclusions 2: flakes up to 0.7200 mm do not fit",
+            ),
+            ("Aligned(", "inclusions 2: `direction` is zero"),
+        ],
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -797,25 +813,20 @@ fn a_marble_along_a_zero_direction_is_placed_at_the_field_that_holds_it() {
             &format!("density_modulation: Some({marble}),"),
             1,
         );
-    let dir = scratch("zero-marble");
-    let path = dir.join("gem.ron");
-    std::fs::write(&path, &text).unwrap();
-    let at = |written: &str| place_of(&path, &text, text.find(written).expect("written"));
-    let expected = [
-        format!(
-            "{}marble `direction` of the `zoning` function is (0, 0, 0)",
-            at("zoning:")
-        ),
-        format!(
-            "{}inclusions 1: marble `direction` of `density_modulation` is (0, 0, 0)",
-            at("density_modulation:")
-        ),
-    ];
-    refused_in_order(
-        &lapidary(&[OsString::from("validate"), path.into()]),
-        &expected,
+    validate_refuses_at(
+        "zero-marble",
+        &text,
+        &[
+            (
+                "zoning:",
+                "marble `direction` of the `zoning` function is (0, 0, 0)",
+            ),
+            (
+                "density_modulation:",
+                "inclusions 1: marble `direction` of `density_modulation` is (0, 0, 0)",
+            ),
+        ],
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
