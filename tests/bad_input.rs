@@ -744,7 +744,7 @@ fn a_map_that_does_not_compile_is_reported_with_the_unknown_names() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// `validate` refuses the gem `text` (written as `name`/gem.ron) with each
+/// `validate` refuses the recipe `text` (written as `name`/gem.ron) with each
 /// `(written, message)`: the message at the place where `written` first
 /// occurs, in that order.
 fn validate_refuses_at(name: &str, text: &str, expected: &[(&str, &str)]) {
@@ -793,6 +793,21 @@ fn every_inclusion_population_that_does_not_compile_is_reported_at_its_entry() {
             ),
             ("Aligned(", "inclusions 2: `direction` is zero"),
         ],
+    );
+}
+
+#[test]
+fn a_layer_s_problem_is_placed_at_the_layer_not_at_a_comment_naming_one() {
+    // The n-th `Layer(` is counted in the code only: a comment above that
+    // writes one took the error (line 1).
+    let text = "// A coat written Layer(ior: 1.5) over gold.\nMaterial(\n    layers: [Layer(ior: 1.5, reflectivity: 0.5)],\n    base: Conductor(metal: \"gold\"),\n)\n";
+    validate_refuses_at(
+        "layer-after-comment",
+        text,
+        &[(
+            "Layer(ior: 1.5, r",
+            "layer 1 needs exactly one of `ior`, `reflectivity` or `varnish`",
+        )],
     );
 }
 

@@ -6,8 +6,8 @@ use crate::brdf::fresnel;
 use crate::brdf::{Base, Interface, LayeredBrdf, Microfacet, Rgb};
 use crate::file_kind::{not_a_regular_file, FileKind};
 use crate::recipe::error::{
-    did_you_mean, field_before, find_position, first_code_offset, folder_separator_hint,
-    line_col_of_offset, with_ron_hints, RecipeError,
+    did_you_mean, field_before, first_code_offset, folder_separator_hint, line_col_of_offset,
+    nth_in_code, with_ron_hints, RecipeError,
 };
 use crate::recipe::library::{builtin_gem_source, builtin_material_names, builtin_material_source};
 use crate::recipe::material::{BaseSpec, Material};
@@ -423,8 +423,12 @@ pub(crate) fn compile_material_seen_from(
 ) -> Result<LayeredBrdf, RecipeError> {
     let path = source.path.as_str();
     let text = source.text.as_str();
-    let layer_error = |index: usize, message: String| match find_position(text, "Layer(", index) {
-        Some((l, c)) => RecipeError::at(path, l, c, message),
+    // The `index`-th `Layer(` written as code (not in a comment).
+    let layer_error = |index: usize, message: String| match nth_in_code(text, "Layer(", index) {
+        Some(offset) => {
+            let (l, c) = line_col_of_offset(text, offset);
+            RecipeError::at(path, l, c, message)
+        }
         None => RecipeError::whole_file(path, message),
     };
     if m.layers.len() > MAX_LAYERS {
