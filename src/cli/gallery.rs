@@ -14,7 +14,7 @@ use lapidary::recipe::library::builtin_gem_names;
 use lapidary::recipe::TableCache;
 use lapidary::render::still::MAX_SPP;
 
-use super::{whole, MAX_THREADS};
+use super::{duration, whole, MAX_THREADS};
 
 /// The non-gem outputs, by the name `--only` knows them (file = name.png).
 const FIGURES: [&str; 6] = [
@@ -138,11 +138,11 @@ pub fn run(args: GalleryArgs) -> Result<(), String> {
         }
         if !args.quiet {
             eprintln!(
-                "wrote {} ({} × {}) in {:.1} s",
+                "wrote {} ({} × {}) in {}",
                 path.display(),
                 image.width(),
                 image.height(),
-                since.elapsed().as_secs_f64()
+                duration(since.elapsed().as_secs_f64())
             );
         }
         Ok(())
@@ -184,7 +184,10 @@ pub fn run(args: GalleryArgs) -> Result<(), String> {
         Ok(())
     })?;
     if !args.quiet {
-        eprintln!("gallery done in {:.1} s", started.elapsed().as_secs_f64());
+        eprintln!(
+            "gallery done in {}",
+            duration(started.elapsed().as_secs_f64())
+        );
     }
     Ok(())
 }

@@ -220,6 +220,16 @@ pub(crate) fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
     matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b)
 }
 
+/// A duration for a progress or summary line: tenths of a second from
+/// 0.1 s, else milliseconds (a small render's "0.0 s" said nothing).
+pub(crate) fn duration(seconds: f64) -> String {
+    if seconds >= 0.1 {
+        format!("{seconds:.1} s")
+    } else {
+        format!("{:.1} ms", seconds * 1e3)
+    }
+}
+
 /// A number a person typed, as a message repeats it: as Rust prints it,
 /// or in exponent form from a million up and below a millionth (`5e6`,
 /// `-1e308`, not 309 digits).
@@ -365,7 +375,15 @@ pub fn run() -> i32 {
 
 #[cfg(test)]
 mod tests {
-    use super::whole;
+    use super::{duration, whole};
+
+    #[test]
+    fn a_duration_below_a_tenth_of_a_second_is_said_in_milliseconds() {
+        assert_eq!(duration(0.0054), "5.4 ms");
+        assert_eq!(duration(0.0999), "99.9 ms");
+        assert_eq!(duration(0.1), "0.1 s");
+        assert_eq!(duration(37.46), "37.5 s");
+    }
 
     #[test]
     fn a_count_flag_takes_what_its_type_holds_and_names_its_range_otherwise() {

@@ -33,7 +33,7 @@ use lapidary::scene::{
 };
 
 use super::validate::BUILTIN_SCENE_NAME;
-use super::{decimal, whole, MAX_THREADS};
+use super::{decimal, duration, whole, MAX_THREADS};
 
 pub use lapidary::render::still::{DEFAULT_BOUNCES, MAX_BOUNCES, MAX_SIDE_PX, MAX_SPP};
 /// Default of `--max-memory`, GiB.
@@ -973,13 +973,13 @@ impl Renderer {
             _ => filter.to_string(),
         };
         self.report(&format!(
-            "{what}wrote {} ({width} × {height}{tile}, {} spp{filter}) in {:.1} s: {:.2} Mrays/s, {:.2} M samples/s, {:.1} s total, {} code",
+            "{what}wrote {} ({width} × {height}{tile}, {} spp{filter}) in {}: {:.2} Mrays/s, {:.2} M samples/s, {} total, {} code",
             path.display(),
             self.settings.samples_per_pixel,
-            seconds,
+            duration(seconds),
             rays as f64 / seconds / 1e6,
             samples / seconds / 1e6,
-            self.started.elapsed().as_secs_f64(),
+            duration(self.started.elapsed().as_secs_f64()),
             self.settings.code_path.name(),
         ));
         Ok(picture)
