@@ -375,8 +375,8 @@ fn validate_scene(path: &str, file: Option<&Path>, text: &str) -> Result<Checked
             Err(e) => errors.push(environment_error_at(path, text, written, e.to_string())),
         }
     }
-    if let Some(last) = errors.pop() {
-        return Err(RecipeError::gathered(last, errors));
+    if let Some(error) = RecipeError::all(errors) {
+        return Err(error);
     }
     let n = scene.stones.len();
     let l = scene.lights.len();
@@ -526,10 +526,7 @@ pub fn check_job_inputs(path: &str, text: &str, job: &Job) -> Result<Vec<String>
             }
         }
     }
-    match errors.pop() {
-        Some(last) => Err(RecipeError::gathered(last, errors)),
-        None => Ok(warnings),
-    }
+    RecipeError::all(errors).map_or(Ok(warnings), Err)
 }
 
 /// Validate one command-line argument (a file or a built-in name); returns

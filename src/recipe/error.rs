@@ -46,7 +46,7 @@ impl RecipeError {
     /// they first appear and in each file in the order written (those
     /// without a place last): the first, with the others, each once, as
     /// its [`RecipeError::further`].
-    pub fn gathered(one: RecipeError, mut others: Vec<RecipeError>) -> Self {
+    pub(crate) fn gathered(one: RecipeError, mut others: Vec<RecipeError>) -> Self {
         others.push(one);
         let mut files: Vec<String> = Vec::new();
         for e in &others {
@@ -63,6 +63,15 @@ impl RecipeError {
         let mut first = others.remove(0);
         first.further.extend(others);
         first
+    }
+
+    /// Every one of `errors` as one, or None when there are none: file by
+    /// file in the order they first appear and in each file in the order
+    /// written (those without a place last), the first with the others,
+    /// each once, as its [`RecipeError::further`].
+    pub fn all(mut errors: Vec<RecipeError>) -> Option<Self> {
+        let one = errors.pop()?;
+        Some(Self::gathered(one, errors))
     }
 
     /// An error at the first place `needle` is written in `source` as code

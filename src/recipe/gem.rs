@@ -698,8 +698,8 @@ pub fn compile_gems(
             failed.push(source);
         }
     }
-    if let Some(last) = errors.pop() {
-        return Err(RecipeError::gathered(last, errors));
+    if let Some(error) = RecipeError::all(errors) {
+        return Err(error);
     }
     if let Tables::Computed(cache) = tables {
         let mut wanting: Vec<&mut LayeredBrdf> = recipes
@@ -1448,16 +1448,17 @@ impl<'a> Compiler<'a> {
             };
             let density_modulation = inclusion.density_modulation.as_ref().and_then(|f| {
                 let function = self.function(&format!("#inclusions-{}", k + 1), f);
-                if function.is_err() {
-                    let message = format!(
-                        "inclusions {}: {}",
-                        k + 1,
-                        zero_marble_direction("`density_modulation`")
-                    );
-                    let error = self.error_at_inclusion(k, "density_modulation", message);
-                    self.deferred.push(error);
-                }
-                function.ok()
+                function
+                    .map_err(|ZeroDirection| {
+                        let message = format!(
+                            "inclusions {}: {}",
+                            k + 1,
+                            zero_marble_direction("`density_modulation`")
+                        );
+                        let error = self.error_at_inclusion(k, "density_modulation", message);
+                        self.deferred.push(error);
+                    })
+                    .ok()
             });
             compiled.push(Inclusions {
                 density_modulation,
